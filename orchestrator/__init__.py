@@ -1,0 +1,1 @@
+"""The co-simulation master, scenarios, SSP, campaigns, jitter metrics, reports and CLI."""

@@ -1,0 +1,1 @@
+"""Attitude control (PID per axis, reaction wheels) and the ACS FMU slave."""

@@ -1,0 +1,1 @@
+"""Disturbance sources, EOS AM-1 event presets, and the disturbance FMU slave."""

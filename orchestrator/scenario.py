@@ -1,0 +1,517 @@
+"""Scenarios: which FMUs, at which rates, wired how, recording what.
+
+A scenario is read from TOML (or built from a dict by a campaign) into frozen
+dataclasses.  Only structure is checked here (names, signs, shapes); checks that need
+the FMUs' model descriptions live in :mod:`orchestrator.master`.
+
+Format::
+
+    [experiment]
+    start = 0.0                   # s, optional
+    stop = 10.0                   # s
+    output_interval = 1e-3        # s
+    algorithm = "gauss-seidel"    # or "jacobi"
+
+    [fmus.structure]
+    fmu = "truss10_structure"     # fmus/<name>.fmu, or a path to an .fmu
+    period = 1e-3                 # s, or rate_hz = 1000
+    parameters = { zeta = 0.002 }
+
+    [[connections]]
+    from = "structure.strain_diag"
+    to = "ctrl_diag.y"
+    gain = 1.0                    # optional: to = gain * from + offset
+    offset = 0.0
+
+    [[actions]]
+    time = 2.4
+    set = { "ctrl_diag.enable" = true }
+
+    [record]
+    variables = ["structure.strain_diag", "ctrl_diag.u"]
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+import re
+import tomllib
+from dataclasses import dataclass, field, replace
+from fractions import Fraction
+from pathlib import Path
+from types import MappingProxyType
+
+from .timebase import TimebaseError, to_fraction
+
+__all__ = [
+    "ScenarioError",
+    "Experiment",
+    "Instance",
+    "Connection",
+    "Action",
+    "Scenario",
+    "load_scenario",
+    "scenario_from_dict",
+    "parse_override",
+    "closest",
+]
+
+ALGORITHMS = ("gauss-seidel", "jacobi")
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+class ScenarioError(ValueError):
+    """A scenario that is malformed or refers to something that does not exist."""
+
+
+def closest(name: str, candidates) -> str:
+    """Return a ' (did you mean ...?)' hint listing the closest candidates, or ''."""
+    matches = difflib.get_close_matches(str(name), list(candidates), n=3, cutoff=0.5)
+    if not matches:
+        return ""
+    return " (did you mean " + " or ".join(repr(m) for m in matches) + "?)"
+
+
+def _freeze(d) -> MappingProxyType:
+    return MappingProxyType(dict(d))
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """Run settings.
+
+    Attributes
+    ----------
+    stop : Fraction
+        Stop time (s).
+    output_interval : Fraction
+        Interval between recorded rows (s).
+    algorithm : str
+        ``"gauss-seidel"`` or ``"jacobi"``.
+    start : Fraction
+        Start time (s).
+    """
+
+    stop: Fraction
+    output_interval: Fraction
+    algorithm: str = "gauss-seidel"
+    start: Fraction = Fraction(0)
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One FMU instance.
+
+    Attributes
+    ----------
+    name : str
+        Instance name, unique in the scenario.
+    fmu : str
+        FMU name (looked up as ``fmus/<name>.fmu``) or path to an ``.fmu`` file.
+    period : Fraction
+        Communication period (s).
+    parameters : mapping of str to value
+        Start values set before initialisation (float, int, bool or str).
+    """
+
+    name: str
+    fmu: str
+    period: Fraction
+    parameters: MappingProxyType = field(default_factory=lambda: _freeze({}))
+
+
+@dataclass(frozen=True)
+class Connection:
+    """A signal from an output of one instance to an input of another.
+
+    The input receives ``gain * output + offset`` (SSP linear transformation).
+    """
+
+    source: str
+    source_var: str
+    target: str
+    target_var: str
+    gain: float = 1.0
+    offset: float = 0.0
+
+    @property
+    def start(self) -> str:
+        """The source as ``instance.variable``."""
+        return f"{self.source}.{self.source_var}"
+
+    @property
+    def end(self) -> str:
+        """The target as ``instance.variable``."""
+        return f"{self.target}.{self.target_var}"
+
+
+@dataclass(frozen=True)
+class Action:
+    """Values set at an exact time.
+
+    Attributes
+    ----------
+    time : Fraction
+        When (s); must be a communication point of the base grid.
+    values : mapping of (instance, variable) to value
+    """
+
+    time: Fraction
+    values: MappingProxyType
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A complete co-simulation scenario.
+
+    Attributes
+    ----------
+    experiment : Experiment
+    instances : tuple of Instance
+    connections : tuple of Connection
+    actions : tuple of Action, sorted by time
+    record : tuple of str
+        Recorded variables as ``instance.variable``.
+    base_dir : Path or None
+        Folder used to resolve relative FMU names (the scenario file's folder).
+    source : str
+        Where the scenario came from (file name or ``"<dict>"``), for messages.
+    """
+
+    experiment: Experiment
+    instances: tuple
+    connections: tuple = ()
+    actions: tuple = ()
+    record: tuple = ()
+    base_dir: Path | None = None
+    source: str = "<dict>"
+
+    def instance(self, name: str) -> Instance:
+        """Return the instance called `name`, or raise ScenarioError with suggestions."""
+        for inst in self.instances:
+            if inst.name == name:
+                return inst
+        names = [i.name for i in self.instances]
+        raise ScenarioError(f"scenario has no instance {name!r}{closest(name, names)}")
+
+    def with_overrides(self, overrides) -> "Scenario":
+        """Return a copy with parameter overrides applied.
+
+        Parameters
+        ----------
+        overrides : mapping of str to value, or iterable of "inst.var=value" strings
+            Each key ``inst.var`` sets a start value of instance ``inst``.
+        """
+        if not overrides:
+            return self
+        if isinstance(overrides, dict) or hasattr(overrides, "items"):
+            items = list(overrides.items())
+        else:
+            items = [parse_override(s) for s in overrides]
+        params = {i.name: dict(i.parameters) for i in self.instances}
+        for key, value in items:
+            inst, var = _split_ref(key, "override")
+            if inst not in params:
+                raise ScenarioError(
+                    f"override {key!r} names no instance of the scenario{closest(inst, params)}"
+                )
+            params[inst][var] = value
+        new = tuple(replace(i, parameters=_freeze(params[i.name])) for i in self.instances)
+        return replace(self, instances=new)
+
+    def with_experiment(self, **changes) -> "Scenario":
+        """Return a copy with experiment fields replaced (stop, algorithm, ...)."""
+        exp = self.experiment
+        for key in ("stop", "output_interval", "start"):
+            if changes.get(key) is not None:
+                changes[key] = _time(changes[key], f"experiment.{key}")
+        changes = {k: v for k, v in changes.items() if v is not None}
+        if "algorithm" in changes:
+            changes["algorithm"] = _algorithm(changes["algorithm"])
+        new = replace(exp, **changes)
+        _check_experiment(new)
+        return replace(self, experiment=new)
+
+    def to_dict(self) -> dict:
+        """Return the scenario as plain TOML-compatible data (exact times as strings)."""
+        exp = self.experiment
+        d = {
+            "experiment": {
+                "start": _fstr(exp.start),
+                "stop": _fstr(exp.stop),
+                "output_interval": _fstr(exp.output_interval),
+                "algorithm": exp.algorithm,
+            },
+            "fmus": {
+                i.name: {"fmu": i.fmu, "period": _fstr(i.period), "parameters": dict(i.parameters)}
+                for i in self.instances
+            },
+            "connections": [
+                {"from": c.start, "to": c.end, "gain": c.gain, "offset": c.offset}
+                for c in self.connections
+            ],
+            "actions": [
+                {"time": _fstr(a.time), "set": {f"{k[0]}.{k[1]}": v for k, v in a.values.items()}}
+                for a in self.actions
+            ],
+            "record": {"variables": list(self.record)},
+        }
+        return d
+
+    def digest(self) -> str:
+        """Return the SHA-256 of the scenario's canonical JSON form."""
+        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _fstr(x: Fraction) -> str:
+    """Exact decimal string when there is one, else 'num/den'."""
+    d = x.denominator
+    while d % 2 == 0:
+        d //= 2
+    while d % 5 == 0:
+        d //= 5
+    if d != 1:
+        return f"{x.numerator}/{x.denominator}"
+    f = float(x)
+    if Fraction(repr(f)) == x:
+        return repr(f)
+    return f"{x.numerator}/{x.denominator}"
+
+
+def _time(value, what: str) -> Fraction:
+    try:
+        return to_fraction(value, what)
+    except TimebaseError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
+def _algorithm(value) -> str:
+    alg = str(value).strip().lower().replace("_", "-")
+    if alg == "gaussseidel":
+        alg = "gauss-seidel"
+    if alg not in ALGORITHMS:
+        raise ScenarioError(
+            f"algorithm {value!r} is unknown; expected one of {', '.join(ALGORITHMS)}"
+            f"{closest(alg, ALGORITHMS)}"
+        )
+    return alg
+
+
+def _check_experiment(exp: Experiment) -> None:
+    if exp.output_interval <= 0:
+        raise ScenarioError(
+            f"experiment.output_interval is {float(exp.output_interval)!r} s; expected > 0"
+        )
+    if exp.stop <= exp.start:
+        raise ScenarioError(
+            f"experiment.stop ({float(exp.stop)!r} s) is not after experiment.start "
+            f"({float(exp.start)!r} s)"
+        )
+
+
+def _split_ref(ref, what: str) -> tuple:
+    if not isinstance(ref, str) or "." not in ref:
+        raise ScenarioError(f"{what} {ref!r} must have the form 'instance.variable'")
+    inst, var = ref.split(".", 1)
+    if not inst or not var:
+        raise ScenarioError(f"{what} {ref!r} must have the form 'instance.variable'")
+    return inst, var
+
+
+def _expect_table(value, what: str) -> dict:
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{what} must be a table; got {type(value).__name__} {value!r}")
+    return value
+
+
+def _unknown_keys(table: dict, allowed, what: str) -> None:
+    for key in table:
+        if key not in allowed:
+            raise ScenarioError(f"{what} has an unknown key {key!r}{closest(key, allowed)}")
+
+
+def _parse_instance(name: str, spec) -> Instance:
+    what = f"[fmus.{name}]"
+    if not _NAME.match(name):
+        raise ScenarioError(f"instance name {name!r} is not an identifier (letters, digits, _)")
+    spec = _expect_table(spec, what)
+    _unknown_keys(spec, ("fmu", "period", "rate_hz", "parameters"), what)
+    if "fmu" not in spec:
+        raise ScenarioError(f"{what} has no 'fmu' (an FMU name in fmus/ or a path)")
+    if ("period" in spec) == ("rate_hz" in spec):
+        raise ScenarioError(f"{what} needs exactly one of 'period' (s) or 'rate_hz' (Hz)")
+    if "period" in spec:
+        period = _time(spec["period"], f"period of instance {name!r}")
+    else:
+        rate = _time(spec["rate_hz"], f"rate_hz of instance {name!r}")
+        if rate <= 0:
+            raise ScenarioError(f"rate_hz of instance {name!r} is {float(rate)!r}; expected > 0")
+        period = 1 / rate
+    if period <= 0:
+        raise ScenarioError(f"period of instance {name!r} is {float(period)!r} s; expected > 0")
+    params = _expect_table(spec.get("parameters", {}), f"{what} parameters")
+    for key, value in params.items():
+        if isinstance(value, (dict, list)):
+            raise ScenarioError(
+                f"parameter {name}.{key} is a {type(value).__name__}; expected a number, "
+                "boolean or string"
+            )
+    return Instance(name, str(spec["fmu"]), period, _freeze(params))
+
+
+def _parse_connection(i: int, spec, names) -> Connection:
+    what = f"connection {i + 1}"
+    spec = _expect_table(spec, what)
+    _unknown_keys(spec, ("from", "to", "gain", "offset"), what)
+    for key in ("from", "to"):
+        if key not in spec:
+            raise ScenarioError(f"{what} has no '{key}' ('instance.variable')")
+    src, svar = _split_ref(spec["from"], f"{what} 'from'")
+    dst, dvar = _split_ref(spec["to"], f"{what} 'to'")
+    for inst, ref in ((src, spec["from"]), (dst, spec["to"])):
+        if inst not in names:
+            raise ScenarioError(
+                f"{what} ({spec['from']} -> {spec['to']}) refers to unknown instance "
+                f"{inst!r}{closest(inst, names)}"
+            )
+    gain, offset = spec.get("gain", 1.0), spec.get("offset", 0.0)
+    for key, v in (("gain", gain), ("offset", offset)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ScenarioError(f"{what} {key} is {v!r}; expected a number")
+    return Connection(src, svar, dst, dvar, float(gain), float(offset))
+
+
+def _parse_action(i: int, spec, names) -> Action:
+    what = f"action {i + 1}"
+    spec = _expect_table(spec, what)
+    _unknown_keys(spec, ("time", "set"), what)
+    if "time" not in spec or "set" not in spec:
+        raise ScenarioError(f"{what} needs 'time' (s) and 'set' (a table of values)")
+    t = _time(spec["time"], f"{what} time")
+    values = {}
+    for ref, v in _expect_table(spec["set"], f"{what} set").items():
+        inst, var = _split_ref(ref, f"{what} target")
+        if inst not in names:
+            raise ScenarioError(f"{what} sets {ref!r} of unknown instance {inst!r}"
+                                f"{closest(inst, names)}")
+        values[(inst, var)] = v
+    return Action(t, _freeze(values))
+
+
+def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Scenario:
+    """Build a Scenario from plain data (the parsed TOML layout).
+
+    Parameters
+    ----------
+    data : dict
+        Tables ``experiment``, ``fmus``, ``connections``, ``actions``, ``record``.
+    base_dir : path-like, optional
+        Folder against which relative FMU names are resolved.
+    source : str
+        Name used in error messages.
+
+    Returns
+    -------
+    Scenario
+    """
+    data = _expect_table(data, "scenario")
+    _unknown_keys(data, ("experiment", "fmus", "connections", "actions", "record"), source)
+    exp = _expect_table(data.get("experiment", {}), "[experiment]")
+    _unknown_keys(exp, ("start", "stop", "output_interval", "algorithm"), "[experiment]")
+    for key in ("stop", "output_interval"):
+        if key not in exp:
+            raise ScenarioError(f"[experiment] has no '{key}' (s)")
+    experiment = Experiment(
+        stop=_time(exp["stop"], "experiment.stop"),
+        output_interval=_time(exp["output_interval"], "experiment.output_interval"),
+        algorithm=_algorithm(exp.get("algorithm", "gauss-seidel")),
+        start=_time(exp.get("start", 0), "experiment.start"),
+    )
+    _check_experiment(experiment)
+    fmus = _expect_table(data.get("fmus", {}), "[fmus]")
+    if not fmus:
+        raise ScenarioError(f"{source} defines no FMU instances ([fmus.NAME] tables)")
+    instances = tuple(_parse_instance(n, s) for n, s in fmus.items())
+    names = [i.name for i in instances]
+    conns = data.get("connections", [])
+    if not isinstance(conns, list):
+        raise ScenarioError("connections must be an array of tables ([[connections]])")
+    connections = tuple(_parse_connection(i, c, names) for i, c in enumerate(conns))
+    acts = data.get("actions", [])
+    if not isinstance(acts, list):
+        raise ScenarioError("actions must be an array of tables ([[actions]])")
+    actions = tuple(sorted((_parse_action(i, a, names) for i, a in enumerate(acts)),
+                           key=lambda a: a.time))
+    rec = _expect_table(data.get("record", {}), "[record]")
+    _unknown_keys(rec, ("variables",), "[record]")
+    variables = rec.get("variables", [])
+    if not isinstance(variables, list):
+        raise ScenarioError("record.variables must be an array of 'instance.variable' strings")
+    for ref in variables:
+        inst, _ = _split_ref(ref, "recorded variable")
+        if inst not in names:
+            raise ScenarioError(f"recorded variable {ref!r} names unknown instance {inst!r}"
+                                f"{closest(inst, names)}")
+    if len(set(variables)) != len(variables):
+        dup = sorted({v for v in variables if variables.count(v) > 1})
+        raise ScenarioError(f"record.variables lists {dup} more than once")
+    return Scenario(
+        experiment, instances, connections, actions, tuple(variables),
+        Path(base_dir) if base_dir is not None else None, source,
+    )
+
+
+def load_scenario(scenario, base_dir=None) -> Scenario:
+    """Read a scenario from a TOML file, a dict or an existing Scenario.
+
+    Parameters
+    ----------
+    scenario : path-like, dict or Scenario
+        A ``.toml`` file, an ``.ssp`` archive, the parsed TOML layout, or a Scenario.
+    base_dir : path-like, optional
+        Folder for relative FMU names of a dict scenario (default: current folder).
+
+    Returns
+    -------
+    Scenario
+    """
+    if isinstance(scenario, Scenario):
+        return scenario
+    if isinstance(scenario, dict):
+        return scenario_from_dict(scenario, base_dir)
+    path = Path(scenario)
+    if path.suffix.lower() == ".ssp":
+        from .ssp import read_ssp
+
+        return read_ssp(path)
+    if not path.is_file():
+        raise ScenarioError(f"scenario file {str(path)!r} does not exist")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
+    try:
+        return scenario_from_dict(data, base_dir or path.parent, str(path))
+    except ScenarioError as exc:
+        raise ScenarioError(f"{path}: {exc}") from None
+
+
+def parse_override(text: str) -> tuple:
+    """Parse ``inst.var=value`` into ``("inst.var", value)``.
+
+    The value is read as a TOML value (``1e-3``, ``true``, ``"text"``); anything that is
+    not valid TOML is taken as a plain string.
+    """
+    if "=" not in text:
+        raise ScenarioError(f"override {text!r} must have the form 'instance.variable=value'")
+    key, raw = text.split("=", 1)
+    key, raw = key.strip(), raw.strip()
+    _split_ref(key, "override")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key, value

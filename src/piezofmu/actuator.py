@@ -1,0 +1,304 @@
+"""Piezo actuator = stack + amplifier + optional hysteresis, stroke limit and strain gauge.
+
+Signal chain of one step (pure functions on frozen dataclasses, SI units)::
+
+    v_cmd --amplifier (bandwidth, slew, rails)--> v --Bouc-Wen (optional)--> v_eff = v - h
+    v_eff --stroke limit (optional)--> f_c = c h v_eff                          (Eq. 1)
+
+``f_c`` (N) is the force the active member applies to the structure: positive voltage
+extends the stack and pushes its two end nodes apart.  The stroke limit clips the free
+stroke ``d0 / V0 * v_eff`` to ``+-stroke_limit``.
+
+The strain gauge reads the active-member elongation ``e`` (an input, m) as
+``e / gauge_length`` plus seeded Gaussian noise, then quantises it.  The noise of a reading is
+a function of ``(seed, tick)`` only, where ``tick`` counts internal sub-steps since the
+start: it is reproducible, independent of how the caller splits time, and needs no random
+generator in the saved state.
+
+All outputs except the strain are functions of the state alone (no direct feedthrough from
+``v_cmd``); the strain has direct feedthrough from the elongation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from piezofmu import amplifier as amp_mod
+from piezofmu import hysteresis as hyst_mod
+from piezofmu.amplifier import Amplifier, AmplifierState, amplifier_preset
+from piezofmu.hysteresis import BoucWen
+from piezofmu.stack import PiezoStack, preset
+from piezofmu.units import INCH
+
+__all__ = [
+    "ACTUATORS",
+    "ActuatorOutputs",
+    "ActuatorState",
+    "PiezoActuator",
+    "StateArrayError",
+    "StrainGauge",
+    "actuator_preset",
+    "initial_state",
+    "outputs",
+    "step",
+    "strain",
+]
+
+
+class StateArrayError(ValueError):
+    """A state array has the wrong shape or content."""
+
+
+@dataclass(frozen=True)
+class StrainGauge:
+    """Strain gauge in series with the active member.
+
+    Parameters
+    ----------
+    length : float
+        Gauge length ``L_g`` (m): strain = elongation / ``L_g``.
+    noise_std : float
+        Standard deviation of additive Gaussian noise (strain, -); 0 disables noise.
+    resolution : float
+        Quantisation step (strain, -); 0 disables quantisation.
+    seed : int
+        Seed of the noise, a non-negative integer.
+    """
+
+    length: float
+    noise_std: float = 0.0
+    resolution: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self):
+        if not (self.length > 0 and math.isfinite(self.length)):
+            raise ValueError(f"strain gauge length must be positive and finite, got {self.length!r}")
+        for name in ("noise_std", "resolution"):
+            value = getattr(self, name)
+            if not (value >= 0 and math.isfinite(value)):
+                raise ValueError(f"strain gauge {name} must be >= 0 and finite, got {value!r}")
+        if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
+            raise ValueError(f"strain gauge seed must be a non-negative integer, got {self.seed!r}")
+
+    def replace(self, **changes) -> "StrainGauge":
+        """Copy with some fields changed."""
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class PiezoActuator:
+    """A piezo stack driven by an amplifier.
+
+    Parameters
+    ----------
+    stack : PiezoStack
+        Stack datasheet model; gives ``c h`` (N/V), ``d0 / V0`` (m/V) and the capacitance (F).
+    amplifier : Amplifier
+        Amplifier model.
+    gauge : StrainGauge
+        Strain gauge of the active member.
+    hysteresis : BoucWen or None
+        Bouc–Wen hysteresis between applied voltage and free stroke; ``None`` disables it.
+    stroke_limit : float
+        Largest free-stroke magnitude (m); ``inf`` disables the limit.
+    """
+
+    stack: PiezoStack
+    amplifier: Amplifier
+    gauge: StrainGauge
+    hysteresis: BoucWen | None = None
+    stroke_limit: float = math.inf
+
+    def __post_init__(self):
+        if not self.stroke_limit > 0:
+            raise ValueError(
+                f"actuator {self.stack.name!r}: stroke_limit must be positive, "
+                f"got {self.stroke_limit!r}"
+            )
+
+    @property
+    def stroke_per_volt(self) -> float:
+        """Free stroke per volt ``d0 / V0`` (m/V)."""
+        return self.stack.stroke / self.stack.rated_voltage
+
+    def replace(self, **changes) -> "PiezoActuator":
+        """Copy with some fields changed."""
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class ActuatorState:
+    """Whole internal state of an actuator.
+
+    Parameters
+    ----------
+    amp : AmplifierState
+        Amplifier state (voltage, rate, saturation flags).
+    h_bw : float
+        Bouc–Wen state (V); 0 when hysteresis is off.
+    tick : int
+        Internal sub-steps taken since the start (keys the strain-gauge noise).
+    """
+
+    amp: AmplifierState = field(default_factory=AmplifierState)
+    h_bw: float = 0.0
+    tick: int = 0
+
+    #: Length of `to_array`.
+    SIZE = 6
+
+    def to_array(self) -> np.ndarray:
+        """Pack into ``[v, dv/dt, sat_voltage, sat_slew, h_bw, tick]`` (float64, shape (6,))."""
+        a = self.amp
+        return np.array([a.voltage, a.rate, float(a.sat_voltage), float(a.sat_slew),
+                         self.h_bw, float(self.tick)])
+
+    @classmethod
+    def from_array(cls, array) -> "ActuatorState":
+        """Unpack an array made by `to_array`."""
+        x = np.asarray(array, dtype=float)
+        if x.shape != (cls.SIZE,):
+            raise StateArrayError(
+                f"actuator state array has shape {x.shape}; expected ({cls.SIZE},)"
+            )
+        if not np.all(np.isfinite(x)) or x[5] < 0 or x[5] != round(x[5]):
+            raise StateArrayError(f"actuator state array {x.tolist()} is not a valid state")
+        return cls(AmplifierState(float(x[0]), float(x[1]), bool(x[2]), bool(x[3])),
+                   float(x[4]), int(x[5]))
+
+
+@dataclass(frozen=True)
+class ActuatorOutputs:
+    """Outputs that depend on the state only.
+
+    Parameters
+    ----------
+    force : float
+        Actuator force on the structure ``f_c = c h v_eff`` (N).
+    voltage : float
+        Applied voltage ``v`` (V).
+    current : float
+        Amplifier current ``C dv/dt`` (A).
+    free_stroke : float
+        Free stroke ``d0 / V0 * v_eff`` after the stroke limit (m).
+    sat_voltage, sat_slew, sat_stroke : bool
+        Voltage rail, current (slew) and stroke limits active.
+    """
+
+    force: float
+    voltage: float
+    current: float
+    free_stroke: float
+    sat_voltage: bool
+    sat_slew: bool
+    sat_stroke: bool
+
+
+def initial_state(act: PiezoActuator, voltage: float = 0.0) -> ActuatorState:
+    """Return the actuator at rest at a voltage (V), with a virgin hysteresis state."""
+    return ActuatorState(amp_mod.initial_state(act.amplifier, voltage), 0.0, 0)
+
+
+def outputs(act: PiezoActuator, state: ActuatorState) -> ActuatorOutputs:
+    """Outputs of a state (force, voltage, current, free stroke, flags)."""
+    a = state.amp
+    v_eff = a.voltage - state.h_bw
+    stroke = act.stroke_per_volt * v_eff
+    sat_stroke = abs(stroke) > act.stroke_limit
+    if sat_stroke:
+        stroke = math.copysign(act.stroke_limit, stroke)
+        v_eff = stroke / act.stroke_per_volt
+    return ActuatorOutputs(
+        force=float(act.stack.force(v_eff)),
+        voltage=a.voltage,
+        current=act.stack.capacitance * a.rate,
+        free_stroke=stroke,
+        sat_voltage=a.sat_voltage,
+        sat_slew=a.sat_slew,
+        sat_stroke=bool(sat_stroke),
+    )
+
+
+def step(act: PiezoActuator, state: ActuatorState, v_cmd: float,
+         dt: float) -> tuple[ActuatorState, ActuatorOutputs]:
+    """Advance the actuator over one step with the voltage command held.
+
+    Parameters
+    ----------
+    act : PiezoActuator
+        Actuator model.
+    state : ActuatorState
+        State at the start of the step.
+    v_cmd : float
+        Voltage command (V), held over the step.
+    dt : float
+        Step size (s); see `piezofmu.amplifier` for the sub-stepping rule.
+
+    Returns
+    -------
+    state : ActuatorState
+        State at the end of the step.
+    outputs : ActuatorOutputs
+        Outputs at the end of the step.
+    """
+    n, _ = amp_mod.substeps(dt, act.amplifier.internal_step)
+    cap = act.stack.capacitance
+    if act.hysteresis is None:
+        amp_state, _ = amp_mod.step(act.amplifier, cap, state.amp, v_cmd, dt)
+        h_bw = state.h_bw
+    else:
+        amp_state, path = amp_mod.step_path(act.amplifier, cap, state.amp, v_cmd, dt)
+        h_bw = hyst_mod.step(act.hysteresis, state.h_bw, state.amp.voltage, path)
+    new = ActuatorState(amp_state, h_bw, state.tick + n)
+    return new, outputs(act, new)
+
+
+def strain(act: PiezoActuator, state: ActuatorState, elongation: float) -> float:
+    """Strain-gauge reading for a member elongation (m), noise keyed by the state's tick (-)."""
+    g = act.gauge
+    eps = float(elongation) / g.length
+    if g.noise_std > 0.0:
+        rng = np.random.default_rng([int(g.seed), int(state.tick)])
+        eps += g.noise_std * float(rng.standard_normal())
+    if g.resolution > 0.0:
+        eps = g.resolution * round(eps / g.resolution)
+    return eps
+
+
+def _default_hysteresis(stack: PiezoStack) -> BoucWen:
+    # Assumption: branch gap at v = 0 is 10 % of the stroke span for a +-V0/2 sine (docs/piezo.md).
+    return BoucWen.scaled(alpha=0.25, beta_v0=3.0, gamma_v0=1.0, v0=stack.rated_voltage)
+
+
+def _make(stack_name: str, amp_name: str, gauge_length: float) -> PiezoActuator:
+    stack = preset(stack_name)
+    return PiezoActuator(stack, amplifier_preset(amp_name), StrainGauge(gauge_length))
+
+
+# Gauge lengths are assumptions: the truss member lengths of the 10 in bays for the longeron
+# and the diagonal, the stack length for the isolator (gauge on the internal stack).
+ACTUATORS: dict[str, PiezoActuator] = {
+    "P-243.30": _make("P-243.30", "Trek 50/750", 10.0 * INCH),
+    "P-243.40": _make("P-243.40", "Trek 50/750", 10.0 * math.sqrt(2.0) * INCH),
+    "P-845.37": _make("P-845.37", "P-865.10", preset("P-845.37").length),
+}
+
+
+def actuator_preset(name: str, hysteresis: bool = False) -> PiezoActuator:
+    """Return a preset actuator by stack model number, optionally with default hysteresis.
+
+    Parameters
+    ----------
+    name : str
+        ``"P-243.30"``, ``"P-243.40"`` or ``"P-845.37"`` (``"P243.30"`` also accepted).
+    hysteresis : bool
+        Attach the default Bouc–Wen model (an assumption, see docs/piezo.md).
+    """
+    key = preset(name).name
+    act = ACTUATORS[key]
+    if hysteresis:
+        act = act.replace(hysteresis=_default_hysteresis(act.stack))
+    return act

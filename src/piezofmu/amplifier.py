@@ -37,7 +37,6 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.linalg
 
 __all__ = [
     "AMPLIFIERS",
@@ -198,6 +197,21 @@ def substeps(dt: float, h: float) -> tuple[int, float]:
     return n, dt / n
 
 
+def _expm(a: np.ndarray) -> np.ndarray:
+    """Matrix exponential by scaling and squaring of a Taylor series (small matrices)."""
+    norm = float(np.max(np.sum(np.abs(a), axis=1)))
+    squarings = max(0, math.ceil(math.log2(norm / 0.25))) if norm > 0.25 else 0
+    x = a / 2.0**squarings
+    term = np.eye(a.shape[0])
+    out = term.copy()
+    for k in range(1, 19):  # |x| <= 1/4: the remainder is below 0.25^19 / 19! ~ 1e-28
+        term = term @ x / k
+        out = out + term
+    for _ in range(squarings):
+        out = out @ out
+    return out
+
+
 @functools.lru_cache(maxsize=128)
 def _coefficients(amp: Amplifier, h: float) -> tuple[float, ...]:
     """Zero-order-hold coefficients of the low-pass over one sub-step ``h`` (s)."""
@@ -206,7 +220,7 @@ def _coefficients(amp: Amplifier, h: float) -> tuple[float, ...]:
         return (math.exp(-w * h),)
     z = amp.damping
     a = np.array([[0.0, 1.0, 0.0], [-w * w, -2.0 * z * w, w * w], [0.0, 0.0, 0.0]])
-    e = scipy.linalg.expm(a * h)
+    e = _expm(a * h)
     # [v, r]_{k+1} = [[a11, a12], [a21, a22]] [v, r]_k + [b1, b2] u
     return tuple(float(x) for x in (e[0, 0], e[0, 1], e[1, 0], e[1, 1], e[0, 2], e[1, 2]))
 

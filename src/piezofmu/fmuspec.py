@@ -1,0 +1,61 @@
+"""FMU specifications of the piezo package: one FMU per stack preset."""
+
+from __future__ import annotations
+
+from fmukit.build import FmuSpec
+
+__all__ = ["MODELS", "UnknownModelError", "specs"]
+
+#: modelIdentifier -> stack preset.
+MODELS: dict[str, str] = {
+    "piezo_p243_30": "P-243.30",
+    "piezo_p243_40": "P-243.40",
+    "piezo_p845_37": "P-845.37",
+}
+
+_USE = {
+    "P-243.30": "longeron active member (Trek 50/750 amplifier)",
+    "P-243.40": "diagonal active member (Trek 50/750 amplifier)",
+    "P-845.37": "isolator strut (P-865.10 amplifier)",
+}
+
+
+class UnknownModelError(KeyError):
+    """A requested model identifier is not one of the piezo FMUs."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def specs(models: list[str] | None = None) -> list[FmuSpec]:
+    """Return the specifications of the piezo FMUs.
+
+    Parameters
+    ----------
+    models : list of str or None
+        Model identifiers to return (see `MODELS`); None for all.
+
+    Returns
+    -------
+    list of FmuSpec
+        In the order of `models` (or of `MODELS`).
+
+    Raises
+    ------
+    UnknownModelError
+        If a name is not in `MODELS`.
+    """
+    names = list(MODELS) if models is None else list(models)
+    unknown = [m for m in names if m not in MODELS]
+    if unknown:
+        raise UnknownModelError(f"unknown piezo FMU {unknown[0]!r}; known: {', '.join(MODELS)}")
+    return [
+        FmuSpec(
+            model_identifier=name,
+            slave_class="piezofmu.slave:PiezoSlave",
+            description=f"Piezo stack {MODELS[name]} with amplifier: {_USE[MODELS[name]]}",
+            step_size=1e-3,
+            init_kwargs={"preset_name": MODELS[name]},
+        )
+        for name in names
+    ]

@@ -1,0 +1,184 @@
+"""Piezo actuator + amplifier FMU slave: a thin adapter over `piezofmu.actuator.step`.
+
+One FMU per stack preset (the generated slave class sets `PiezoSlave.preset_name`).
+
+Variables
+---------
+inputs
+    ``v_cmd`` (V) voltage command, held over a step; ``elongation`` (m) of the active member.
+outputs (no direct feedthrough: functions of the state)
+    ``force`` (N), ``voltage`` (V), ``current`` (A), ``free_stroke`` (m),
+    ``sat_voltage``, ``sat_slew``, ``sat_stroke`` (Real 0/1).
+outputs (direct feedthrough from ``elongation``)
+    ``strain`` (-): recomputed whenever an input is set, so a Gauss–Seidel master reads the
+    strain of the elongation it has just set.
+parameters
+    amplifier, hysteresis, stroke-limit and strain-gauge settings (see `PiezoSlave`); the
+    voltage and current limits, stroke limit and gauge noise are tunable between steps.
+
+The FMU state is every variable plus the actuator state array
+(`piezofmu.actuator.ActuatorState.to_array`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from fmukit.slave import FmuSlave
+from piezofmu import actuator as ac
+from piezofmu.actuator import ActuatorState, PiezoActuator, StrainGauge
+from piezofmu.hysteresis import BoucWen
+
+__all__ = ["PiezoSlave", "PiezoParameterError"]
+
+# Default Bouc-Wen shape (dimensionless, scaled by the stack's rated voltage).
+_BW_DEFAULT = (0.25, 3.0, 1.0)
+
+_FLAGS = ("sat_voltage", "sat_slew", "sat_stroke")
+
+
+class PiezoParameterError(ValueError):
+    """An FMU parameter of the piezo slave is out of range."""
+
+
+class PiezoSlave(FmuSlave):
+    """Piezo stack with its amplifier, hysteresis, stroke limit and strain gauge.
+
+    Class attributes
+    ----------------
+    preset_name : str
+        Stack preset of `piezofmu.actuator.ACTUATORS` giving the datasheet values and the
+        default parameters.
+    """
+
+    preset_name: ClassVar[str] = "P-243.30"
+    state_attributes = ("x",)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        base = ac.actuator_preset(self.preset_name)
+        amp, gauge = base.amplifier, base.gauge
+        p = self.add_parameter
+        p("v_min", float(amp.v_min), unit="V", tunable=True, description="lower voltage rail")
+        p("v_max", float(amp.v_max), unit="V", tunable=True, description="upper voltage rail")
+        p("i_max", float(amp.i_max), unit="A", tunable=True,
+          description="amplifier current limit (slew limit i_max / C)")
+        p("bandwidth", float(amp.bandwidth), unit="Hz",
+          description="amplifier cut-off (order 1) or natural (order 2) frequency")
+        p("amp_order", int(amp.order), description="order of the amplifier low-pass, 1 or 2")
+        p("damping", float(amp.damping), unit="1",
+          description="damping ratio of the second-order low-pass")
+        p("internal_step", float(amp.internal_step), unit="s",
+          description="fixed internal sub-step of the amplifier")
+        p("hysteresis", False, description="Bouc-Wen hysteresis on")
+        p("bw_alpha", _BW_DEFAULT[0], unit="1", description="Bouc-Wen alpha")
+        p("bw_beta_v0", _BW_DEFAULT[1], unit="1",
+          description="Bouc-Wen beta times the rated voltage")
+        p("bw_gamma_v0", _BW_DEFAULT[2], unit="1",
+          description="Bouc-Wen gamma times the rated voltage")
+        p("stroke_limit", 0.0, unit="m", tunable=True,
+          description="free-stroke magnitude limit, 0 for none")
+        p("gauge_length", float(gauge.length), unit="m", description="strain gauge length")
+        p("noise_std", 0.0, unit="1", tunable=True,
+          description="strain gauge noise standard deviation")
+        p("resolution", 0.0, unit="1", description="strain quantisation step, 0 for none")
+        p("seed", 0, description="seed of the strain gauge noise, >= 0")
+        self.add_input("v_cmd", unit="V", description="voltage command to the amplifier")
+        self.add_input("elongation", unit="m", description="active-member elongation")
+        self.add_output("force", unit="N", depends_on=[],
+                        description="actuator force on the structure f_c = c h v_eff")
+        self.add_output("voltage", unit="V", depends_on=[], description="applied voltage")
+        self.add_output("current", unit="A", depends_on=[],
+                        description="amplifier current C dv/dt")
+        self.add_output("free_stroke", unit="m", depends_on=[],
+                        description="free stroke d0/V0 v_eff after the stroke limit")
+        self.add_output("strain", unit="1", depends_on=["elongation"],
+                        description="strain gauge reading elongation / gauge_length + noise")
+        for flag, what in zip(_FLAGS, ("voltage rail", "current (slew) limit", "stroke limit")):
+            self.add_output(flag, unit="1", depends_on=[], variability="discrete",
+                            description=f"1 when the {what} is active, else 0")
+        self.x = ActuatorState().to_array()
+        self._stack = base.stack
+        self._key = None
+        self._act: PiezoActuator | None = None
+        self._ready = False
+
+    # ---------------------------------------------------------------- model
+    def _parameter_key(self) -> tuple:
+        return (self.v_min, self.v_max, self.i_max, self.bandwidth, self.amp_order,
+                self.damping, self.internal_step, self.hysteresis, self.bw_alpha,
+                self.bw_beta_v0, self.bw_gamma_v0, self.stroke_limit, self.gauge_length,
+                self.noise_std, self.resolution, self.seed)
+
+    def actuator(self) -> PiezoActuator:
+        """The actuator model for the current parameter values (rebuilt when they change)."""
+        key = self._parameter_key()
+        if key != self._key:
+            self._act = self._build(key)
+            self._key = key
+        return self._act
+
+    def _build(self, key) -> PiezoActuator:
+        (v_min, v_max, i_max, bandwidth, order, damping, h, hyst, alpha, beta_v0, gamma_v0,
+         stroke_limit, gauge_length, noise_std, resolution, seed) = key
+        if stroke_limit < 0:
+            raise PiezoParameterError(f"parameter stroke_limit of {self.instance_name!r} is "
+                                      f"{stroke_limit!r}; expected >= 0 (0 for no limit)")
+        base = ac.actuator_preset(self.preset_name)
+        amp = base.amplifier.replace(v_min=float(v_min), v_max=float(v_max),
+                                     i_max=float(i_max), bandwidth=float(bandwidth),
+                                     order=int(order), damping=float(damping),
+                                     internal_step=float(h))
+        v0 = self._stack.rated_voltage
+        bw = BoucWen.scaled(float(alpha), float(beta_v0), float(gamma_v0), v0) if hyst else None
+        gauge = StrainGauge(float(gauge_length), float(noise_std), float(resolution), int(seed))
+        return PiezoActuator(self._stack, amp, gauge, bw,
+                             float(stroke_limit) if stroke_limit > 0 else math.inf)
+
+    # ---------------------------------------------------------------- outputs
+    def _write_outputs(self, out: ac.ActuatorOutputs) -> None:
+        self.force = out.force
+        self.voltage = out.voltage
+        self.current = out.current
+        self.free_stroke = out.free_stroke
+        self.sat_voltage = float(out.sat_voltage)
+        self.sat_slew = float(out.sat_slew)
+        self.sat_stroke = float(out.sat_stroke)
+
+    def _write_strain(self) -> None:
+        act = self.actuator()
+        self.strain = ac.strain(act, ActuatorState.from_array(self.x), self.elongation)
+
+    def set_real(self, vrs, values):
+        super().set_real(vrs, values)
+        if self._ready:
+            self._write_strain()
+
+    def _set_fmu_state(self, state):
+        super()._set_fmu_state(state)
+        self._key = None  # parameters may have changed with the state
+
+    # ---------------------------------------------------------------- FMI
+    def exit_initialization_mode(self):
+        act = self.actuator()
+        state = ac.initial_state(act)
+        self.x[...] = state.to_array()
+        self._write_outputs(ac.outputs(act, state))
+        self._ready = True
+        self._write_strain()
+
+    def do_step(self, current_time, step_size):
+        act = self.actuator()
+        state, out = ac.step(act, ActuatorState.from_array(self.x), self.v_cmd, step_size)
+        self.x[...] = state.to_array()
+        self._write_outputs(out)
+        self.strain = ac.strain(act, state, self.elongation)
+        return True
+
+
+def state_array(slave: PiezoSlave) -> np.ndarray:
+    """Copy of the actuator state array of a slave (for tests and diagnostics)."""
+    return slave.x.copy()

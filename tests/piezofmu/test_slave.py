@@ -47,12 +47,12 @@ def signals(n=60, amp=1800.0):
 
 
 def test_slave_equals_the_pure_step():
-    slave = make("P-243.40", hysteresis=True, noise_std=1e-7, seed=5, stroke_limit=55e-6,
+    slave = make("P-243.40", hysteresis=True, noise_std=1e-7, seed=5, stroke_limit=45e-6,
                  v_min=-900.0, v_max=900.0)
     cmds, elong = signals()
     got = drive(slave, cmds, elong, 1e-3)
     act = slave.actuator()
-    assert act.hysteresis is not None and act.stroke_limit == 55e-6
+    assert act.hysteresis is not None and act.stroke_limit == 45e-6
     state = ac.initial_state(act)
     for k, (u, e) in enumerate(zip(cmds, elong)):
         state, out = ac.step(act, state, u, 1e-3)

@@ -110,6 +110,12 @@ def _generated_script(spec: FmuSpec) -> str:
         "from pythonfmu.default_experiment import DefaultExperiment",
         f"from {module} import {cls} as Fmi2Slave",
         "",
+        "# pythonfmu 0.7 re-executes this file on every fmi2Instantiate and then releases",
+        "# a reference to the module's globals that it never owned (a borrowed",
+        "# reference).  Taking one reference per execution keeps the balance, otherwise",
+        "# the module dict is freed after a few instantiations and the host crashes.",
+        "globals().setdefault('_fmukit_globals_refs', []).append(globals())",
+        "",
         "",
         # pythonfmu finds the class with the regex ``^class (\w+)\(\s*Fmi2Slave\s*\)\s*:``.
         f"class {spec.model_identifier}(Fmi2Slave):",

@@ -155,6 +155,9 @@ def output(model: ReducedModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
     q, v = x[:n_m], x[n_m:2 * n_m]
     qo, vo = x[2 * n_m:2 * n_m + n_r], x[2 * n_m + n_r:]
     y = model.C_e @ q + model.C_o @ qo
+    rate = model.is_rate
+    if rate.any():
+        y[rate] = model.C_e[rate] @ v + model.C_o[rate] @ vo
     acc = model.is_accel
     if acc.any():
         qdd = model.B_e @ u - model.modal_damping * v - model.omega**2 * q
@@ -183,3 +186,88 @@ def simulate(model: ReducedModel, h: float, u, x0=None):
         y[k] = output(model, x[k], u[k])
         x[k + 1] = step(dm, x[k], u[k])
     return y, x
+
+
+class Stepper:
+    """Allocation-free stepping of a reduced model, one discretisation per step size.
+
+    Holds the state ``x`` (layout of :class:`DiscreteModel`), caches
+    :func:`discretize` per step size, and splits outputs into a state part and a
+    direct-feedthrough part ``D u`` (acceleration rows only), so that a change of
+    inputs updates feedthrough outputs without stepping.
+
+    Parameters
+    ----------
+    model : ReducedModel
+    """
+
+    def __init__(self, model: ReducedModel):
+        self.model = model
+        n_m, n_r = model.n_modes, model.n_ritz
+        self.x = np.zeros(model.n_states)
+        self._cache: dict = {}
+        self._q = self.x[:n_m]
+        self._v = self.x[n_m:2 * n_m]
+        self._xo = self.x[2 * n_m:]
+        self._tq = np.empty(n_m)
+        self._tv = np.empty(n_m)
+        self._t1 = np.empty(n_m)
+        acc, rate = model.is_accel, model.is_rate
+        disp = ~(acc | rate)
+        # y_state = Cq q + Cv v + Cqo q_o + Cvo v_o ; y = y_state + D u
+        Cq = np.where(disp[:, None], model.C_e, 0.0)
+        Cv = np.where(rate[:, None], model.C_e, 0.0)
+        Cqo = np.where(disp[:, None], model.C_o, 0.0)
+        Cvo = np.where(rate[:, None], model.C_o, 0.0)
+        if acc.any():
+            Cq[acc] = -model.C_e[acc] * model.omega**2
+            Cv[acc] = -model.C_e[acc] * model.modal_damping
+            Cqo[acc] = -model.C_o[acc] @ model.K_oo
+            Cvo[acc] = -model.C_o[acc] @ model.D_oo
+        self.C_x = np.hstack([Cq, Cv, Cqo, Cvo])  # (n_out, n_states)
+        self.D = np.zeros((model.n_outputs, model.n_inputs))
+        if acc.any():
+            self.D[acc] = model.C_e[acc] @ model.B_e + model.C_o[acc] @ model.B_o
+        self.has_feedthrough = bool(np.any(self.D))
+        self.y_state = np.zeros(model.n_outputs)
+
+    def discrete(self, h: float) -> DiscreteModel:
+        dm = self._cache.get(h)
+        if dm is None:
+            if len(self._cache) > 16:
+                self._cache.clear()
+            dm = self._cache[h] = discretize(self.model, h)
+        return dm
+
+    def step(self, u: np.ndarray, h: float) -> None:
+        """Advance ``x`` in place by ``h`` with inputs ``u`` held."""
+        dm = self.discrete(h)
+        q, v = self._q, self._v
+        np.dot(dm.G1, u, out=self._tq)
+        np.dot(dm.G2, u, out=self._tv)
+        np.multiply(dm.a11, q, out=self._t1)
+        self._tq += self._t1
+        np.multiply(dm.a12, v, out=self._t1)
+        self._tq += self._t1
+        np.multiply(dm.a21, q, out=self._t1)
+        self._tv += self._t1
+        np.multiply(dm.a22, v, out=self._t1)
+        self._tv += self._t1
+        q[:] = self._tq
+        v[:] = self._tv
+        if self._xo.size:
+            self._xo[:] = dm.Phi_o @ self._xo + dm.G_o @ u
+
+    def update_state_outputs(self) -> np.ndarray:
+        """Recompute the state part of the outputs (after a step or a state change)."""
+        np.dot(self.C_x, self.x, out=self.y_state)
+        return self.y_state
+
+    def outputs(self, u: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """Outputs for the current state and inputs ``u``, written into ``out``."""
+        if self.has_feedthrough:
+            np.dot(self.D, u, out=out)
+            out += self.y_state
+        else:
+            out[:] = self.y_state
+        return out

@@ -22,8 +22,9 @@ import scipy.sparse as sp
 
 from structfmu.errors import DimensionError, ModelError
 
-OUTPUT_KINDS = ("disp", "strain", "elong", "angle", "accel")
-UNITS = {"disp": "m", "strain": "1", "elong": "m", "angle": "rad", "accel": "m/s2",
+OUTPUT_KINDS = ("disp", "strain", "elong", "angle", "rate", "accel")
+UNITS = {"disp": "m", "strain": "1", "elong": "m", "angle": "rad", "rate": "rad/s",
+         "accel": "m/s2",
          "force": "N", "torque": "N.m"}
 
 
@@ -320,6 +321,11 @@ class Truss:
         P = np.linalg.pinv(G)[3:]  # (3, 3k): theta = P u
         dofs = (3 * idx[:, None] + np.arange(3)).ravel()
         return tuple(Channel(f"{prefix}_{ax}", "angle", dofs, P[i]) for i, ax in enumerate(axes))
+
+    def rate_channels(self, prefix, nodes, axes=("roll", "pitch", "yaw")) -> tuple:
+        """Angular rate of a node set (rad/s), the time derivative of :meth:`angle_channels`."""
+        return tuple(Channel(c.name.replace(f"{prefix}_", f"{prefix}_", 1), "rate", c.dofs,
+                             c.weights) for c in self.angle_channels(prefix, nodes, axes))
 
 
 def channel_matrix(channels, n_dof: int) -> sp.csr_matrix:

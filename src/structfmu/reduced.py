@@ -11,6 +11,7 @@ Equations of motion, with ``u`` the inputs (N)::
     z_e'' + c_e * z_e' + omega**2 * z_e = B_e u
     z_o'' + D_oo z_o'  + K_oo z_o       = B_o u
     y     = C_e z_e + C_o z_o                      (displacement-type outputs)
+    y_rate = C_e z_e' + C_o z_o'                   (rate outputs)
     y_acc = C_e z_e'' + C_o z_o''                  (acceleration outputs)
 """
 
@@ -118,6 +119,11 @@ class ReducedModel:
     def frequencies_hz(self) -> np.ndarray:
         """Natural frequencies of the modal block (Hz)."""
         return self.omega / (2 * np.pi)
+
+    @property
+    def is_rate(self) -> np.ndarray:
+        """Boolean mask of velocity-type outputs (angular rates)."""
+        return np.array([k == "rate" for k in self.output_kinds], bool)
 
     @property
     def is_accel(self) -> np.ndarray:

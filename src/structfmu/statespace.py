@@ -44,6 +44,9 @@ def first_order(model: ReducedModel):
     B = np.vstack([np.zeros((n, model.n_inputs)), Bh])
     acc = model.is_accel
     C = np.hstack([Ch, np.zeros_like(Ch)])
+    rate = model.is_rate
+    if rate.any():
+        C[rate] = np.hstack([np.zeros_like(Ch[rate]), Ch[rate]])
     D = np.zeros((model.n_outputs, model.n_inputs))
     if acc.any():
         C[acc] = np.hstack([-Ch[acc] @ K, -Ch[acc] @ Dm])
@@ -90,6 +93,9 @@ def frf(model: ReducedModel, freqs_hz, outputs=None, inputs=None):
     acc = sub.is_accel
     if acc.any():
         H[:, acc] *= -(w**2)[:, None, None]
+    rate = sub.is_rate
+    if rate.any():
+        H[:, rate] *= (1j * w)[:, None, None]
     return H
 
 
@@ -113,6 +119,7 @@ def full_frf(truss: Truss, freqs_hz, outputs, inputs, alpha=0.0, beta=0.0):
     Ei = E[:, ii].toarray()
     Ho = H[oo]
     acc = np.array([kinds[o] == "accel" for o in oo])
+    rate = np.array([kinds[o] == "rate" for o in oo])
     w = 2 * np.pi * np.asarray(freqs_hz, float)
     out = np.empty((len(w), len(oo), len(ii)), complex)
     K = K.astype(complex)
@@ -123,5 +130,7 @@ def full_frf(truss: Truss, freqs_hz, outputs, inputs, alpha=0.0, beta=0.0):
         y = Ho @ X
         if acc.any():
             y[acc] *= -(wf**2)
+        if rate.any():
+            y[rate] *= 1j * wf
         out[f] = y
     return out

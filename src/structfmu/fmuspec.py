@@ -1,0 +1,45 @@
+"""FMU specifications of the structure FMUs (one per built-in model, or from a .npz)."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+from fmukit.build import FmuSpec
+from structfmu.reduced import ReducedModel
+
+MODELS = ("truss10", "eos_testbed")
+
+
+def spec_from_model(model: ReducedModel, model_identifier: str, description: str = "") -> FmuSpec:
+    """An FMU spec packaging a reduced model (written as the ``model.npz`` resource)."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = model.save(Path(tmp) / "model.npz")
+        data = path.read_bytes()
+    return FmuSpec(model_identifier=model_identifier,
+                   slave_class="structfmu.slave:StructureSlave",
+                   resources={"model.npz": data},
+                   description=description or f"reduced structure {model.name}: "
+                   f"{model.n_modes} modes + {model.n_ritz} Ritz vectors")
+
+
+def spec_from_npz(path, model_identifier: str) -> FmuSpec:
+    """An FMU spec for a reduced model saved with :meth:`ReducedModel.save`."""
+    return spec_from_model(ReducedModel.load(path), model_identifier)
+
+
+def specs(models=None) -> list[FmuSpec]:
+    """Specs of the structure FMUs of the built-in models (``<model>_structure``)."""
+    from structfmu.models import get_model, _registry
+
+    names = [m for m in MODELS if m in _registry()]
+    if models:
+        names = [m.removesuffix("_structure") for m in models
+                 if m.removesuffix("_structure") in names]
+    out = []
+    for name in names:
+        mod = get_model(name)
+        out.append(spec_from_model(mod.reduced(), f"{name}_structure"))
+    return out

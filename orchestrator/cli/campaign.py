@@ -1,0 +1,54 @@
+"""``jitterfmu campaign``: run a campaign of scenarios and write its jitter summary."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+
+COMMAND = "campaign"
+HELP = "run a campaign (events x configurations x sweeps) and summarise the jitter"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("campaign", type=Path, help="campaign TOML file")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output folder (default: out/<campaign name>); reused to resume")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="worker processes (default: number of CPUs; 0 = in this process)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="run on an existing Dask cluster (e.g. tcp://host:8786)")
+    parser.add_argument("--runner", default=None, metavar="MODULE:FUNCTION",
+                        help="case runner callable(scenario_dict, out_dir) -> results.parquet "
+                             "(default: the co-simulation master)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _import_runner(spec: str):
+    mod, sep, attr = spec.partition(":")
+    if not sep or not mod or not attr:
+        raise ValueError(f"runner {spec!r} must have the form 'module:function'")
+    obj = getattr(importlib.import_module(mod), attr, None)
+    if not callable(obj):
+        raise ValueError(f"runner {spec!r} is not a callable in module {mod!r}")
+    return obj
+
+
+def run(args) -> int:
+    from ..campaign import MasterRunner, load_campaign, run_campaign, slug
+
+    if args.runner:
+        runner = _import_runner(args.runner)
+        fingerprint = getattr(runner, "fingerprint", None)
+    else:
+        runner = MasterRunner(args.campaign.resolve().parent)
+        fingerprint = runner.fingerprint
+    camp = load_campaign(args.campaign, fingerprint=fingerprint)
+    out = args.out or Path("out") / slug(camp.name)
+    res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
+                       progress=False if args.quiet else None)
+    print(f"{res.n_cases} cases: {res.n_run} run, {res.n_skipped} already finished, "
+          f"{res.n_failed} failed; summary in {out / 'summary.csv'}")
+    for label, err in res.failures.items():
+        print(f"  failed: {label}: {err}", file=sys.stderr)
+    return min(res.n_failed, 100)

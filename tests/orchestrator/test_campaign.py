@@ -1,0 +1,304 @@
+"""Tests of the campaign engine with a cheap pure-Python case runner (no FMUs)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from orchestrator.campaign import (
+    ANGLE_UNITS,
+    CampaignError,
+    campaign_from_dict,
+    run_campaign,
+)
+from orchestrator.cli import main as cli_main
+
+ARCSEC = ANGLE_UNITS["arcsec"]
+DT = 0.001
+
+
+def synthetic_runner(scenario: dict, out_dir) -> Path:
+    """Case runner: LOS angles are sines set by the scenario's parameters.
+
+    ``dist.amplitude`` (rad) at ``dist.frequency`` (Hz) reaches instrument A (pitch and yaw,
+    yaw a quarter period later) attenuated by ``1 + ctrl.gain``, and instrument B (roll) at
+    half that amplitude.  ``dist.fail`` raises; ``dist.sleep`` (s) slows the case down;
+    ``dist.log`` names a file to which every call appends the scenario's digest.
+    """
+    p = scenario["fmus"]["dist"]["parameters"]
+    gain = scenario["fmus"]["ctrl"]["parameters"].get("gain", 0.0)
+    if p.get("log"):
+        digest = hashlib.sha256(json.dumps(scenario, sort_keys=True).encode()).hexdigest()
+        with open(p["log"], "a", encoding="utf-8") as f:
+            f.write(digest + "\n")
+    if p.get("sleep"):
+        time.sleep(float(p["sleep"]))
+    if p.get("fail"):
+        raise RuntimeError(f"disturbance model diverged at {p['frequency']} Hz")
+    n = int(round(float(scenario["experiment"]["stop"]) / DT)) + 1
+    t = np.arange(n) * DT
+    a = float(p["amplitude"]) / (1.0 + float(gain))
+    w = 2 * np.pi * float(p["frequency"])
+    table = pa.table({
+        "time": t,
+        "sc.los_a_pitch": a * np.sin(w * t),
+        "sc.los_a_yaw": a * np.cos(w * t),
+        "sc.los_b_roll": 0.5 * a * np.sin(w * t),
+    })
+    path = Path(out_dir) / "results.parquet"
+    pq.write_table(table, path)
+    return path
+
+
+def campaign_data(log=None, sleep=0.0, fail_event=None, n_events=3, sweep=False):
+    """A small campaign: events x {isolation off, on}, peak-to-peak and RMS jitter."""
+    base = {
+        "experiment": {"stop": 1.0, "output_interval": DT},
+        "fmus": {
+            "dist": {"fmu": "dist", "period": DT,
+                     "parameters": {"amplitude": 0.0, "frequency": 1.0, "sleep": sleep,
+                                    "log": str(log or "")}},
+            "ctrl": {"fmu": "ctrl", "period": DT, "parameters": {"gain": 0.0}},
+            "sc": {"fmu": "sc", "period": DT},
+        },
+        "record": {"variables": ["sc.los_a_pitch", "sc.los_a_yaw", "sc.los_b_roll"]},
+    }
+    events = []
+    # Frequencies whose crests fall on the 1 ms grid and that fit whole periods in 0.4 s.
+    freqs = [5.0, 10.0, 50.0, 25.0, 100.0, 125.0]
+    for i in range(n_events):
+        ov = {"dist.amplitude": 1e-6 * (i + 1), "dist.frequency": freqs[i]}
+        if fail_event == i:
+            ov["dist.fail"] = True
+        events.append({"name": f"event{i}", "overrides": ov})
+    data = {
+        "campaign": {"name": "synthetic", "scenario": base, "unit": "arcsec", "skip": 0.1},
+        "events": events,
+        "configurations": [
+            {"name": "isolation off", "overrides": {"ctrl.gain": 0.0}},
+            {"name": "isolation on", "overrides": {"ctrl.gain": 3.0}},
+        ],
+        "instruments": [
+            {"name": "A", "axes": {"pitch": "sc.los_a_pitch", "yaw": "sc.los_a_yaw"}},
+            {"name": "B", "axes": {"roll": "sc.los_b_roll"}, "requirement": 0.3},
+        ],
+        "metrics": [{"kind": "peak_to_peak", "windows": [0.2]},
+                    {"kind": "rms_jitter", "windows": [0.4]}],
+        "requirements": [{"instrument": "A", "metric": "peak_to_peak", "window": 0.2,
+                          "value": 1.0}],
+    }
+    if sweep:
+        data["sweeps"] = [{"parameter": "sc.mass", "values": [1.0, 2.0]}]
+    return data
+
+
+def read_sorted(path):
+    """Summary rows in a fixed order, NaN replaced by a marker so that rows compare."""
+    t = pq.read_table(path).to_pylist()
+    t = [{k: "NaN" if isinstance(v, float) and math.isnan(v) else v for k, v in r.items()}
+         for r in t]
+    return sorted(t, key=lambda r: (r["case"], r["instrument"], r["axis"], r["metric"]))
+
+
+# ----------------------------------------------------------------------------- definition
+
+
+def test_matrix_expands_events_configurations_and_sweeps():
+    c = campaign_from_dict(campaign_data(n_events=3, sweep=True))
+    assert len(c.cases) == 3 * 2 * 2
+    assert len({case.key for case in c.cases}) == 12
+    one = next(x for x in c.cases if x.label == "event1 | isolation on | sc.mass=2.0")
+    params = {k: v["parameters"] for k, v in one.scenario["fmus"].items()}
+    assert params["dist"]["amplitude"] == 2e-6 and params["ctrl"]["gain"] == 3.0
+    assert params["sc"]["mass"] == 2.0
+    # keys are stable, and the runner's fingerprint (FMU checksums) enters them
+    again = campaign_from_dict(campaign_data(n_events=3, sweep=True))
+    assert [x.key for x in again.cases] == [x.key for x in c.cases]
+    other = campaign_from_dict(campaign_data(n_events=3, sweep=True), fingerprint=lambda s: "v2")
+    assert not {x.key for x in other.cases} & {x.key for x in c.cases}
+
+
+def test_bad_campaigns_are_rejected_with_the_culprit_named():
+    d = campaign_data()
+    d["events"][0]["overrides"]["nosuch.amplitude"] = 1.0
+    with pytest.raises(CampaignError, match="nosuch"):
+        campaign_from_dict(d)
+    d = campaign_data()
+    d["metrics"] = [{"kind": "p2p", "windows": [1.0]}]
+    with pytest.raises(CampaignError, match="p2p"):
+        campaign_from_dict(d)
+    d = campaign_data()
+    d["requirements"] = [{"instrument": "C", "value": 1.0}]
+    with pytest.raises(CampaignError, match="'C'"):
+        campaign_from_dict(d)
+
+
+# ----------------------------------------------------------------------------- results
+
+
+def test_serial_summary_holds_analytic_jitter_rss_and_margins(tmp_path):
+    camp = campaign_from_dict(campaign_data())
+    res = run_campaign(camp, tmp_path, synthetic_runner, workers=0, progress=False)
+    assert (res.n_cases, res.n_run, res.n_failed) == (6, 6, 0)
+    rows = pq.read_table(tmp_path / "summary.parquet").to_pylist()
+    assert len(rows) == 6 * 3 * 2 + 2 * 3 * 2  # case rows + RSS rows
+    get = {(r["event"], r["configuration"], r["instrument"], r["axis"], r["metric"]): r
+           for r in rows}
+    # Sine of amplitude a and period P <= 0.2 s: a 0.2 s window holds >= P/2, so 2a
+    # (crests on the sample grid); RMS jitter over 0.4 s, a whole number of periods, a/sqrt 2.
+    for i in range(3):
+        for cf, g in (("isolation off", 0.0), ("isolation on", 3.0)):
+            a = 1e-6 * (i + 1) / (1 + g) * ARCSEC
+            r = get[(f"event{i}", cf, "A", "pitch", "peak_to_peak")]
+            np.testing.assert_allclose(r["value"], 2 * a, rtol=1e-6)
+            r = get[(f"event{i}", cf, "A", "yaw", "rms_jitter")]
+            np.testing.assert_allclose(r["value"], a / math.sqrt(2), rtol=1e-6)
+    rss = get[("RSS", "isolation off", "A", "pitch", "peak_to_peak")]
+    np.testing.assert_allclose(rss["value"], 2e-6 * ARCSEC * math.sqrt(1 + 4 + 9), rtol=1e-6)
+    assert rss["requirement"] == 1.0
+    np.testing.assert_allclose(rss["margin"], 1.0 - rss["value"])
+    np.testing.assert_allclose(rss["margin_ratio"], (1.0 - rss["value"]) / 1.0)
+    assert rss["pass"] is False  # 1.54 arcsec > 1 arcsec
+    on = get[("RSS", "isolation on", "A", "pitch", "peak_to_peak")]
+    assert on["pass"] is True  # a quarter of the above
+    shares = [get[(f"event{i}", "isolation off", "A", "pitch", "peak_to_peak")]["share"]
+              for i in range(3)]
+    np.testing.assert_allclose(shares, np.array([1, 4, 9]) / 14)
+    # requirement shorthand on instrument B applies to every metric; none for A's RMS
+    assert get[("RSS", "isolation off", "B", "roll", "rms_jitter")]["requirement"] == 0.3
+    assert get[("RSS", "isolation off", "A", "yaw", "rms_jitter")]["pass"] is None
+    csv = (tmp_path / "summary.csv").read_text()
+    assert csv.splitlines()[0].startswith('"case","key","event","configuration"')
+    assert csv.count("\n") == len(rows) + 1
+
+
+def test_parallel_result_identical_to_serial(tmp_path):
+    camp = campaign_from_dict(campaign_data(sweep=True))
+    run_campaign(camp, tmp_path / "serial", synthetic_runner, workers=0, progress=False)
+    res = run_campaign(camp, tmp_path / "pool", synthetic_runner, workers=2, progress=False)
+    assert (res.n_run, res.n_failed) == (12, 0)
+    assert read_sorted(tmp_path / "pool/summary.parquet") == read_sorted(
+        tmp_path / "serial/summary.parquet")
+
+
+def test_dask_local_cluster_identical_to_local(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    camp = campaign_from_dict(campaign_data())
+    run_campaign(camp, tmp_path / "local", synthetic_runner, workers=0, progress=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        res = run_campaign(camp, tmp_path / "dask", synthetic_runner,
+                           scheduler=cluster.scheduler_address, progress=False)
+    assert (res.n_run, res.n_failed) == (6, 0)
+    assert read_sorted(tmp_path / "dask/summary.parquet") == read_sorted(
+        tmp_path / "local/summary.parquet")
+
+
+def test_failing_case_is_recorded_and_others_complete(tmp_path):
+    camp = campaign_from_dict(campaign_data(fail_event=1))
+    res = run_campaign(camp, tmp_path, synthetic_runner, workers=2, progress=False)
+    assert res.n_failed == 2  # event1 in both configurations
+    cases = pq.read_table(tmp_path / "cases.parquet").to_pylist()
+    failed = [c for c in cases if c["status"] == "failed"]
+    assert sorted(c["case"] for c in failed) == ["event1 | isolation off",
+                                                 "event1 | isolation on"]
+    assert failed[0]["error"] == "RuntimeError: disturbance model diverged at 10.0 Hz"
+    assert sum(c["status"] == "ok" for c in cases) == 4
+    rows = pq.read_table(tmp_path / "summary.parquet").to_pylist()
+    assert {r["event"] for r in rows} == {"event0", "event2", "RSS"}
+    rss = [r for r in rows if r["event"] == "RSS"]
+    assert all("event1" in r["note"] and r["pass"] is None for r in rss)
+
+
+def test_rerun_skips_finished_cases(tmp_path):
+    log = tmp_path / "calls.log"
+    camp = campaign_from_dict(campaign_data(log=log))
+    run_campaign(camp, tmp_path / "out", synthetic_runner, workers=0, progress=False)
+    first = read_sorted(tmp_path / "out/summary.parquet")
+    assert len(log.read_text().split()) == 6
+    res = run_campaign(camp, tmp_path / "out", synthetic_runner, workers=0, progress=False)
+    assert (res.n_run, res.n_skipped) == (0, 6)
+    assert len(log.read_text().split()) == 6  # no case ran again
+    assert read_sorted(tmp_path / "out/summary.parquet") == first
+
+
+def test_sigkill_mid_campaign_loses_only_cases_in_flight(tmp_path):
+    log = tmp_path / "calls.log"
+    data = campaign_data(log=log, sleep=0.25, n_events=6)  # 12 cases
+    (tmp_path / "campaign.json").write_text(json.dumps(data))
+    script = textwrap.dedent(f"""
+        import json, sys
+        sys.path.insert(0, {str(Path(__file__).parent)!r})
+        from test_campaign import synthetic_runner
+        from orchestrator.campaign import campaign_from_dict, run_campaign
+        data = json.load(open({str(tmp_path / "campaign.json")!r}))
+        run_campaign(campaign_from_dict(data), {str(tmp_path / "out")!r}, synthetic_runner,
+                     workers=2, progress=False)
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    cases_dir = tmp_path / "out" / "cases"
+
+    def finished():
+        if not cases_dir.is_dir():
+            return {}
+        out = {}
+        for d in cases_dir.iterdir():
+            if not d.name.startswith(".") and (d / "case.json").is_file():
+                out[d.name] = json.loads((d / "case.json").read_text())
+        return out
+
+    deadline = time.monotonic() + 60
+    while len(finished()) < 4 and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    os.killpg(proc.pid, signal.SIGKILL)  # the campaign process and its pool workers
+    proc.wait()
+    before = finished()
+    assert 4 <= len(before) < 12, f"kill came too late: {len(before)} cases finished"
+    assert all(st["status"] == "ok" for st in before.values())
+    assert all((cases_dir / k / "metrics.parquet").is_file() for k in before)
+    calls_before = log.read_text().split()
+
+    camp = campaign_from_dict(data)
+    res = run_campaign(camp, tmp_path / "out", synthetic_runner, workers=0, progress=False)
+    assert (res.n_cases, res.n_failed) == (12, 0)
+    assert res.n_skipped == len(before) and res.n_run == 12 - len(before)
+    after = finished()
+    assert set(after) == {c.key for c in camp.cases}
+    assert all(after[k] == before[k] for k in before)  # finished cases untouched
+    # none of the finished cases ran again
+    rerun = log.read_text().split()[len(calls_before):]
+    digest = {k: hashlib.sha256(json.dumps(v["scenario"], sort_keys=True).encode()).hexdigest()
+              for k, v in after.items()}
+    assert not {digest[k] for k in before} & set(rerun)
+    assert len(rerun) == 12 - len(before)
+    assert not list(cases_dir.glob(".tmp-*"))
+    assert len(pq.read_table(tmp_path / "out/summary.parquet")) == 12 * 3 * 2 + 2 * 3 * 2
+
+
+def test_cli_runs_campaign_and_reports_failures_in_exit_status(tmp_path, capsys):
+    import tomli_w
+
+    data = campaign_data(fail_event=0)
+    path = tmp_path / "c.toml"
+    path.write_text(tomli_w.dumps(data))
+    code = cli_main(["campaign", str(path), "--out", str(tmp_path / "o"), "--workers", "0",
+                     "--runner", f"{__name__}:synthetic_runner", "--quiet"])
+    assert code == 2  # two failed cases
+    out, err = capsys.readouterr()
+    assert "6 cases: 6 run, 0 already finished, 2 failed" in out
+    assert "diverged at 5.0 Hz" in err
+    assert (tmp_path / "o/summary.csv").is_file()

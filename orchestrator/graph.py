@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 __all__ = ["AlgebraicLoopError", "Loop", "feedthrough_edges", "strongly_connected",
-           "step_groups", "describe_cycle"]
+           "step_groups", "describe_cycle", "init_order"]
 
 
 class AlgebraicLoopError(RuntimeError):
@@ -194,3 +194,29 @@ def step_groups(instances, edges) -> tuple:
         if len(g) > 1 or g[0] in self_loops
     ]
     return groups, loops
+
+
+def init_order(instances, connections, feedthrough) -> list:
+    """Order instances for initialisation: a source before the sinks whose outputs need it.
+
+    A connection ``A.y -> B.u`` orders A before B when some output of B depends directly
+    on ``u``; an input that only drives B's state does not, because B's initial outputs
+    do not need it.  Cycles keep scenario order.
+
+    Parameters
+    ----------
+    instances : sequence of str
+    connections : sequence of Connection-like
+    feedthrough : dict of str to dict of str to set of str
+        Each instance's outputs' direct input dependencies.
+
+    Returns
+    -------
+    list of str
+    """
+    used = {n: set().union(*feedthrough.get(n, {}).values()) if feedthrough.get(n) else set()
+            for n in instances}
+    edges = [c for c in connections if c.target_var in used.get(c.target, set())
+             and c.source != c.target]
+    groups, _ = step_groups(instances, edges)
+    return [m for g in groups for m in g]

@@ -1,0 +1,191 @@
+"""Run results: the recorded table, its metadata, atomic files and a progress bar.
+
+A run folder holds ``results.parquet`` (or ``results.csv``) with a ``time`` column and
+one column per recorded ``instance.variable``, and ``run.json`` with the scenario hash,
+FMU checksums, package versions, wall time, status and error.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from importlib import metadata as _md
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["RunResult", "write_table", "read_table", "write_metadata", "package_versions",
+           "Progress"]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """The outcome of one run; unpacks as ``table, metadata = result``.
+
+    Attributes
+    ----------
+    table : dict of str to ndarray, shape (n_rows,)
+        ``"time"`` (s) and one column per recorded ``instance.variable``.
+    metadata : dict
+        The content of ``run.json``.
+    path : Path or None
+        The output folder, if results were written.
+    """
+
+    table: dict
+    metadata: dict = field(default_factory=dict)
+    path: Path | None = None
+
+    def __iter__(self):
+        return iter((self.table, self.metadata))
+
+    def __getitem__(self, key):
+        return self.table[key]
+
+    @property
+    def time(self) -> np.ndarray:
+        """Row times (s)."""
+        return self.table["time"]
+
+    def to_arrow(self):
+        """Return the table as a ``pyarrow.Table``."""
+        import pyarrow as pa
+
+        return pa.table({k: np.asarray(v) for k, v in self.table.items()})
+
+
+def _atomic_write(path: Path, writer) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(fd)
+    try:
+        writer(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def write_table(table: dict, path, csv: bool = False) -> Path:
+    """Write a column table atomically to Parquet (or CSV) and return the path.
+
+    Parameters
+    ----------
+    table : dict of str to ndarray, shape (n_rows,)
+    path : path-like
+        Target file.
+    csv : bool
+        Write CSV (``%.17g``, lossless) instead of Parquet.
+    """
+    path = Path(path)
+    cols = {k: np.asarray(v) for k, v in table.items()}
+    if csv:
+        def writer(tmp):
+            names = list(cols)
+            with open(tmp, "w", encoding="utf-8", newline="") as f:
+                f.write(",".join(names) + "\n")
+                if names:
+                    data = np.column_stack([cols[n].astype(float) for n in names])
+                    np.savetxt(f, data, delimiter=",", fmt="%.17g")
+    else:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        arrow = pa.table(cols)
+
+        def writer(tmp):
+            pq.write_table(arrow, tmp)
+    _atomic_write(path, writer)
+    return path
+
+
+def read_table(path) -> dict:
+    """Read a results file (Parquet or CSV) back into a dict of numpy arrays."""
+    path = Path(path)
+    if path.suffix == ".csv":
+        with open(path, encoding="utf-8") as f:
+            names = f.readline().strip().split(",")
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        return {n: data[:, j] for j, n in enumerate(names)}
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(path)
+    return {n: t.column(n).to_numpy() for n in t.column_names}
+
+
+def write_metadata(meta: dict, path) -> Path:
+    """Write ``run.json`` atomically."""
+    path = Path(path)
+    text = json.dumps(meta, indent=2, sort_keys=True, default=str)
+
+    def writer(tmp):
+        Path(tmp).write_text(text + "\n", encoding="utf-8")
+    _atomic_write(path, writer)
+    return path
+
+
+def package_versions() -> dict:
+    """Versions of Python and the packages a run depends on."""
+    out = {"python": sys.version.split()[0]}
+    for name in ("jitterfmu", "numpy", "fmpy", "pythonfmu", "pyarrow", "scipy"):
+        try:
+            out[name] = _md.version(name)
+        except _md.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+class Progress:
+    """A one-line progress bar on stderr for runs longer than a few seconds.
+
+    Silent when `quiet` or when stderr is not a terminal; it appears only after `delay`
+    seconds and is erased when done.
+
+    Parameters
+    ----------
+    label : str
+    quiet : bool
+    delay : float
+        Seconds before the bar first appears (s).
+    stream : file, optional
+        Default ``sys.stderr``.
+    """
+
+    def __init__(self, label: str = "run", quiet: bool = False, delay: float = 3.0,
+                 stream=None):
+        self.stream = stream or sys.stderr
+        self.enabled = not quiet and getattr(self.stream, "isatty", lambda: False)()
+        self.label = label
+        self.t0 = time.monotonic()
+        self.delay = delay
+        self.shown = False
+        self.last = 0.0
+
+    def __call__(self, fraction: float) -> None:
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if now - self.t0 < self.delay or (now - self.last < 0.2 and fraction < 1.0):
+            return
+        self.last = now
+        width = 30
+        done = int(round(width * fraction))
+        eta = (now - self.t0) * (1 - fraction) / fraction if fraction > 0 else 0.0
+        self.stream.write(f"\r{self.label} [{'#' * done}{'.' * (width - done)}] "
+                          f"{100 * fraction:5.1f}%  eta {eta:5.0f} s")
+        self.stream.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        """Erase the bar."""
+        if self.shown:
+            self.stream.write("\r" + " " * 70 + "\r")
+            self.stream.flush()
+            self.shown = False

@@ -1,0 +1,40 @@
+"""Test FMUs for the master, built once per session with fmukit."""
+
+import shutil
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE / "fmus"))
+
+SLAVES = {
+    "MtIntegrator": "mastertest_slaves:Integrator",
+    "MtGain": "mastertest_slaves:Gain",
+    "MtFaulty": "mastertest_slaves:Faulty",
+}
+
+
+@pytest.fixture(scope="session")
+def fmu_dir(tmp_path_factory):
+    """Folder with MtIntegrator.fmu, MtGain.fmu, MtFaulty.fmu and MtGainNoState.fmu."""
+    from fmukit.build import FmuSpec, build_fmu
+
+    out = tmp_path_factory.mktemp("master_fmus")
+    for ident, cls in SLAVES.items():
+        build_fmu(FmuSpec(model_identifier=ident, slave_class=cls), out)
+        # the build imports the slave package from its temporary stage folder; forget
+        # it so the next build bundles the source tree again
+        sys.modules.pop("mastertest_slaves", None)
+    # a copy whose model description denies fmi2Get/SetFMUstate (never instantiated)
+    src, dst = out / "MtGain.fmu", out / "MtGainNoState.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'canGetAndSetFMUstate="true"',
+                                    b'canGetAndSetFMUstate="false"')
+            zout.writestr(item, data)
+    return out

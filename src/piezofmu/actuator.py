@@ -11,9 +11,9 @@ stroke ``d0 / V0 * v_eff`` to ``+-stroke_limit``.
 
 The strain gauge reads the active-member elongation ``e`` (an input, m) as
 ``e / gauge_length`` plus seeded Gaussian noise, then quantises it.  The noise of a reading is
-a function of ``(seed, tick)`` only, where ``tick`` counts internal sub-steps since the
-start: it is reproducible, independent of how the caller splits time, and needs no random
-generator in the saved state.
+a function of ``(seed, tick)`` only (`gaussian`, counter-based), where ``tick`` counts
+internal sub-steps since the start: it is reproducible, independent of how the caller splits
+time, and needs no random generator in the saved state.
 
 All outputs except the strain are functions of the state alone (no direct feedthrough from
 ``v_cmd``); the strain has direct feedthrough from the elongation.
@@ -41,6 +41,7 @@ __all__ = [
     "StateArrayError",
     "StrainGauge",
     "actuator_preset",
+    "gaussian",
     "initial_state",
     "outputs",
     "step",
@@ -256,13 +257,48 @@ def step(act: PiezoActuator, state: ActuatorState, v_cmd: float,
     return new, outputs(act, new)
 
 
+_MASK64 = (1 << 64) - 1
+
+
+def _splitmix64(x: int) -> int:
+    """SplitMix64 finaliser of ``x + golden gamma`` (Steele, Lea & Flood 2014)."""
+    z = (x + 0x9E3779B97F4A7C15) & _MASK64
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+    return z ^ (z >> 31)
+
+
+def gaussian(seed: int, counter: int) -> float:
+    """Standard normal sample that is a pure function of ``(seed, counter)``.
+
+    Counter-based: two SplitMix64 hashes give two uniforms, Box–Muller gives the sample.
+    Pure Python integers, so the sequence is the same on every platform and numpy version.
+
+    Parameters
+    ----------
+    seed : int
+        Non-negative seed.
+    counter : int
+        Non-negative sample index.
+
+    Returns
+    -------
+    float
+        Sample of N(0, 1).
+    """
+    h1 = _splitmix64(_splitmix64(int(seed) & _MASK64) ^ (int(counter) & _MASK64))
+    h2 = _splitmix64(h1)
+    u1 = ((h1 >> 11) + 1) * 2.0**-53  # (0, 1]
+    u2 = (h2 >> 11) * 2.0**-53  # [0, 1)
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
 def strain(act: PiezoActuator, state: ActuatorState, elongation: float) -> float:
     """Strain-gauge reading for a member elongation (m), noise keyed by the state's tick (-)."""
     g = act.gauge
     eps = float(elongation) / g.length
     if g.noise_std > 0.0:
-        rng = np.random.default_rng([int(g.seed), int(state.tick)])
-        eps += g.noise_std * float(rng.standard_normal())
+        eps += g.noise_std * gaussian(g.seed, state.tick)
     if g.resolution > 0.0:
         eps = g.resolution * round(eps / g.resolution)
     return eps

@@ -144,3 +144,20 @@ def test_presets():
 def test_invalid_gauge_raises(kwargs, word):
     with pytest.raises(ValueError, match=word):
         StrainGauge(**kwargs)
+
+
+def test_counter_based_gaussian_is_standard_normal():
+    from scipy import stats
+
+    x = np.array([ac.gaussian(4, k) for k in range(20000)])
+    # Kolmogorov-Smirnov against N(0, 1): a deterministic sample, so a fixed p-value.
+    assert stats.kstest(x, "norm").pvalue > 0.01
+    assert abs(np.mean(x)) < 5 / math.sqrt(x.size)
+    assert np.std(x) == pytest.approx(1.0, abs=5 * math.sqrt(0.5 / x.size))
+    # Neighbouring counters and seeds are uncorrelated.
+    assert abs(np.corrcoef(x[:-1], x[1:])[0, 1]) < 5 / math.sqrt(x.size)
+    y = np.array([ac.gaussian(5, k) for k in range(20000)])
+    assert abs(np.corrcoef(x, y)[0, 1]) < 5 / math.sqrt(x.size)
+    # Golden value: the sequence is fixed across platforms and versions.
+    assert ac.gaussian(0, 0) == 0.5948276824468888
+    assert ac.gaussian(7, 123456) == 1.0575546891808585

@@ -73,6 +73,7 @@ same numbers: each case is a pure function of its definition.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import json
@@ -110,9 +111,12 @@ __all__ = [
     "Progress",
     "campaign_from_dict",
     "case_metrics",
+    "execute_case",
+    "keyed",
     "load_campaign",
     "run_campaign",
     "summarize",
+    "write_summary",
 ]
 
 #: Factor from rad to each supported reporting unit.
@@ -185,6 +189,8 @@ class Campaign:
         Transient dropped from the start of every record (s).
     base_dir : Path
         Folder of the campaign file (relative paths are resolved against it).
+    scenario_dir : Path
+        Folder of the base scenario (FMU names are resolved against it).
     """
 
     name: str
@@ -195,6 +201,7 @@ class Campaign:
     unit: str = "arcsec"
     skip: float = 0.0
     base_dir: Path = field(default_factory=Path.cwd)
+    scenario_dir: Path = field(default_factory=Path.cwd)
 
     def requirement(self, instrument: str, axis: str, metric: str, window) -> float:
         """Requirement (in ``unit``) for one summary row, NaN if none applies.
@@ -261,7 +268,7 @@ def _apply(scenario: dict, overrides: dict) -> dict:
     return out
 
 
-def campaign_from_dict(data: Mapping, base_dir=None, fingerprint: Callable | None = None):
+def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:
     """Expand campaign data (the TOML layout) into a :class:`Campaign`.
 
     Parameters
@@ -272,13 +279,12 @@ def campaign_from_dict(data: Mapping, base_dir=None, fingerprint: Callable | Non
         TOML or an inline table (the scenario layout).
     base_dir : path-like, optional
         Folder for relative paths (default: current folder).
-    fingerprint : callable, optional
-        ``fingerprint(scenario_dict) -> str`` mixed into every case key (e.g. checksums of
-        the FMUs the case uses).
 
     Returns
     -------
     Campaign
+        Cases keyed by the SHA-256 of their definition; :func:`run_campaign` mixes in the
+        runner's fingerprint (:func:`keyed`).
     """
     base_dir = Path(base_dir or Path.cwd()).resolve()
     head = data.get("campaign")
@@ -391,26 +397,24 @@ def campaign_from_dict(data: Mapping, base_dir=None, fingerprint: Callable | Non
                 "metrics": metrics,
                 "skip": skip,
             }
-            extra = fingerprint(scenario_case) if fingerprint else ""
-            key = hashlib.sha256((_canonical(definition) + "\n" + str(extra)).encode()).hexdigest()
+            key = hashlib.sha256(_canonical(definition).encode()).hexdigest()
             label = " | ".join(x for x in (str(ev["name"]), str(cf["name"]), sweep) if x)
             cases.append(Case(key, label, str(ev["name"]), str(cf["name"]), sweep, scenario_case))
     keys = [c.key for c in cases]
     if len(set(keys)) != len(keys):
         dup = [c.label for c in cases if keys.count(c.key) > 1]
         raise CampaignError(f"cases {dup} have identical definitions; make their overrides differ")
-    return Campaign(name, tuple(cases), inst_map, tuple(metrics), tuple(reqs), unit, skip, base_dir)
+    return Campaign(name, tuple(cases), inst_map, tuple(metrics), tuple(reqs), unit, skip,
+                    base_dir, scen_dir)
 
 
-def load_campaign(path, fingerprint: Callable | None = None) -> Campaign:
+def load_campaign(path) -> Campaign:
     """Read a campaign TOML file (see the module docstring for the layout).
 
     Parameters
     ----------
     path : path-like
         Campaign file.
-    fingerprint : callable, optional
-        ``fingerprint(scenario_dict) -> str`` mixed into every case key.
 
     Returns
     -------
@@ -423,7 +427,7 @@ def load_campaign(path, fingerprint: Callable | None = None) -> Campaign:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise CampaignError(f"campaign file {str(path)!r} is not valid TOML: {exc}") from None
-    return campaign_from_dict(data, path.parent, fingerprint)
+    return campaign_from_dict(data, path.parent)
 
 
 # ----------------------------------------------------------------------------- runner
@@ -435,8 +439,10 @@ class MasterRunner:
     Parameters
     ----------
     base_dir : path-like
-        Folder against which FMU names of the scenario are resolved (the base scenario's
-        folder); FMU names are looked up as ``fmus/<name>.fmu`` there and in its parents.
+        Folder against which the FMU names of a case's scenario are resolved (the base
+        scenario's folder), as :func:`orchestrator.master.find_fmu` does for a scenario file.
+    fmu_dir : path-like, optional
+        Extra folder searched first for FMU names.
 
     Notes
     -----
@@ -444,46 +450,65 @@ class MasterRunner:
     SHA-256 of every FMU file a scenario uses, so rebuilt FMUs change the case keys.
     """
 
-    def __init__(self, base_dir=None):
+    def __init__(self, base_dir=None, fmu_dir=None):
         self.base_dir = Path(base_dir or Path.cwd()).resolve()
+        self.fmu_dir = None if fmu_dir is None else Path(fmu_dir).resolve()
 
-    def _fmu_path(self, fmu: str) -> Path | None:
-        p = Path(fmu)
-        if p.suffix == ".fmu":
-            p = p if p.is_absolute() else self.base_dir / p
-            return p if p.is_file() else None
-        for d in (self.base_dir, *self.base_dir.parents):
-            cand = d / "fmus" / f"{fmu}.fmu"
-            if cand.is_file():
-                return cand
-        return None
+    def _scenario(self, scenario: dict):
+        from .scenario import scenario_from_dict
+
+        return scenario_from_dict(scenario, self.base_dir, source="<campaign case>")
 
     def fingerprint(self, scenario: dict) -> str:
-        """SHA-256 of the FMU files the scenario uses ("missing" for absent ones)."""
+        """SHA-256 over the FMU files the scenario uses ("missing" for absent ones)."""
+        from .master import find_fmu
+
+        sc = self._scenario(scenario)
         h = hashlib.sha256()
-        for name in sorted(scenario.get("fmus", {})):
-            fmu = str(scenario["fmus"][name].get("fmu", ""))
-            path = self._fmu_path(fmu)
-            h.update(f"{name}:{fmu}:".encode())
-            if path is None:
+        for inst in sorted(sc.instances, key=lambda i: i.name):
+            h.update(f"{inst.name}:{inst.fmu}:".encode())
+            try:
+                path = find_fmu(inst.fmu, sc, self.fmu_dir)
+            except ValueError:
                 h.update(b"missing")
-            else:
-                with open(path, "rb") as f:
-                    for chunk in iter(lambda: f.read(1 << 20), b""):
-                        h.update(chunk)
+                continue
+            with open(path, "rb") as f:
+                for chunk in iter(lambda: f.read(1 << 20), b""):
+                    h.update(chunk)
         return h.hexdigest()
 
     def __call__(self, scenario: dict, out_dir) -> Path:
-        try:
-            from . import master
-        except ImportError as exc:
-            raise RuntimeError(
-                f"the co-simulation master (orchestrator.master) is not available: {exc}"
-            ) from None
-        run_case = getattr(master, "run_case", None)
-        if run_case is None:
-            raise RuntimeError("orchestrator.master defines no run_case(scenario, out_dir)")
-        return Path(run_case(scenario, out_dir, base_dir=self.base_dir))
+        from .master import run_scenario
+
+        run_scenario(self._scenario(scenario), out_dir, quiet=True, fmu_dir=self.fmu_dir)
+        return Path(out_dir) / "results.parquet"
+
+
+def keyed(campaign: Campaign, runner) -> Campaign:
+    """Mix the runner's fingerprint of each case (e.g. FMU checksums) into its key.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Cases keyed by their definition only.
+    runner : callable
+        Case runner; if it has ``fingerprint(scenario_dict) -> str`` that string enters
+        every key, so a rebuilt FMU makes its cases run again.
+
+    Returns
+    -------
+    Campaign
+        Same campaign, final keys.
+    """
+    fp = getattr(runner, "fingerprint", None)
+    if fp is None:
+        return campaign
+    cases = []
+    for c in campaign.cases:
+        extra = fp(c.scenario)
+        key = hashlib.sha256(f"{c.key}\n{extra}".encode()).hexdigest()
+        cases.append(dataclasses.replace(c, key=key))
+    return dataclasses.replace(campaign, cases=tuple(cases))
 
 
 # ----------------------------------------------------------------------------- one case
@@ -787,7 +812,8 @@ def run_campaign(
         Output folder (created; reused to resume).
     runner : callable, optional
         ``runner(scenario_dict, out_dir) -> path of results.parquet``; picklable for
-        ``workers >= 1`` and Dask.  Default: :class:`MasterRunner`.
+        ``workers >= 1`` and Dask.  Default: :class:`MasterRunner`.  If it has a
+        ``fingerprint(scenario_dict) -> str`` method, that enters the case keys.
     workers : int, optional
         0 runs the cases in this process; N >= 1 uses N worker processes.  Default: the
         number of CPUs.  Ignored when ``scheduler`` is given.
@@ -806,7 +832,8 @@ def run_campaign(
     cases_dir.mkdir(parents=True, exist_ok=True)
     for stale in cases_dir.glob(".tmp-*"):  # left by a killed run
         shutil.rmtree(stale, ignore_errors=True)
-    runner = runner or MasterRunner(campaign.base_dir)
+    runner = runner or MasterRunner(campaign.scenario_dir)
+    campaign = keyed(campaign, runner)
     _write_json_atomic(out / "campaign.json", {
         "name": campaign.name, "unit": campaign.unit, "skip": campaign.skip,
         "instruments": campaign.instruments, "metrics": campaign.metrics,

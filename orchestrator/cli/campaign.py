@@ -37,13 +37,8 @@ def _import_runner(spec: str):
 def run(args) -> int:
     from ..campaign import MasterRunner, load_campaign, run_campaign, slug
 
-    if args.runner:
-        runner = _import_runner(args.runner)
-        fingerprint = getattr(runner, "fingerprint", None)
-    else:
-        runner = MasterRunner(args.campaign.resolve().parent)
-        fingerprint = runner.fingerprint
-    camp = load_campaign(args.campaign, fingerprint=fingerprint)
+    camp = load_campaign(args.campaign)
+    runner = _import_runner(args.runner) if args.runner else MasterRunner(camp.scenario_dir)
     out = args.out or Path("out") / slug(camp.name)
     res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                        progress=False if args.quiet else None)

@@ -22,6 +22,7 @@ from orchestrator.campaign import (
     ANGLE_UNITS,
     CampaignError,
     campaign_from_dict,
+    keyed,
     run_campaign,
 )
 from orchestrator.cli import main as cli_main
@@ -61,6 +62,16 @@ def synthetic_runner(scenario: dict, out_dir) -> Path:
     path = Path(out_dir) / "results.parquet"
     pq.write_table(table, path)
     return path
+
+
+class FingerprintedRunner:
+    """A runner whose FMUs have a checksum (here a constant)."""
+
+    def fingerprint(self, scenario):
+        return "fmu-checksums-v2"
+
+    def __call__(self, scenario, out_dir):
+        return synthetic_runner(scenario, out_dir)
 
 
 def campaign_data(log=None, sleep=0.0, fail_event=None, n_events=3, sweep=False):
@@ -127,8 +138,9 @@ def test_matrix_expands_events_configurations_and_sweeps():
     # keys are stable, and the runner's fingerprint (FMU checksums) enters them
     again = campaign_from_dict(campaign_data(n_events=3, sweep=True))
     assert [x.key for x in again.cases] == [x.key for x in c.cases]
-    other = campaign_from_dict(campaign_data(n_events=3, sweep=True), fingerprint=lambda s: "v2")
+    other = keyed(c, FingerprintedRunner())
     assert not {x.key for x in other.cases} & {x.key for x in c.cases}
+    assert [x.label for x in other.cases] == [x.label for x in c.cases]
 
 
 def test_bad_campaigns_are_rejected_with_the_culprit_named():

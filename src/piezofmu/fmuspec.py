@@ -33,22 +33,27 @@ def specs(models: list[str] | None = None) -> list[FmuSpec]:
     Parameters
     ----------
     models : list of str or None
-        Model identifiers to return (see `MODELS`); None for all.
+        Model identifiers wanted (see `MODELS`); None for all.  Names of other packages'
+        models are ignored, so the project registry can pass one mixed list to every
+        package.
 
     Returns
     -------
     list of FmuSpec
-        In the order of `models` (or of `MODELS`).
+        The wanted piezo FMUs, in the order of `models` (or of `MODELS`).
 
     Raises
     ------
     UnknownModelError
-        If a name is not in `MODELS`.
+        If `models` names no piezo FMU at all.
     """
-    names = list(MODELS) if models is None else list(models)
-    unknown = [m for m in names if m not in MODELS]
-    if unknown:
-        raise UnknownModelError(f"unknown piezo FMU {unknown[0]!r}; known: {', '.join(MODELS)}")
+    if models is None:
+        names = list(MODELS)
+    else:
+        names = [m for m in models if m in MODELS]
+        if not names:
+            raise UnknownModelError(f"none of the models {list(models)} is a piezo FMU; "
+                                    f"known: {', '.join(MODELS)}")
     return [
         FmuSpec(
             model_identifier=name,

@@ -130,5 +130,9 @@ def test_specs_one_fmu_per_preset():
     one = specs(["piezo_p845_37"])
     assert len(one) == 1 and one[0].init_kwargs == {"preset_name": "P-845.37"}
     assert len({s.module_name for s in all_specs}) == 3
-    with pytest.raises(UnknownModelError, match="piezo_p999"):
+    # Other packages' names are ignored; a list with no piezo FMU is an error (a KeyError,
+    # which the project registry reads as "not this package").
+    assert [s.model_identifier for s in specs(["truss10", "piezo_p243_40"])] == ["piezo_p243_40"]
+    with pytest.raises(UnknownModelError, match="piezo_p999") as info:
         specs(["piezo_p999"])
+    assert isinstance(info.value, KeyError)

@@ -35,6 +35,7 @@ from piezofmu.units import INCH
 
 __all__ = [
     "ACTUATORS",
+    "DEFAULT_BOUC_WEN",
     "ActuatorOutputs",
     "ActuatorState",
     "PiezoActuator",
@@ -304,9 +305,13 @@ def strain(act: PiezoActuator, state: ActuatorState, elongation: float) -> float
     return eps
 
 
+#: Default Bouc-Wen shape ``(alpha, beta V0, gamma V0)``, an assumption: the branch gap at
+#: v = 0 is 10 % of the stroke span for a +-V0/2 sine (docs/piezo.md).
+DEFAULT_BOUC_WEN = (0.25, 3.0, 1.0)
+
+
 def _default_hysteresis(stack: PiezoStack) -> BoucWen:
-    # Assumption: branch gap at v = 0 is 10 % of the stroke span for a +-V0/2 sine (docs/piezo.md).
-    return BoucWen.scaled(alpha=0.25, beta_v0=3.0, gamma_v0=1.0, v0=stack.rated_voltage)
+    return BoucWen.scaled(*DEFAULT_BOUC_WEN, v0=stack.rated_voltage)
 
 
 def _make(stack_name: str, amp_name: str, gauge_length: float) -> PiezoActuator:

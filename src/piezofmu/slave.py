@@ -25,17 +25,12 @@ from __future__ import annotations
 import math
 from typing import ClassVar
 
-import numpy as np
-
 from fmukit.slave import FmuSlave
 from piezofmu import actuator as ac
-from piezofmu.actuator import ActuatorState, PiezoActuator, StrainGauge
+from piezofmu.actuator import DEFAULT_BOUC_WEN, ActuatorState, PiezoActuator, StrainGauge
 from piezofmu.hysteresis import BoucWen
 
 __all__ = ["PiezoSlave", "PiezoParameterError"]
-
-# Default Bouc-Wen shape (dimensionless, scaled by the stack's rated voltage).
-_BW_DEFAULT = (0.25, 3.0, 1.0)
 
 _FLAGS = ("sat_voltage", "sat_slew", "sat_stroke")
 
@@ -74,10 +69,10 @@ class PiezoSlave(FmuSlave):
         p("internal_step", float(amp.internal_step), unit="s",
           description="fixed internal sub-step of the amplifier")
         p("hysteresis", False, description="Bouc-Wen hysteresis on")
-        p("bw_alpha", _BW_DEFAULT[0], unit="1", description="Bouc-Wen alpha")
-        p("bw_beta_v0", _BW_DEFAULT[1], unit="1",
+        p("bw_alpha", DEFAULT_BOUC_WEN[0], unit="1", description="Bouc-Wen alpha")
+        p("bw_beta_v0", DEFAULT_BOUC_WEN[1], unit="1",
           description="Bouc-Wen beta times the rated voltage")
-        p("bw_gamma_v0", _BW_DEFAULT[2], unit="1",
+        p("bw_gamma_v0", DEFAULT_BOUC_WEN[2], unit="1",
           description="Bouc-Wen gamma times the rated voltage")
         p("stroke_limit", 0.0, unit="m", tunable=True,
           description="free-stroke magnitude limit, 0 for none")
@@ -178,7 +173,3 @@ class PiezoSlave(FmuSlave):
         self.strain = ac.strain(act, state, self.elongation)
         return True
 
-
-def state_array(slave: PiezoSlave) -> np.ndarray:
-    """Copy of the actuator state array of a slave (for tests and diagnostics)."""
-    return slave.x.copy()

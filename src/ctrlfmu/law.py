@@ -38,6 +38,7 @@ the first sample that can produce a non-zero command is therefore ``t_on + dt``.
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -56,6 +57,7 @@ __all__ = [
     "simulate",
     "backcalculation_gain",
     "save_law",
+    "law_bytes",
     "load_law",
 ]
 
@@ -494,8 +496,26 @@ def save_law(law: DiscreteLaw, path) -> Path:
     path = Path(path)
     if path.suffix != ".npz":
         path = path.with_name(path.name + ".npz")
+    path.write_bytes(law_bytes(law))
+    return path
+
+
+def law_bytes(law: DiscreteLaw) -> bytes:
+    """Contents of the ``.npz`` file :func:`save_law` writes (for FMU resources).
+
+    Parameters
+    ----------
+    law : DiscreteLaw
+        The control law.
+
+    Returns
+    -------
+    bytes
+        An uncompressed ``.npz`` archive without pickles.
+    """
+    buf = io.BytesIO()
     np.savez(
-        path,
+        buf,
         format=np.array(_FORMAT),
         A=law.A, B=law.B, C=law.C, D=law.D, aw_gain=law.aw_gain,
         u_min=law.u_min, u_max=law.u_max,
@@ -505,7 +525,7 @@ def save_law(law: DiscreteLaw, path) -> Path:
         input_units=np.array(law.input_units, dtype=str),
         output_units=np.array(law.output_units, dtype=str),
     )
-    return path
+    return buf.getvalue()
 
 
 def load_law(path) -> DiscreteLaw:
@@ -513,7 +533,7 @@ def load_law(path) -> DiscreteLaw:
 
     Parameters
     ----------
-    path : str or Path
+    path : str, Path or binary file object
         An ``.npz`` file.
 
     Returns

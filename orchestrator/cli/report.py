@@ -1,0 +1,24 @@
+"""``jitterfmu report``: turn a campaign folder into an HTML or Markdown report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+COMMAND = "report"
+HELP = "write the jitter report (budget chart, time histories, tables) of a campaign folder"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("dir", type=Path, help="campaign output folder")
+    parser.add_argument("--format", choices=("html", "md"), default="html",
+                        help="self-contained HTML (default) or Markdown with PNG files")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="report file (default: DIR/report.html or DIR/report.md)")
+
+
+def run(args) -> int:
+    from ..report import write_report
+
+    path = write_report(args.dir, args.format, args.out)
+    print(f"report written to {path}")
+    return 0

@@ -1,0 +1,195 @@
+"""Presets for the twelve EOS AM-1 disturbance events (plus ``"none"``).
+
+The paper names the events but gives no amplitudes.  The values below are representative
+choices; most are assumptions, and the few taken from public instrument descriptions say
+so.  ``docs/disturbances.md`` has the single table of events, frequency content,
+amplitudes, mounts and sources; keep the two in step.
+
+Body axes: x roll (along track), y pitch (cross track), z yaw (nadir).  Cross-track
+scanners and pointers rotate about x.
+
+Frequency content follows the paper: VNIR pointing and the SWIR cryocooler are high
+frequency (short acceleration pulses; a 22 Hz cooler line, the "cryocooler-like"
+disturbance of the testbed), while the CERES scan and the solar array drive are below
+about 2 Hz and excite rigid-body and solar-array (0.5 Hz) response.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from distfmu.sources import (
+    Chopper,
+    Harmonic,
+    ScanMirror,
+    Slew,
+    Source,
+    Stepper,
+    Sum,
+    WheelImbalance,
+    Zero,
+)
+
+MOUNTS = ("CERES", "MISR", "MODIS", "MOPITT", "SWIR", "TIR", "VNIR", "RWA", "SAD")
+"""Symbolic mount location names."""
+
+_DEG = math.pi / 180.0
+_RPM = 2.0 * math.pi / 60.0
+
+RWA_SPEED = 1000.0 * _RPM
+"""Nominal wheel speed of the RWA preset (rad/s), used unless a speed input drives it."""
+
+
+class PresetError(KeyError):
+    """An unknown disturbance preset name was requested."""
+
+    def __str__(self) -> str:  # KeyError would otherwise quote the message
+        return str(self.args[0])
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named disturbance event.
+
+    Parameters
+    ----------
+    name : str
+        Preset key, e.g. ``"vnir_pointing"``.
+    event : str
+        Event name as in the paper.
+    mount : str
+        Symbolic mount location (one of :data:`MOUNTS`, or ``""`` for ``"none"``).
+    source : Source
+        The disturbance source.
+    """
+
+    name: str
+    event: str
+    mount: str
+    source: Source
+
+    @property
+    def is_wheel(self) -> bool:
+        """True when the source is a wheel imbalance (it accepts a speed input)."""
+        return isinstance(self.source, WheelImbalance)
+
+
+def _build() -> dict[str, Preset]:
+    p = [
+        Preset("none", "no disturbance", "", Zero()),
+        Preset(
+            "ceres_scan", "CERES biaxial scan", "CERES",
+            Sum((
+                # elevation: 6.6 s scan cycle (public), +-78 deg sweep, head inertia assumed
+                ScanMirror(inertia=0.6, period=6.6, amplitude=78.0 * _DEG,
+                           retrace_fraction=0.5, turnaround=0.3, axis=(1.0, 0.0, 0.0)),
+                # azimuth: 90 deg back and forth at 6 deg/s every 32 s (assumption)
+                Slew(angle=90.0 * _DEG, max_rate=6.0 * _DEG, max_accel=6.0 * _DEG,
+                     inertia=4.0, start=0.0, axis=(0.0, 0.0, 1.0), repeat=32.0),
+            )),
+        ),
+        Preset(
+            "misr_calibration", "MISR calibration", "MISR",
+            # diffuser panel deployment and stow, 90 deg (assumption)
+            Slew(angle=90.0 * _DEG, max_rate=10.0 * _DEG, max_accel=20.0 * _DEG,
+                 inertia=0.5, start=1.0, axis=(0.0, 1.0, 0.0), repeat=30.0),
+        ),
+        Preset(
+            "modis_scan", "MODIS scan mirror imbalance", "MODIS",
+            # 20.3 rpm double-sided mirror (public); imbalance torques assumed
+            Harmonic(frequency=20.3 / 60.0, amplitudes=(0.01, 0.004), harmonics=(1.0, 2.0),
+                     direction=(0.0, 0.0, 1.0), kind="torque"),
+        ),
+        Preset(
+            "mopitt_scan", "MOPITT scan", "MOPITT",
+            # +-26.1 deg cross-track scan (public); period, inertia, retrace assumed
+            ScanMirror(inertia=0.02, period=12.0, amplitude=26.1 * _DEG,
+                       retrace_fraction=0.1, turnaround=0.1, axis=(1.0, 0.0, 0.0)),
+        ),
+        Preset(
+            "swir_pointing", "ASTER-SWIR pointing", "SWIR",
+            # +-8.55 deg cross-track pointing mirror (public); dynamics assumed
+            Slew(angle=8.55 * _DEG, max_rate=2.0 * _DEG, max_accel=40.0 * _DEG,
+                 inertia=0.3, start=1.0, axis=(1.0, 0.0, 0.0), repeat=30.0),
+        ),
+        Preset(
+            "tir_chopper", "ASTER-TIR chopper", "TIR",
+            # about 7 Hz mirror oscillation (ASTER handbook); torque amplitude assumed
+            Chopper(frequency=7.0, amplitude=0.02, direction=(1.0, 0.0, 0.0),
+                    kind="torque", rise_time=0.005),
+        ),
+        Preset(
+            "vnir_pointing", "ASTER-VNIR pointing", "VNIR",
+            # +-24 deg telescope rotation (public); 0.05 s acceleration pulses (assumed)
+            # give content up to ~20 Hz
+            Slew(angle=24.0 * _DEG, max_rate=0.05, max_accel=1.0, inertia=4.0,
+                 start=1.0, axis=(1.0, 0.0, 0.0), repeat=60.0),
+        ),
+        Preset(
+            "mopitt_cryocooler", "MOPITT cryocooler", "MOPITT",
+            Harmonic(frequency=40.0, amplitudes=(0.2, 0.06, 0.02),
+                     direction=(0.0, 1.0, 0.0), kind="force"),
+        ),
+        Preset(
+            "swir_cryocooler", "ASTER-SWIR cryocooler", "SWIR",
+            Harmonic(frequency=22.0, amplitudes=(0.5, 0.15, 0.05),
+                     direction=(0.0, 0.0, 1.0), kind="force"),
+        ),
+        Preset(
+            "tir_cryocooler", "ASTER-TIR cryocooler", "TIR",
+            Harmonic(frequency=26.0, amplitudes=(0.4, 0.12, 0.04),
+                     direction=(0.0, 0.0, 1.0), kind="force"),
+        ),
+        Preset(
+            "rwa", "reaction wheel assembly", "RWA",
+            # Masterson form; Us = 2 g cm, Ud = 20 g cm^2 class values; harmonic ratios
+            # after the wheel-test literature (assumption)
+            WheelImbalance(harmonics=(1.0, 2.0, 2.9, 3.9),
+                           force_coeffs=(2.0e-7, 2.0e-8, 1.0e-8, 5.0e-9),
+                           torque_coeffs=(2.0e-6, 2.0e-7, 1.0e-7, 5.0e-8),
+                           axial_coeffs=(2.0e-8, 1.0e-8, 5.0e-9, 2.0e-9),
+                           speed=RWA_SPEED, axis=(1.0, 0.0, 0.0)),
+        ),
+        Preset(
+            "sad", "solar array drive", "SAD",
+            # stepper at 0.5 steps/s, 0.5 s half-sine pulse pairs of 0.5 N m (assumption);
+            # content below about 3 Hz, near the 0.5 Hz solar-array mode
+            Stepper(step_rate=0.5, peak_torque=0.5, pulse_width=0.5, axis=(0.0, 1.0, 0.0)),
+        ),
+    ]
+    return {q.name: q for q in p}
+
+
+PRESETS: dict[str, Preset] = _build()
+"""All presets by name; ``"none"`` first, then the twelve events."""
+
+
+def preset_names() -> list[str]:
+    """Names of all presets, ``"none"`` first."""
+    return list(PRESETS)
+
+
+def get_preset(name: str) -> Preset:
+    """Look up a preset by name.
+
+    Parameters
+    ----------
+    name : str
+        Preset key (see :func:`preset_names`).
+
+    Returns
+    -------
+    Preset
+
+    Raises
+    ------
+    PresetError
+        If ``name`` is not a preset.
+    """
+    try:
+        return PRESETS[name]
+    except KeyError:
+        raise PresetError(
+            f"disturbance preset {name!r} is unknown; expected one of {preset_names()}"
+        ) from None

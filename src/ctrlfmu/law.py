@@ -337,6 +337,16 @@ def _check_state(law: DiscreteLaw, state: LawState) -> None:
         )
 
 
+def _mv(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Matrix-vector product without BLAS.
+
+    BLAS kernels differ between CPU code paths (OpenBLAS picks one per process), which
+    changes the last bit of a sum; the elementwise product and numpy's pairwise row sum
+    give the same bits in every process, so an FMU gives identical outputs in any host.
+    """
+    return (m * v).sum(axis=1)
+
+
 def is_active(law: DiscreteLaw, k: int, enable: bool = True) -> bool:
     """True when ``law`` runs at sample ``k`` (``enable`` and ``k dt >= t_on``)."""
     return bool(enable) and k >= law.first_active_sample
@@ -369,9 +379,9 @@ def step(law: DiscreteLaw, state: LawState, y, enable: bool = True) -> tuple[Law
     if not is_active(law, state.k, enable):
         zero = np.zeros(law.n_outputs)
         return LawState(np.zeros(law.n_states), zero, state.k + 1), zero
-    v = law.C @ state.x + law.D @ y
+    v = _mv(law.C, state.x) + _mv(law.D, y)
     u = np.clip(v, law.u_min, law.u_max)
-    x_next = law.A @ state.x + law.B @ y + law.aw_gain @ (u - v)
+    x_next = _mv(law.A, state.x) + _mv(law.B, y) + _mv(law.aw_gain, u - v)
     return LawState(x_next, u, state.k + 1), u
 
 
@@ -403,7 +413,7 @@ def output(law: DiscreteLaw, state: LawState, y=None, enable: bool = True) -> np
     y = _input(law, y)
     if not is_active(law, state.k, enable):
         return np.zeros(law.n_outputs)
-    return np.clip(law.C @ state.x + law.D @ y, law.u_min, law.u_max)
+    return np.clip(_mv(law.C, state.x) + _mv(law.D, y), law.u_min, law.u_max)
 
 
 def simulate(law: DiscreteLaw, y, enable=True, state: LawState | None = None):

@@ -198,10 +198,36 @@ def run_libcosim(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n
     Parameters are as in :func:`run_fmpy`.  libcosim counts time in integer
     nanoseconds, so ``step_size`` must be a whole number of nanoseconds.
 
+    libcosim runs in a fresh Python process, like a separate tool would: its slaves
+    are destroyed when libcosim's objects are collected, and when that happens during
+    interpreter shutdown pythonfmu touches a finalising interpreter.  A child process
+    that exits without teardown once its results are written keeps the caller safe.
+
     Returns
     -------
     numpy.ndarray, shape (n_steps, len(outputs))
     """
+    import json
+    import sys
+
+    in_names, u = _input_matrix(inputs, n_steps)
+    with tempfile.TemporaryDirectory(prefix="libcosim_run_") as tmp:
+        job = Path(tmp) / "job.npz"
+        out = Path(tmp) / "out.npy"
+        np.savez(job, u=u, spec=np.array(json.dumps({
+            "fmu": str(Path(fmu).resolve()), "outputs": list(outputs), "step_size": step_size,
+            "n_steps": n_steps, "in_names": in_names, "parameters": dict(parameters or {}),
+            "out": str(out)})))
+        proc = subprocess.run([sys.executable, "-m", "fmukit.testing", str(job)],
+                              capture_output=True, text=True, timeout=600)
+        if proc.returncode != 0 or not out.is_file():
+            raise HostError(f"libcosim run of {Path(fmu).name} failed (exit "
+                            f"{proc.returncode}): {proc.stderr.strip()[-2000:]}")
+        return np.load(out)
+
+
+def _run_libcosim_here(fmu, *, outputs, step_size, n_steps, inputs=None, parameters=None):
+    """Body of :func:`run_libcosim`, run in the child process."""
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimManipulator import CosimManipulator
     from libcosimpy.CosimObserver import CosimObserver
@@ -236,3 +262,27 @@ def run_libcosim(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n
             raise HostError(f"libcosim step {k} of {Path(fmu).name} failed")
         y[k] = observer.last_real_values(index, out_vrs)
     return y
+
+
+def _child_main(job_path: str) -> None:
+    import json
+    import os
+
+    with np.load(job_path) as job:
+        spec = json.loads(str(job["spec"]))
+        u = job["u"]
+    inputs = {name: u[:, i] for i, name in enumerate(spec["in_names"])}
+    y = _run_libcosim_here(spec["fmu"], outputs=spec["outputs"], step_size=spec["step_size"],
+                           n_steps=spec["n_steps"], inputs=inputs or None,
+                           parameters=spec["parameters"] or None)
+    np.save(spec["out"], y)
+    import sys
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)  # skip interpreter teardown with libcosim slaves still alive
+
+
+if __name__ == "__main__":
+    import sys
+
+    _child_main(sys.argv[1])

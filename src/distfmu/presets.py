@@ -193,3 +193,50 @@ def get_preset(name: str) -> Preset:
         raise PresetError(
             f"disturbance preset {name!r} is unknown; expected one of {preset_names()}"
         ) from None
+
+
+def randomized(source: Source, seed: int) -> Source:
+    """Copy of a source with its phases drawn from ``seed`` (0: unchanged).
+
+    Harmonic and wheel sources get phases uniform in ``[0, 2 pi)``, the chopper a
+    uniform phase offset, a band-limited random source the seed itself; sums are
+    randomised term by term with independent streams.  Scan mirrors, slews and steppers
+    keep their deterministic timing.
+
+    Parameters
+    ----------
+    source : Source
+        A preset source.
+    seed : int
+        Non-negative seed; 0 leaves the source as it is.
+
+    Returns
+    -------
+    Source
+    """
+    import dataclasses
+
+    import numpy as np
+
+    from distfmu.sources import BandLimitedRandom
+
+    if not (isinstance(seed, int) and seed >= 0):
+        raise ValueError(f"disturbance seed must be a non-negative integer, got {seed!r}")
+    if seed == 0:
+        return source
+    rng = np.random.default_rng(seed)
+    if isinstance(source, Sum):
+        children = np.random.SeedSequence(seed).spawn(len(source.sources))
+        return Sum(tuple(randomized(s, int(c.generate_state(1)[0]) or 1)
+                         for s, c in zip(source.sources, children)))
+    if isinstance(source, Harmonic):
+        phases = tuple(rng.uniform(0, 2 * np.pi, len(source.amplitudes)).tolist())
+        return dataclasses.replace(source, phases=phases)
+    if isinstance(source, WheelImbalance):
+        phases = tuple(rng.uniform(0, 2 * np.pi, len(source.harmonics)).tolist())
+        return dataclasses.replace(source, phases=phases)
+    if isinstance(source, Chopper):
+        return dataclasses.replace(source, phase=float(rng.uniform()))
+    if isinstance(source, BandLimitedRandom):
+        return dataclasses.replace(source, seed=seed)
+    return source

@@ -72,6 +72,12 @@ def _along(scalar: np.ndarray, direction: np.ndarray, kind: str) -> np.ndarray:
     return out
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` over the last axis without BLAS, so results are bit-reproducible
+    across processes and hosts (BLAS kernels may differ in the last bit)."""
+    return np.einsum("...i,i->...", a, b)
+
+
 def _perpendicular_pair(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors ``e1, e2`` with ``(e1, e2, axis)`` right-handed."""
     helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
@@ -140,7 +146,7 @@ class Harmonic:
         h = np.arange(1, n + 1) if self.harmonics is None else np.asarray(self.harmonics)
         phi = np.zeros(n) if self.phases is None else np.asarray(self.phases)
         arg = 2 * np.pi * self.frequency * np.multiply.outer(t, h) + phi
-        s = np.sin(arg) @ np.asarray(self.amplitudes, dtype=float)
+        s = _dot(np.sin(arg), np.asarray(self.amplitudes, dtype=float))
         return _along(s, _unit(self.direction, "harmonic source"), self.kind)
 
 
@@ -599,10 +605,12 @@ class WheelImbalance:
         C = np.asarray(self.force_coeffs, dtype=float)
         D = np.asarray(self.torque_coeffs, dtype=float)
         A = np.zeros(n) if self.axial_coeffs is None else np.asarray(self.axial_coeffs, float)
-        local_f = np.stack([s @ C, c @ C, s @ A], axis=-1) * w2[..., None]
-        local_m = np.stack([s @ D, c @ D, np.zeros(theta.shape)], axis=-1) * w2[..., None]
+        local_f = np.stack([_dot(s, C), _dot(c, C), _dot(s, A)], axis=-1) * w2[..., None]
+        local_m = np.stack([_dot(s, D), _dot(c, D), np.zeros(theta.shape)],
+                           axis=-1) * w2[..., None]
         frame = self._frame  # rows e1, e2, axis
-        return np.concatenate([local_f @ frame, local_m @ frame], axis=-1)
+        return np.concatenate([np.einsum("...i,ij->...j", local_f, frame),
+                               np.einsum("...i,ij->...j", local_m, frame)], axis=-1)
 
     def wrench(self, t) -> np.ndarray:
         """Wrench at times ``t`` (s) for the constant or profiled speed (N, N m)."""

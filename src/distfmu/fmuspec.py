@@ -1,0 +1,31 @@
+"""FMU specification of the disturbance package: one FMU, ``disturbance``."""
+
+from __future__ import annotations
+
+from fmukit.build import FmuSpec
+
+__all__ = ["MODELS", "specs"]
+
+#: modelIdentifier -> one-line description.
+MODELS: dict[str, str] = {
+    "disturbance": "EOS AM-1 disturbance event (preset) as force/torque at its mount",
+}
+
+
+def specs(models: list[str] | None = None) -> list[FmuSpec]:
+    """Return the specifications of the disturbance FMUs.
+
+    Parameters
+    ----------
+    models : list of str or None
+        Model identifiers wanted; None for all.  Other packages' names are ignored.
+
+    Returns
+    -------
+    list of FmuSpec
+        ``[disturbance]`` when wanted, else empty.
+    """
+    names = list(MODELS) if models is None else [m for m in models if m in MODELS]
+    return [FmuSpec(model_identifier=name, slave_class="distfmu.slave:DisturbanceSlave",
+                    description=MODELS[name], step_size=1e-3)
+            for name in names]

@@ -1,0 +1,103 @@
+"""Disturbance FMU slave: a thin adapter over :mod:`distfmu.step`.
+
+Variables
+---------
+parameters
+    ``preset`` (String, fixed): a name of :data:`distfmu.presets.PRESETS`, e.g.
+    ``"vnir_pointing"``, ``"swir_cryocooler"`` or ``"none"``;
+    ``seed`` (Integer, fixed): 0 keeps the preset's phases, otherwise phases are drawn
+    from it (:func:`distfmu.presets.randomized`);
+    ``use_speed_input`` (Boolean, fixed): drive the ``rwa`` preset from ``wheel_speed``;
+    ``scale`` (1), ``start_time`` and ``stop_time`` (s) (tunable): amplitude factor and
+    active window ``[start_time, stop_time)``, ``stop_time <= start_time`` for no end.
+input
+    ``wheel_speed`` (rad/s), used only by a wheel preset with ``use_speed_input``.
+outputs (no direct feedthrough)
+    ``Fx, Fy, Fz`` (N) and ``Mx, My, Mz`` (N m) at the preset's mount.  Time-driven
+    sources are functions of time only.  The input-driven wheel holds the speed over a
+    step and outputs ``W(theta, Omega_held)`` at the end of it (see :mod:`distfmu.step`),
+    so the outputs depend on ``wheel_speed`` only through the state.
+
+The FMU state is every variable plus ``x = [time, theta, omega]``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from distfmu.presets import get_preset, randomized
+from distfmu.sources import WRENCH_NAMES
+from distfmu.step import DisturbanceConfig, DisturbanceState, disturbance_output, \
+    disturbance_step
+from fmukit.slave import FmuSlave
+
+__all__ = ["DisturbanceSlave"]
+
+
+class DisturbanceSlave(FmuSlave):
+    """One disturbance event at its mount.
+
+    Class attributes
+    ----------------
+    default_preset : str
+        Start value of the ``preset`` parameter.
+    default_speed_input : bool
+        Start value of the ``use_speed_input`` parameter.
+    """
+
+    default_preset: ClassVar[str] = "none"
+    default_speed_input: ClassVar[bool] = False
+    state_attributes = ("x",)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        p = self.add_parameter
+        p("preset", str(self.default_preset),
+          description="disturbance preset name, e.g. vnir_pointing, swir_cryocooler, none")
+        p("seed", 0, description="0 keeps the preset phases; otherwise random phases")
+        p("use_speed_input", bool(self.default_speed_input), description="drive a wheel preset from wheel_speed")
+        p("scale", 1.0, unit="1", tunable=True, description="amplitude factor")
+        p("start_time", 0.0, unit="s", tunable=True, description="start of the active window")
+        p("stop_time", 0.0, unit="s", tunable=True,
+          description="end of the active window; <= start_time for no end")
+        self.add_input("wheel_speed", unit="rad/s", description="wheel speed for the rwa preset")
+        self.add_real_block("wrench", names=list(WRENCH_NAMES), causality="output",
+                            unit=["N", "N", "N", "N.m", "N.m", "N.m"], depends_on=[],
+                            description="force and torque on the spacecraft at the mount")
+        self.x = np.zeros(3)
+        self._source = None
+        self._t0 = 0.0
+
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self._t0 = float(start_time)
+
+    def _config(self) -> DisturbanceConfig:
+        if self._source is None:
+            self._source = randomized(get_preset(self.preset).source, int(self.seed))
+        stop = self.stop_time if self.stop_time > self.start_time else math.inf
+        return DisturbanceConfig(self._source, scale=float(self.scale),
+                                 start=float(self.start_time), stop=float(stop),
+                                 speed_input=bool(self.use_speed_input))
+
+    def _state(self, time: float) -> DisturbanceState:
+        return DisturbanceState(time=time, theta=float(self.x[1]), omega=float(self.x[2]))
+
+    def _write(self, config: DisturbanceConfig, state: DisturbanceState) -> None:
+        self.x[:] = (state.time, state.theta, state.omega)
+        self.wrench[:] = disturbance_output(config, state)
+
+    def exit_initialization_mode(self):
+        self._source = None
+        self._write(self._config(), DisturbanceState(time=self._t0))
+
+    def do_step(self, current_time, step_size):
+        config = self._config()
+        state = disturbance_step(config, self._state(float(current_time)), step_size,
+                                 float(self.wheel_speed))
+        # exact end time from the master's communication point, never accumulated
+        self._write(config, DisturbanceState(current_time + step_size, state.theta,
+                                             state.omega))
+        return True

@@ -437,7 +437,7 @@ class _Slave:
         self._log = log
         self._cb = cb
         self.instantiated = False
-        self.fmu.instantiate(callbacks=cb, loggingOn=False)
+        self.fmu.instantiate(callbacks=cb, loggingOn=True)
         self.instantiated = True
         self.comp = self.fmu.component
         fn = self.fmu._functions
@@ -587,7 +587,7 @@ class Simulation:
             msg += f" with status {_STATUS[status] if status < len(_STATUS) else status}"
         detail = slave.last_message() or (str(exc) if exc else "")
         if detail:
-            msg += f": {detail.strip()}"
+            msg += ": " + " ".join(detail.split())
         return SimulationError(msg, slave.name, t)
 
     def _load(self):

@@ -77,16 +77,13 @@ def frequency_response(law: DiscreteLaw, f, include_delay: bool = True) -> np.nd
     f = np.atleast_1d(np.asarray(f, dtype=float))
     z = np.exp(2j * np.pi * f * law.dt)
     n = law.n_states
-    out = np.empty((law.n_outputs, law.n_inputs, f.size), dtype=complex)
-    eye = np.eye(n)
-    for i, zi in enumerate(z):
-        h = law.D.astype(complex)
-        if n:
-            h = h + law.C @ np.linalg.solve(zi * eye - law.A, law.B)
-        if law.delayed and include_delay:
-            h = h / zi
-        out[:, :, i] = h
-    return out
+    h = np.broadcast_to(law.D.astype(complex), (f.size, *law.D.shape)).copy()
+    if n:
+        resolvent = z[:, None, None] * np.eye(n) - law.A           # (n_f, n, n)
+        h += law.C @ np.linalg.solve(resolvent, np.broadcast_to(law.B, (f.size, *law.B.shape)))
+    if law.delayed and include_delay:
+        h /= z[:, None, None]
+    return np.moveaxis(h, 0, -1)
 
 
 def mode_damping(poles, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -19,7 +19,9 @@ def inverse_tustin(z, dt):
 
 
 def cont(sys, f_hz):
-    return np.array([complex(sys(2j * np.pi * f)) for f in np.atleast_1d(f_hz)])
+    """Continuous frequency response of a SISO system at ``f_hz`` (Hz)."""
+    return np.asarray(sys(2j * np.pi * np.atleast_1d(np.asarray(f_hz, dtype=float))),
+                      dtype=complex).reshape(-1)
 
 
 @pytest.mark.parametrize("name,mode_hz", [("truss10_strain_diag", 8.4),

@@ -18,7 +18,7 @@ from fmukit.build import FmuSpec
 
 from ctrlfmu.law import DiscreteLaw, law_bytes
 
-__all__ = ["MODELS", "UnknownModelError", "specs", "law_spec"]
+__all__ = ["MODELS", "specs", "law_spec"]
 
 PREFIX = "controller_"
 
@@ -31,13 +31,6 @@ def _design_names() -> list[str]:
 
 #: modelIdentifier -> design name.
 MODELS: dict[str, str] = {PREFIX + name: name for name in _design_names()}
-
-
-class UnknownModelError(KeyError):
-    """A requested model identifier is not one of the controller FMUs."""
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 def law_spec(law: DiscreteLaw, model_identifier: str | None = None) -> FmuSpec:
@@ -73,24 +66,16 @@ def specs(models: list[str] | None = None) -> list[FmuSpec]:
     Parameters
     ----------
     models : list of str or None
-        Model identifiers to return (see :data:`MODELS`); None for all.
+        Model identifiers wanted; None for all of :data:`MODELS`.  Names this package
+        does not own are ignored, as the registry (:mod:`fmukit.registry`) asks every
+        package with the full list.
 
     Returns
     -------
     list of FmuSpec
-        In the order of ``models`` (or of :data:`MODELS`).
-
-    Raises
-    ------
-    UnknownModelError
-        If a name is not in :data:`MODELS`.
+        The owned ones, in the order of ``models`` (or of :data:`MODELS`).
     """
     from ctrlfmu.designs import design
 
-    names = list(MODELS) if models is None else list(models)
-    unknown = [m for m in names if m not in MODELS]
-    if unknown:
-        raise UnknownModelError(
-            f"unknown controller FMU {unknown[0]!r}; known: {', '.join(MODELS)}"
-        )
+    names = list(MODELS) if models is None else [m for m in models if m in MODELS]
     return [law_spec(design(MODELS[name]), name) for name in names]

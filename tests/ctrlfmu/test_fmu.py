@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ctrlfmu.designs import design
-from ctrlfmu.fmuspec import MODELS, UnknownModelError, law_spec, specs
+from ctrlfmu.fmuspec import MODELS, law_spec, specs
 from ctrlfmu.law import DiscreteLaw, simulate
 from fmukit.build import build_fmu
 
@@ -41,8 +41,13 @@ def test_specs_cover_the_named_designs():
                               "controller_truss10_strain_diag", "controller_truss10_strain_long"]
     (spec,) = specs(["controller_testbed_isolation"])
     assert spec.step_size == 1e-3 and "law.npz" in spec.resources
-    with pytest.raises(UnknownModelError, match="unknown controller FMU 'controller'"):
-        specs(["controller"])
+    # The registry asks every package with the full list: foreign names are ignored.
+    assert [s.model_identifier for s in specs(["piezo_p243_30", "controller_eos_isolation"])] \
+        == ["controller_eos_isolation"]
+    from fmukit.registry import collect_specs
+
+    assert [s.model_identifier for s in collect_specs(["controller_eos_isolation"])] == \
+        ["controller_eos_isolation"]
 
 
 @pytest.mark.parametrize("model", [*MODELS, "direct"])

@@ -271,6 +271,10 @@ class DiscreteLaw:
         """Return a copy with output limits ``u_min``, ``u_max`` (V)."""
         return replace(self, u_min=u_min, u_max=u_max)
 
+    def with_t_on(self, t_on: float) -> DiscreteLaw:
+        """Return a copy with activation time ``t_on`` (s)."""
+        return replace(self, t_on=t_on)
+
 
 @dataclass(frozen=True, eq=False)
 class LawState:

@@ -148,7 +148,7 @@ class ControllerSlave(FmuSlave):
                 f"parameter t_on of {self.instance_name!r} is {self.t_on!r}; expected >= 0 s"
             )
         law = self._base.with_gain(self.gain).with_limits(self.u_min, self.u_max)
-        self._law = DiscreteLaw(**{**law.__dict__, "t_on": max(0.0, self.t_on - self._t0)})
+        self._law = law.with_t_on(max(0.0, self.t_on - self._t0))
 
     def exit_initialization_mode(self):
         self._apply_parameters()

@@ -88,7 +88,7 @@ def test_fmpy_run_equals_the_pure_law(fmus, model):
     inputs = {f"y{j + 1}": y[:, j] for j in range(law.n_inputs)}
     out = run_fmpy(fmus[model], inputs=inputs, outputs=["u1"], step_size=law.dt, n_steps=N,
                    parameters={"gain": 3.0, "t_on": 10 * law.dt})
-    u, _ = simulate(DiscreteLaw(**{**law.with_gain(3.0).__dict__, "t_on": 10 * law.dt}), y)
+    u, _ = simulate(law.with_gain(3.0).with_t_on(10 * law.dt), y)
     np.testing.assert_array_equal(out[:-1], u[1:])
     np.testing.assert_array_equal(out[:10], 0.0)
     assert np.ptp(out) > 0

@@ -1,6 +1,7 @@
 """Discrete law of Eq. (11): equivalence with python-control, limits, activation, files."""
 
 import math
+from dataclasses import replace
 
 import control
 import numpy as np
@@ -150,7 +151,7 @@ def test_limits_and_backcalculation_antiwindup():
     assert samples_until_unsaturated(plain) > 90
     # Back-calculation placing A - L C at 0 keeps x = u_sat: the output leaves the limit
     # after the one-sample delay plus one sample.
-    aw = plain.__class__(**{**plain.__dict__, "aw_gain": backcalculation_gain(plain, [0.0])})
+    aw = replace(plain, aw_gain=backcalculation_gain(plain, [0.0]))
     np.testing.assert_allclose(aw.aw_gain, [[1.0]], rtol=1e-12)
     assert samples_until_unsaturated(aw) <= 2
     # Unsaturated, anti-windup changes nothing (u - v == 0 exactly).
@@ -192,7 +193,7 @@ def test_with_gain_scales_output_linearly():
 def test_activation_time_and_enable_reset_state():
     base = unlimited(design("truss10_strain_diag"))
     dt = base.dt
-    delayed = DiscreteLaw(**{**base.__dict__, "t_on": 0.1})     # 25 samples at 250 Hz
+    delayed = base.with_t_on(0.1)     # 25 samples at 250 Hz
     assert delayed.first_active_sample == 25
     y = np.ones(60) * 1e-6
     u, _ = simulate(delayed, y)
@@ -218,7 +219,7 @@ def test_first_active_sample_is_robust_to_rounding():
 
 @pytest.mark.parametrize("name", sorted(DESIGNS))
 def test_npz_round_trip_is_exact(tmp_path, name):
-    law = DiscreteLaw(**{**design(name).__dict__, "t_on": 1.25})
+    law = design(name).with_t_on(1.25)
     path = save_law(law, tmp_path / name)
     assert path.suffix == ".npz"
     back = load_law(path)

@@ -1,0 +1,665 @@
+"""A structural model like the LaRC EOS Dynamics Testbed (paper, Figs. 10-16).
+
+The testbed emulates the EOS AM-1 spacecraft at 1/10 mass and stiffness with the same
+geometry and frequencies: a truss bus of 10 in (0.254 m) cubic bays, a flexible solar
+array (first mode 0.5 Hz), a high-gain antenna, dummy instrument and subsystem masses,
+a suspension giving six rigid-body modes below 0.3 Hz, and three gimballed payloads at
+the CERES (rigid mount), TIR (kinematic mount) and MISR (isolator mounts: three P-845.37
+piezo struts and one aluminium tube) locations; first bus mode 23 Hz.  For the EOS AM-1
+study the SWIR and VNIR kinematic mounts carry a piezo stack in series.
+
+Body axes (as in :mod:`distfmu.presets`): x roll (along the bus length, flight
+direction), y pitch (cross track), z yaw (nadir).  The bus box spans
+``0 <= x <= 10 a``, ``0 <= y <= 4 a``, ``0 <= z <= 3 a`` with ``a`` = 0.254 m; z = 3 a is
+the nadir (instrument) face, z = 0 the zenith face.
+
+Model, piece by piece (``a`` = 10 in, "A" = assumption, "P" = paper, "C" = calibrated):
+
+=====================  =================================================================  ====
+item                   value                                                              src
+=====================  =================================================================  ====
+bay                    0.254 m (10 in) cubes                                              P
+bus lattice            10 x 4 x 3 bays, all cube edges + one diagonal in every cube face  A
+                       (alternating), 220 nodes
+bus strut              aluminium 6061 tube OD 1.0 in, wall 0.065 in (A = 1.24e-4 m^2),    A
+                       E = 70 GPa, rho = 2700 kg/m^3 (as the ten-bay truss hardware)
+bus joint efficiency   ``ETA_BUS`` (EA knock-down of erectable joints) so that the first  C
+                       bus mode is 23 Hz
+node ball + rods       0.15 kg per bus node                                               A
+subsystem masses       propulsion 40 kg, power 50 kg, C&DH 20 kg, comms 15 kg, RWA/ACS    A
+                       20 kg, harness/thermal 40 kg (185 kg), each spread over the 8
+                       nodes of one bus cube (see ``SUBSYSTEMS``)
+instrument masses      1/10 of EOS AM-1 (A): CERES 9 kg, MISR 15 kg, TIR 14 kg, SWIR 11   A
+                       kg, VNIR 8 kg (60 % at the instrument CG node 0.15 m above the
+                       plate, 40 % on the 4 plate nodes); MODIS 23 kg and MOPITT 19 kg
+                       on the 4 bus nodes of their nadir cell (no station)
+payload station        plate: 4 nodes on a 0.254 m square 0.127 m above the nadir face,  A
+                       edges + one diagonal, CG node joined to the 4 corners; rod
+                       EA = 5 x bus tube (stiff: gimbal locked); 0.10 kg per plate node
+CERES mount            rigid: 4 posts + 4 side diagonals (bus tube)                       P/A
+TIR mount              kinematic: 3 bipods (6 pinned bus-tube struts) under the plate     P/A
+MISR mount             isolator: 3 vertical legs, each a P-845.37 stack (ActiveMember     P/A
+                       ``iso1..3``, 40.6 mm) + 0.05 kg fitting + solid aluminium rod
+                       (d 0.5 in), and 1 solid aluminium rod leg (d 0.5 in); lateral
+                       flexure stiffness per leg 2e5 N/m (stack legs) and 12 EI/L^3 (rod)
+SWIR, VNIR mounts      kinematic as TIR; one bipod leg carries a P-845.37 stack in        P/A
+                       series (``swir_mount``, ``vnir_mount``); ``active_legs="all"``
+                       puts a stack in all six legs (``swir_mount1..6`` ...)
+strain gauges          on the stack itself (paper: gauge on the internal piezoceramic)    P
+solar array            truss boom 18 bays x 0.254 m (4.57 m) along -y from the bus -y     A
+                       face, section 0.508 m (in plane, x) x 0.254 m (out of plane, z);
+                       panels 30 kg on the boom nodes, boom 0.10 kg/m of strut
+array strut EA         ``EA_ARRAY`` (equivalent, not a tube) so that the first array     C
+                       mode is 0.5 Hz
+high-gain antenna      boom 5 bays x 0.254 m along -z from the zenith face, section       A
+                       0.254 m, strut EA 2.0e5 N (equivalent), 0.10 kg/m; dish 4 kg at a
+                       node 0.2 m beyond the tip
+suspension             off by default; ``suspension=True`` adds five cables 19.8 m (65    P/A
+                       ft) long (pendulum springs m g / L) and vertical pneumatic springs
+                       for 0.2 Hz bounce
+damping                modal 0.5 % (flexible modes), 0 on rigid modes; Ritz block 2 %     A
+=====================  =================================================================  ====
+
+Active members follow Eq. (1) as in :mod:`structfmu.models.truss10`: each stack is a rod
+of stiffness ``k_e`` and the stack mass from its resonance, from the bus-side node to a
+fitting node, then a passive rod to the payload; the fitting node is held on the leg's
+line by two transverse springs (the leg's bending stiffness, 3 EI L / (a^2 b^2)).
+
+"First bus mode" is the first flexible mode whose strain energy is at least 50 % in the
+bus lattice elements; "first array mode" likewise with the array boom
+(:func:`strain_energy_fractions`).  :func:`calibrate` solves ``ETA_BUS`` and ``EA_ARRAY``
+for 23 Hz and 0.5 Hz (a fixed-point iteration on ``f ~ sqrt(stiffness)``); the stored
+constants come from it.
+
+Loads are 6-component wrench channels ``<loc>_fx .. <loc>_mz`` (N, N m) spread with
+least-norm nodal forces over a node set (:func:`wrench_channels`): on the instrument
+CG + plate nodes for ceres, misr, swir, tir, vnir (the disturbance comes from the
+instrument, so it passes through the mount), on bus nodes for modis, mopitt, rwa, and
+on the array root nodes for sad.  The ACS torques ``acs_tx/ty/tz`` (N m) are pure
+couples on the RWA node set (the wheels torque the bus).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from piezofmu import preset
+from piezofmu.units import INCH
+from structfmu.errors import ModelError
+from structfmu.fem import ActiveMember, Channel, Spring, Truss, assemble, transverse_link
+from structfmu.reduce import Damping, eigenpairs, reduce
+
+BAY = 10 * INCH
+NX, NY, NZ = 16, 2, 2
+E_AL = 70e9
+RHO_AL = 2700.0
+G0 = 9.80665
+TUBE_AREA = np.pi / 4 * ((0.75 * INCH) ** 2 - (0.652 * INCH) ** 2)
+ROD_D = 0.5 * INCH
+ROD_AREA = np.pi / 4 * ROD_D**2
+ROD_I = np.pi / 64 * ROD_D**4
+NODE_MASS = 0.15
+PLATE_NODE_MASS = 0.10
+PLATE_EA_FACTOR = 5.0
+MOUNT_HEIGHT = BAY / 2
+CG_HEIGHT = 0.15
+CG_FRACTION = 0.6
+FITTING_MASS = 0.05
+STACK = "P-845.37"
+K_LAT_STACK_LEG = 2e5
+ARRAY_BAYS = 9
+ARRAY_BAY = 2 * BAY
+ARRAY_DEPTH = 0.05
+ARRAY_YOKE = 0.10
+SMALL_TUBE_AREA = np.pi / 4 * ((0.5 * INCH) ** 2 - (0.43 * INCH) ** 2)
+EA_BRACE = E_AL * SMALL_TUBE_AREA
+ARRAY_PANEL_MASS = 30.0
+APPENDAGE_LINE_DENSITY = 0.10
+HGA_BAYS = 5
+EA_HGA = 2.0e5
+HGA_DISH_MASS = 4.0
+HGA_DISH_OFFSET = 0.2
+SUSPENSION_LENGTH = 65 * 12 * INCH
+SUSPENSION_BOUNCE_HZ = 0.2
+ZETA = 0.005
+ZETA_RITZ = 0.02
+TARGET_BUS_HZ = 23.0
+TARGET_ARRAY_HZ = 0.5
+SHIFT = -1.0
+# calibrated by calibrate(): first bus mode 23 Hz, first array mode 0.5 Hz
+ETA_BUS = 0.7624343
+EA_ARRAY = 2.300540e5
+N_MODES = 70
+
+INSTRUMENTS = ("ceres", "tir", "misr", "swir", "vnir")
+LOCATIONS = ("ceres", "misr", "modis", "mopitt", "swir", "tir", "vnir", "rwa", "sad")
+WRENCH = ("fx", "fy", "fz", "mx", "my", "mz")
+
+# nadir-face cell (i, j) of each station: the plate sits over bus nodes (i..i+1, j..j+1)
+STATIONS = {"misr": (2, 0), "ceres": (5, 1), "tir": (8, 0), "swir": (11, 0), "vnir": (13, 1)}
+INSTRUMENT_MASS = {"ceres": 9.0, "misr": 15.0, "tir": 14.0, "swir": 11.0, "vnir": 8.0}
+MOUNTS = {"ceres": "rigid", "tir": "kinematic", "misr": "isolator", "swir": "kinematic",
+          "vnir": "kinematic"}
+# instruments without a station: mass on the 4 nodes of a nadir cell
+BUS_INSTRUMENTS = {"modis": ((4, 0), 23.0), "mopitt": ((15, 1), 19.0)}
+# subsystem masses (kg) on the 8 nodes of the bus cube with lower corner (i, j, k)
+SUBSYSTEMS = {"propulsion": ((0, 0, 0), 60.0), "power": ((3, 1, 0), 70.0),
+              "cdh": ((7, 0, 1), 25.0), "comms": ((12, 1, 0), 20.0),
+              "rwa": ((9, 0, 0), 25.0), "harness": ((14, 0, 1), 60.0)}
+ACS_SENSOR_CUBE = (6, 0, 0)
+ARRAY_ROOT = (3, 0)   # boom root corners: x in {1, 3} a, z in {1, 2} a on the y = 0 face
+HGA_ROOT = (14, 0)    # boom root corners: x in {8, 9} a, y in {1, 2} a on the z = 0 face
+
+
+def _bus_name(i, j, k):
+    return f"bus_{i}_{j}_{k}"
+
+
+def build(eta_bus: float | None = None, ea_array: float | None = None, *,
+          suspension: bool = False, active_legs: str = "one",
+          mass_type: str = "consistent") -> Truss:
+    """Full FEM of the EOS-like testbed (free-free unless ``suspension``).
+
+    Parameters
+    ----------
+    eta_bus : float, optional
+        EA knock-down of the bus struts (default the calibrated ``ETA_BUS``).
+    ea_array : float, optional
+        Axial stiffness ``EA`` of the solar-array boom struts (N); default ``EA_ARRAY``.
+    suspension : bool
+        Add the soft suspension (five cables + pneumatic springs to ground, all six
+        rigid-body modes below 0.3 Hz).  Default off (free-free).
+    active_legs : {"one", "all"}
+        SWIR and VNIR mounts: one stack per mount (``swir_mount``, ``vnir_mount``) or one
+        in each of the six kinematic legs (``swir_mount1..6``, ``vnir_mount1..6``).
+    mass_type : {"consistent", "lumped"}
+
+    Returns
+    -------
+    Truss
+        Inputs: ``<loc>_fx .. <loc>_mz`` for ``LOCATIONS`` (N, N m), ``acs_tx/ty/tz``
+        (N m) and ``fc_<member>`` (N).  Outputs: ``los_<inst>_roll/pitch/yaw`` (rad),
+        ``acc_pay_iso1..3``, ``acc_bus_iso1..3``, ``acc_pay_tube``, ``acc_bus_tube``
+        (m/s^2 along the leg), ``strain_<member>``, ``elong_<member>`` (1, m),
+        ``att_roll/pitch/yaw`` (rad), ``rate_roll/pitch/yaw`` (rad/s).
+    """
+    if active_legs not in ("one", "all"):
+        raise ModelError(f"active_legs is {active_legs!r}; expected 'one' or 'all'")
+    eta_bus = ETA_BUS if eta_bus is None else float(eta_bus)
+    ea_array = EA_ARRAY if ea_array is None else float(ea_array)
+    a = BAY
+    stack = preset(STACK)
+    xyz: list = []
+    names: dict = {}
+    node_mass: list = []
+
+    def add_node(name, p, mass=0.0):
+        names[name] = len(xyz)
+        xyz.append(np.asarray(p, float))
+        node_mass.append(mass)
+        return names[name]
+
+    conn: list = []
+    k_ax: list = []
+    el_mass: list = []
+    springs: list = []
+
+    def rod(n1, n2, ea, line_density):
+        length = float(np.linalg.norm(xyz[n2] - xyz[n1]))
+        conn.append((n1, n2))
+        k_ax.append(ea / length)
+        el_mass.append(line_density * length)
+        return len(conn) - 1
+
+    # -- bus lattice ---------------------------------------------------------------------
+    for i in range(NX + 1):
+        for j in range(NY + 1):
+            for k in range(NZ + 1):
+                add_node(_bus_name(i, j, k), (i * a, j * a, k * a), NODE_MASS)
+    B = lambda i, j, k: names[_bus_name(i, j, k)]  # noqa: E731
+    ea_bus = eta_bus * E_AL * TUBE_AREA
+    rho_tube = RHO_AL * TUBE_AREA
+    for i in range(NX + 1):
+        for j in range(NY + 1):
+            for k in range(NZ + 1):
+                if i < NX:
+                    rod(B(i, j, k), B(i + 1, j, k), ea_bus, rho_tube)
+                if j < NY:
+                    rod(B(i, j, k), B(i, j + 1, k), ea_bus, rho_tube)
+                if k < NZ:
+                    rod(B(i, j, k), B(i, j, k + 1), ea_bus, rho_tube)
+                # one diagonal per face, direction alternating with the cell parity
+                if i < NX and j < NY:
+                    if (i + j + k) % 2:
+                        rod(B(i, j, k), B(i + 1, j + 1, k), ea_bus, rho_tube)
+                    else:
+                        rod(B(i + 1, j, k), B(i, j + 1, k), ea_bus, rho_tube)
+                if i < NX and k < NZ:
+                    if (i + j + k) % 2:
+                        rod(B(i, j, k), B(i + 1, j, k + 1), ea_bus, rho_tube)
+                    else:
+                        rod(B(i + 1, j, k), B(i, j, k + 1), ea_bus, rho_tube)
+                if j < NY and k < NZ:
+                    if (i + j + k) % 2:
+                        rod(B(i, j, k), B(i, j + 1, k + 1), ea_bus, rho_tube)
+                    else:
+                        rod(B(i, j + 1, k), B(i, j, k + 1), ea_bus, rho_tube)
+
+    def cube_nodes(i, j, k):
+        return [B(i + di, j + dj, k + dk) for di in (0, 1) for dj in (0, 1) for dk in (0, 1)]
+
+    def cell_nodes(i, j, k=NZ):
+        return [B(i, j, k), B(i + 1, j, k), B(i + 1, j + 1, k), B(i, j + 1, k)]
+
+    for (i, j, k), m in SUBSYSTEMS.values():
+        for n in cube_nodes(i, j, k):
+            node_mass[n] += m / 8
+    for (i, j), m in BUS_INSTRUMENTS.values():
+        for n in cell_nodes(i, j):
+            node_mass[n] += m / 4
+
+    # -- instrument stations -------------------------------------------------------------
+    active: list = []
+    legs: dict = {}  # name -> (bus node, payload node)
+    zn = NZ * a
+    for inst in INSTRUMENTS:
+        i, j = STATIONS[inst]
+        m = INSTRUMENT_MASS[inst]
+        bus4 = cell_nodes(i, j)
+        plate = [add_node(f"{inst}_p{c}", xyz[b] + (0, 0, MOUNT_HEIGHT),
+                          PLATE_NODE_MASS + (1 - CG_FRACTION) * m / 4)
+                 for c, b in enumerate(bus4)]
+        centre = np.mean([xyz[p] for p in plate], axis=0)
+        cg = add_node(f"{inst}_cg", centre + (0, 0, CG_HEIGHT), CG_FRACTION * m)
+        ea_plate = PLATE_EA_FACTOR * E_AL * TUBE_AREA
+        for c in range(4):
+            rod(plate[c], plate[(c + 1) % 4], ea_plate, rho_tube)
+            rod(plate[c], cg, ea_plate, rho_tube)
+        rod(plate[0], plate[2], ea_plate, rho_tube)
+        kind = MOUNTS[inst]
+        if kind == "rigid":
+            for c in range(4):
+                rod(bus4[c], plate[c], E_AL * TUBE_AREA, rho_tube)
+                rod(bus4[c], plate[(c + 1) % 4], E_AL * TUBE_AREA, rho_tube)
+        elif kind == "kinematic":
+            # bipods at plate corners 0, 1, 2: one vertical leg and one inclined leg in
+            # the side plane; feet on the bus nodes under the plate
+            feet = [(0, 0), (0, 1), (1, 1), (1, 2), (2, 2), (2, 3)]
+            active_idx = (range(6) if active_legs == "all" else (1,)) \
+                if inst in ("swir", "vnir") else ()
+            for leg, (c, f) in enumerate(feet):
+                if leg in active_idx:
+                    name = f"{inst}_mount" + (f"{leg + 1}" if active_legs == "all" else "")
+                    active.append(_stacked_leg(name, bus4[f], plate[c], stack, add_node,
+                                               rod, springs, xyz, node_mass, inst))
+                else:
+                    rod(bus4[f], plate[c], E_AL * TUBE_AREA, rho_tube)
+        else:  # isolator: three stack legs and one solid rod, vertical, lateral flexures
+            for c in range(4):
+                if c < 3:
+                    name = f"iso{c + 1}"
+                    active.append(_stacked_leg(name, bus4[c], plate[c], stack, add_node, rod,
+                                               springs, xyz, node_mass, inst))
+                    k_lat = K_LAT_STACK_LEG
+                else:
+                    name = "tube"
+                    rod(bus4[c], plate[c], E_AL * ROD_AREA, RHO_AL * ROD_AREA)
+                    k_lat = 12 * E_AL * ROD_I / MOUNT_HEIGHT**3
+                legs[name] = (bus4[c], plate[c])
+                springs.extend(_lateral_springs(xyz, bus4[c], plate[c], k_lat))
+
+    # -- solar array -------------------------------------------------------------------
+    # yoke: four root nodes off the bus -y face, each pinned to three bus nodes
+    xi, zk = ARRAY_ROOT
+    yoke_ea = PLATE_EA_FACTOR * E_AL * TUBE_AREA
+    zc = (zk + 0.5) * a
+    root = []
+    for c, (dx, dz) in enumerate(((0, -1), (2, -1), (2, 1), (0, 1))):
+        r = add_node(f"sa_0_{c}", ((xi + dx) * a, -ARRAY_YOKE, zc + dz * ARRAY_DEPTH / 2))
+        root.append(r)
+        nx = xi + dx + (1 if dx == 0 else -1)
+        for foot in (B(xi + dx, 0, zk), B(xi + dx, 0, zk + 1),
+                     B(nx, 0, zk if dz < 0 else zk + 1)):
+            rod(foot, r, yoke_ea, rho_tube)
+    rod(root[0], root[2], yoke_ea, rho_tube)
+    array_root = list(root)
+    prev = root
+    panel = ARRAY_PANEL_MASS / (4 * ARRAY_BAYS)
+    for s in range(1, ARRAY_BAYS + 1):
+        cur = [add_node(f"sa_{s}_{c}", xyz[r] + (0, -s * ARRAY_BAY, 0), panel)
+               for c, r in enumerate(root)]
+        _box_bay(prev, cur, ea_array, EA_BRACE, APPENDAGE_LINE_DENSITY, rod)
+        prev = cur
+    # -- high-gain antenna ---------------------------------------------------------------
+    hi, hj = HGA_ROOT
+    root = [B(hi, hj, 0), B(hi + 1, hj, 0), B(hi + 1, hj + 1, 0), B(hi, hj + 1, 0)]
+    prev = root
+    for s in range(1, HGA_BAYS + 1):
+        cur = [add_node(f"hga_{s}_{c}", xyz[r] + (0, 0, -s * a), 0.0)
+               for c, r in enumerate(root)]
+        _box_bay(prev, cur, EA_HGA, EA_BRACE, APPENDAGE_LINE_DENSITY, rod)
+        prev = cur
+    dish = add_node("hga_dish", np.mean([xyz[p] for p in prev], axis=0)
+                    + (0, 0, -HGA_DISH_OFFSET), HGA_DISH_MASS)
+    for p in prev:
+        rod(p, dish, EA_BRACE, APPENDAGE_LINE_DENSITY)
+
+    nodes = np.array(xyz)
+    node_mass = np.array(node_mass)
+    springs_t = tuple(springs)
+    if suspension:
+        springs_t += _suspension(nodes, node_mass, np.array(el_mass), conn, names)
+    active_t = tuple(ActiveMember(n, el, gauge, stack) for n, el, gauge in active)
+    truss = Truss(nodes=nodes, elements=np.array(conn), axial_stiffness=np.array(k_ax),
+                  element_mass=np.array(el_mass), node_mass=node_mass, active=active_t,
+                  name="eos_testbed", mass_type=mass_type, node_names=names,
+                  springs=springs_t)
+
+    # -- channels ------------------------------------------------------------------------------
+    loads = []
+    for loc in LOCATIONS:
+        if loc in STATIONS:
+            set_ = [f"{loc}_cg"] + [f"{loc}_p{c}" for c in range(4)]
+        elif loc in BUS_INSTRUMENTS:
+            set_ = cell_nodes(*BUS_INSTRUMENTS[loc][0])
+        elif loc == "rwa":
+            set_ = cube_nodes(*SUBSYSTEMS["rwa"][0])
+        else:  # sad: the array root
+            set_ = array_root
+        loads.extend(wrench_channels(truss, loc, set_))
+    rwa = cube_nodes(*SUBSYSTEMS["rwa"][0])
+    loads.extend(wrench_channels(truss, "acs", rwa, names=("tx", "ty", "tz"),
+                                 components=(3, 4, 5)))
+    outputs = []
+    for inst in INSTRUMENTS:
+        outputs.extend(truss.angle_channels(f"los_{inst}", [f"{inst}_cg"]
+                                            + [f"{inst}_p{c}" for c in range(4)]))
+    for leg, (b, p) in legs.items():
+        d = nodes[p] - nodes[b]
+        outputs.append(truss.accel_channel(f"acc_pay_{leg}", p, d))
+        outputs.append(truss.accel_channel(f"acc_bus_{leg}", b, d))
+    for am in active_t:
+        outputs.append(truss.strain_channel(f"strain_{am.name}", am.gauge_element))
+        outputs.append(truss.elong_channel(f"elong_{am.name}", am.element))
+    acs = cube_nodes(*ACS_SENSOR_CUBE)
+    att = truss.angle_channels("att", acs)
+    outputs.extend(att)
+    outputs.extend(Channel(c.name.replace("att_", "rate_"), "rate", c.dofs, c.weights)
+                   for c in att)
+    return truss.replace(loads=tuple(loads), outputs=tuple(outputs))
+
+
+def _stacked_leg(name, n_bus, n_pay, stack, add_node, rod, springs, xyz, node_mass, inst):
+    """A leg made of a piezo stack (bus side) + fitting node + passive rod (payload side).
+
+    Returns ``(name, stack element, gauge element)``; the gauge is on the stack.
+    """
+    d = xyz[n_pay] - xyz[n_bus]
+    length = float(np.linalg.norm(d))
+    lp = stack.length
+    fit = add_node(f"{inst}_fit_{name}", xyz[n_bus] + d / length * lp, FITTING_MASS)
+    el = rod(n_bus, fit, stack.k_e * lp, stack.mass / lp)
+    ls = length - lp
+    rod(fit, n_pay, E_AL * ROD_AREA, RHO_AL * ROD_AREA)
+    k = 3 * E_AL * ROD_I * length / (lp**2 * ls**2)
+    springs.extend(transverse_link(np.array(xyz), n_bus, n_pay, fit, k))
+    return name, el, el
+
+
+def _lateral_springs(xyz, n_bus, n_pay, k):
+    """Two springs on the transverse relative motion of a leg's end nodes (flexures)."""
+    d = xyz[n_pay] - xyz[n_bus]
+    e = d / np.linalg.norm(d)
+    helper = np.eye(3)[np.argmin(np.abs(e))]
+    t1 = np.cross(e, helper)
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(e, t1)
+    dofs = np.r_[3 * n_pay + np.arange(3), 3 * n_bus + np.arange(3)]
+    return [Spring(dofs, np.r_[t, -t], k) for t in (t1, t2)]
+
+
+def _box_bay(prev, cur, ea_long, ea_brace, line_density, rod):
+    """One bay of a 4-longeron boom: longerons (``ea_long``), battens and face and
+    batten-plane diagonals (``ea_brace``)."""
+    for c in range(4):
+        rod(prev[c], cur[c], ea_long, line_density)
+        rod(cur[c], cur[(c + 1) % 4], ea_brace, line_density)
+        rod(prev[c], cur[(c + 1) % 4], ea_brace, line_density)
+    rod(cur[0], cur[2], ea_brace, line_density)
+
+
+def _suspension(nodes, node_mass, el_mass, conn, names):
+    """Five cables (pendulum springs) and vertical pneumatic springs to ground."""
+    total = node_mass.sum() + el_mass.sum()
+    points = [_bus_name(i, j, 0) for i, j in ((1, 0), (1, NY), (NX - 1, 0), (NX - 1, NY),
+                                              (NX // 2, NY // 2))]
+    k_pend = total * G0 / SUSPENSION_LENGTH / len(points)
+    k_z = total * (2 * np.pi * SUSPENSION_BOUNCE_HZ) ** 2 / len(points)
+    out = []
+    for p in points:
+        n = names[p]
+        for d, k in ((0, k_pend), (1, k_pend), (2, k_z)):
+            out.append(Spring(np.array([3 * n + d]), np.array([1.0]), k))
+    return tuple(out)
+
+
+# -- channels ----------------------------------------------------------------------------
+def wrench_matrix(truss: Truss, nodes, point=None) -> np.ndarray:
+    """Least-norm nodal forces giving a unit wrench at ``point``, shape (3 k, 6).
+
+    Column ``c`` holds the forces (stacked x, y, z per node) whose resultant is the unit
+    force (``c`` < 3) or unit moment (``c`` >= 3) about ``point`` (default the centroid)
+    with the other five wrench components exactly zero.
+
+    Parameters
+    ----------
+    truss : Truss
+    nodes : sequence of int or str, length k
+        Node set (at least three non-collinear nodes).
+    point : array_like, shape (3,), optional
+        Reference point (m).
+    """
+    idx = np.array([truss.node(n) for n in nodes])
+    x = truss.nodes[idx]
+    p = x.mean(axis=0) if point is None else np.asarray(point, float)
+    r = x - p
+    G = np.zeros((6, 3 * len(idx)))
+    for i, ri in enumerate(r):
+        G[:3, 3 * i:3 * i + 3] = np.eye(3)
+        G[3:, 3 * i:3 * i + 3] = np.array([[0, -ri[2], ri[1]], [ri[2], 0, -ri[0]],
+                                            [-ri[1], ri[0], 0]])
+    if np.linalg.matrix_rank(G) < 6:
+        raise ModelError("wrench node set is collinear; need three non-collinear nodes")
+    return G.T @ np.linalg.inv(G @ G.T)
+
+
+def wrench_channels(truss: Truss, prefix, nodes, point=None, names=WRENCH,
+                    components=range(6)) -> tuple:
+    """Load channels ``<prefix>_<name>`` applying unit wrench components on a node set.
+
+    Forces (``fx, fy, fz``, N) and couples (``mx, my, mz``, N m) are spread over the
+    nodes with :func:`wrench_matrix`, so each channel has exactly the one resultant.
+    """
+    W = wrench_matrix(truss, nodes, point)
+    idx = np.array([truss.node(n) for n in nodes])
+    dofs = (3 * idx[:, None] + np.arange(3)).ravel()
+    kinds = ("force",) * 3 + ("torque",) * 3
+    return tuple(Channel(f"{prefix}_{n}", kinds[c], dofs, W[:, c])
+                 for n, c in zip(names, components))
+
+
+def torque_channel(truss: Truss, name, nodes, axis) -> Channel:
+    """A pure couple of 1 N m about ``axis`` spread over a node set (zero net force)."""
+    W = wrench_matrix(truss, nodes)
+    ax = np.asarray(axis, float)
+    ax = ax / np.linalg.norm(ax)
+    idx = np.array([truss.node(n) for n in nodes])
+    return Channel(name, "torque", (3 * idx[:, None] + np.arange(3)).ravel(), W[:, 3:] @ ax)
+
+
+# -- analysis helpers ------------------------------------------------------------------------
+def _node_region(name: str) -> str:
+    if name.startswith("bus_"):
+        return "bus"
+    if name.startswith("sa_"):
+        return "array"
+    if name.startswith("hga"):
+        return "hga"
+    inst = name.split("_")[0]
+    if "_fit_" in name:
+        return f"mount_{inst}"
+    return f"payload_{inst}"
+
+
+def element_regions(truss: Truss) -> np.ndarray:
+    """Region of each element: ``bus``, ``array``, ``hga``, ``mount_<inst>``, ``payload_<inst>``.
+
+    Returns
+    -------
+    ndarray of str, shape (n_el,)
+    """
+    node_reg = _node_regions(truss)
+    out = []
+    for n1, n2 in truss.elements:
+        r1, r2 = node_reg[n1], node_reg[n2]
+        if r1 == r2:
+            out.append(r1)
+        elif "array" in (r1, r2) or "hga" in (r1, r2):
+            out.append("array" if "array" in (r1, r2) else "hga")
+        else:  # bus to payload, fitting to either
+            inst = (r1 if r1 != "bus" else r2).split("_", 1)[1]
+            out.append(f"mount_{inst}")
+    return np.array(out)
+
+
+def _node_regions(truss):
+    reg = np.empty(len(truss.nodes), object)
+    for name, i in truss.node_names.items():
+        reg[i] = _node_region(name)
+    return reg
+
+
+def strain_energy_fractions(truss: Truss, phi_full: np.ndarray) -> dict:
+    """Fraction of each mode's strain energy per region.
+
+    Parameters
+    ----------
+    truss : Truss
+    phi_full : ndarray, shape (n_dof, n_modes)
+        Mode shapes on all DOFs (free-free: the free DOFs are all DOFs).
+
+    Returns
+    -------
+    dict of str to ndarray, shape (n_modes,)
+        Keys: element regions (:func:`element_regions`); springs count with the mount
+        they belong to, ground springs as ``suspension``.  The fractions of one mode sum
+        to 1 (rigid-body modes give NaN).
+    """
+    e, _ = truss.element_geometry()
+    el = truss.elements
+    du = phi_full.reshape(len(truss.nodes), 3, -1)
+    delta = np.einsum("ek,ekm->em", e, du[el[:, 1]] - du[el[:, 0]])
+    U = 0.5 * truss.axial_stiffness[:, None] * delta**2
+    regions = element_regions(truss)
+    out = {r: U[regions == r].sum(axis=0) for r in np.unique(regions)}
+    node_reg = _node_regions(truss)
+    for s in truss.springs:
+        regs = {node_reg[d // 3] for d in np.asarray(s.dofs)}
+        if regs == {"bus"}:
+            key = "bus" if len({d // 3 for d in s.dofs}) > 1 else "suspension"
+        else:
+            key = next(r for r in sorted(regs) if r != "bus")
+            key = "mount_" + key.split("_", 1)[1] if "_" in key else key
+        u = 0.5 * s.k * (np.asarray(s.weights) @ phi_full[np.asarray(s.dofs)]) ** 2
+        out[key] = out.get(key, 0.0) + u
+    total = sum(out.values())
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return {k: v / total for k, v in out.items()}
+
+
+def modes(truss: Truss, n: int = 40):
+    """First ``n`` natural frequencies (Hz) and mode shapes on all DOFs.
+
+    Returns
+    -------
+    f : ndarray, shape (n,)
+    phi : ndarray, shape (n_dof, n)
+        Mass-normalised, zero on fixed DOFs.
+    """
+    K, M = assemble(truss)
+    lam, phi, _ = eigenpairs(K, M, n, SHIFT, truss)
+    full = np.zeros((truss.n_dof, n))
+    full[truss.free_dofs] = phi
+    return np.sqrt(lam) / (2 * np.pi), full
+
+
+def frequencies_hz(truss: Truss | None = None, n: int = 12) -> np.ndarray:
+    """First ``n`` natural frequencies of the full FEM (Hz), rigid-body modes included."""
+    return modes(truss or build(), n)[0]
+
+
+def first_mode_of(region: str, truss: Truss | None = None, n: int = 60, threshold=0.5):
+    """Index and frequency (Hz) of the first flexible mode with >= ``threshold`` of its
+    strain energy in ``region`` (``"bus"`` or ``"array"``)."""
+    f, phi = modes(truss or build(), n)
+    frac = strain_energy_fractions(truss or build(), phi)[region]
+    flexible = f > 1e-3
+    hit = np.flatnonzero(flexible & (np.nan_to_num(frac) >= threshold))
+    if not hit.size:
+        raise ModelError(f"no mode among the first {n} has {threshold:.0%} of its strain "
+                         f"energy in {region!r}")
+    return int(hit[0]), float(f[hit[0]])
+
+
+def describe_modes(truss: Truss | None = None, n: int = 12) -> list:
+    """One line per mode: frequency and where the strain energy is."""
+    truss = truss or build()
+    f, phi = modes(truss, n)
+    frac = strain_energy_fractions(truss, phi)
+    lines = []
+    for m in range(n):
+        if f[m] < 1e-3:
+            lines.append(f"{m + 1:3d} {f[m]:9.4f} Hz  rigid body")
+            continue
+        parts = sorted(((v[m], k) for k, v in frac.items()), reverse=True)
+        lines.append(f"{m + 1:3d} {f[m]:9.4f} Hz  " + ", ".join(
+            f"{k} {v:.0%}" for v, k in parts[:3] if v >= 0.05))
+    return lines
+
+
+def damping(n_modes: int) -> Damping:
+    """Modal 0.5 % on every mode (0 on rigid ones since ``c = 2 zeta omega``), Ritz 2 %."""
+    return Damping(zeta=np.full(n_modes, ZETA), zeta_ritz=ZETA_RITZ)
+
+
+def reduced(n_modes: int = N_MODES, ritz: bool = True, truss: Truss | None = None,
+            ritz_loads=()):
+    """Reduced model: ``N_MODES`` eigenvectors (to about 150 Hz) + one Ritz vector per
+    active member (+ one per input named in ``ritz_loads``), free-free shift -1."""
+    truss = truss or build()
+    sel = [c.name for c in truss.input_channels if c.name.startswith("fc_")] \
+        + list(ritz_loads)
+    return reduce(truss, n_modes, ritz=ritz, ritz_inputs=sel if ritz else None,
+                  shift=SHIFT, damping=damping(n_modes))
+
+
+def calibrate(target_bus=TARGET_BUS_HZ, target_array=TARGET_ARRAY_HZ, tol=1e-4,
+              max_iter=20):
+    """Solve ``(eta_bus, ea_array)`` for the first bus and array modes (Hz).
+
+    A fixed-point iteration on ``f ~ sqrt(stiffness)`` for each subsystem.
+
+    Returns
+    -------
+    (eta_bus, ea_array) : tuple of float
+    """
+    eta, ea = ETA_BUS, EA_ARRAY
+    for _ in range(max_iter):
+        t = build(eta, ea)
+        _, fb = first_mode_of("bus", t)
+        _, fa = first_mode_of("array", t)
+        eta *= (target_bus / fb) ** 2
+        ea *= (target_array / fa) ** 2
+        if abs(fb / target_bus - 1) < tol and abs(fa / target_array - 1) < tol:
+            break
+    return float(eta), float(ea)

@@ -112,7 +112,9 @@ def virtual_absorber_tf(mode_hz: float, plant_gain: float, *, loop_gain: float =
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"virtual absorber {name} must be positive, got {value!r}")
     if not (math.isfinite(plant_gain) and plant_gain != 0):
-        raise ValueError(f"plant_gain must be a finite non-zero strain per volt, got {plant_gain!r}")
+        raise ValueError(
+            f"plant_gain must be a finite non-zero strain per volt, got {plant_gain!r}"
+        )
     wc = 2 * math.pi * tuning * mode_hz
     k = loop_gain / plant_gain
     return control.tf([k * wc**2], [1.0, 2 * zeta * wc, wc**2])

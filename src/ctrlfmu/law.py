@@ -192,7 +192,9 @@ class DiscreteLaw:
                                       f"{states} and {_plural(n_out, 'output')}"))
         dt = float(self.dt)
         if not (math.isfinite(dt) and dt > 0):
-            raise ValueError(f"sample period dt must be a positive number of seconds, got {self.dt!r}")
+            raise ValueError(
+                f"sample period dt must be a positive number of seconds, got {self.dt!r}"
+            )
         set_(self, "dt", dt)
         t_on = float(self.t_on)
         if not (math.isfinite(t_on) and t_on >= 0):

@@ -112,7 +112,8 @@ def test_fmpy_non_delayed_fmu_equals_the_pure_law(fmus):
     np.testing.assert_array_equal(out, u)
 
 
-@pytest.mark.parametrize("model", ["controller_testbed_isolation", "controller_truss10_strain_diag"])
+@pytest.mark.parametrize("model", ["controller_testbed_isolation",
+                                   "controller_truss10_strain_diag"])
 def test_c_host_and_libcosim_match_fmpy(fmus, model, tmp_path):
     from fmukit import testing
 

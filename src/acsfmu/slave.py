@@ -29,8 +29,6 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-import numpy as np
-
 from acsfmu.design import pid_gains_for
 from acsfmu.pid import AcsConfig, AcsConfigError, AcsState, PidGains, acs_advance, \
     acs_outputs, initial_state

@@ -63,7 +63,8 @@ class DisturbanceSlave(FmuSlave):
         p("start_time", 0.0, unit="s", tunable=True, description="start of the active window")
         p("stop_time", 0.0, unit="s", tunable=True,
           description="end of the active window; <= start_time for no end")
-        self.add_input("wheel_speed", unit="rad/s", description="wheel speed for the rwa preset")
+        self.add_input("wheel_speed", unit="rad/s",
+                       description="wheel speed for the rwa preset")
         self.add_real_block("wrench", names=list(WRENCH_NAMES), causality="output",
                             unit=["N", "N", "N", "N.m", "N.m", "N.m"], depends_on=[],
                             description="force and torque on the spacecraft at the mount")

@@ -1,5 +1,6 @@
 """ACS slave as a Python object, then the built ``acs`` FMU in fmpy, C host, libcosim."""
 
+from dataclasses import replace
 from xml.etree.ElementTree import tostring
 
 import numpy as np
@@ -32,7 +33,6 @@ def _reference(u, h=0.1, inertia=(7600.0, 36000.0, 36000.0), momentum0=(1.0, 0.0
     state = initial_state(cfg, 0.0, momentum0)
     y = []
     for k in range(u.shape[0]):
-        from dataclasses import replace
         state = acs_advance(cfg, replace(state, time=k * h), h, u[k, :3], u[k, 3:])
         torque, speed = acs_outputs(cfg, state)
         y.append(np.concatenate([torque, speed]))

@@ -58,7 +58,8 @@ class DisturbanceSlave(FmuSlave):
         p("preset", str(self.default_preset),
           description="disturbance preset name, e.g. vnir_pointing, swir_cryocooler, none")
         p("seed", 0, description="0 keeps the preset phases; otherwise random phases")
-        p("use_speed_input", bool(self.default_speed_input), description="drive a wheel preset from wheel_speed")
+        p("use_speed_input", bool(self.default_speed_input),
+          description="drive a wheel preset from wheel_speed")
         p("scale", 1.0, unit="1", tunable=True, description="amplitude factor")
         p("start_time", 0.0, unit="s", tunable=True, description="start of the active window")
         p("stop_time", 0.0, unit="s", tunable=True,

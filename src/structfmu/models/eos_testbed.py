@@ -125,7 +125,7 @@ ZETA = 0.005
 ZETA_RITZ = 0.02
 TARGET_BUS_HZ = 23.0
 TARGET_ARRAY_HZ = 0.5
-SHIFT = -1.0
+SHIFT = -100.0
 # calibrated by calibrate(): first bus mode 23 Hz, first array mode 0.5 Hz
 ETA_BUS = 0.7624343
 EA_ARRAY = 2.300540e5
@@ -632,15 +632,42 @@ def damping(n_modes: int) -> Damping:
     return Damping(zeta=np.full(n_modes, ZETA), zeta_ritz=ZETA_RITZ)
 
 
+def load_inputs() -> tuple:
+    """Names of the disturbance wrench inputs ``<loc>_fx .. <loc>_mz``, shape (54,)."""
+    return tuple(f"{loc}_{c}" for loc in LOCATIONS for c in WRENCH)
+
+
 def reduced(n_modes: int = N_MODES, ritz: bool = True, truss: Truss | None = None,
-            ritz_loads=()):
-    """Reduced model: ``N_MODES`` eigenvectors (to about 150 Hz) + one Ritz vector per
-    active member (+ one per input named in ``ritz_loads``), free-free shift -1."""
+            ritz_loads=None, shift: float = SHIFT):
+    """Reduced model: eigenvectors to about 150 Hz plus static Ritz vectors.
+
+    Parameters
+    ----------
+    n_modes : int
+        Eigenvectors kept, rigid-body modes included (default ``N_MODES`` = 70, to
+        158 Hz).
+    ritz : bool
+        Append static Ritz vectors (Eq. 3-7): one per active member and one per input in
+        ``ritz_loads``.
+    truss : Truss, optional
+        Full model (default :func:`build`).
+    ritz_loads : sequence of str, optional
+        Load inputs that also get a Ritz vector; default all 54 disturbance wrench
+        inputs (:func:`load_inputs`), ``()`` for the actuators only.  The ACS torques
+        are the ``rwa_m*`` couples, so they are covered too.
+    shift : float
+        Shift of the free-free eigen and static solves ((rad/s)^2), default -100.
+
+    Returns
+    -------
+    ReducedModel
+        70 modes + 59 Ritz vectors by default; inputs and outputs as :func:`build`.
+    """
     truss = truss or build()
-    sel = [c.name for c in truss.input_channels if c.name.startswith("fc_")] \
-        + list(ritz_loads)
+    loads = load_inputs() if ritz_loads is None else tuple(ritz_loads)
+    sel = [c.name for c in truss.input_channels if c.name.startswith("fc_")] + list(loads)
     return reduce(truss, n_modes, ritz=ritz, ritz_inputs=sel if ritz else None,
-                  shift=SHIFT, damping=damping(n_modes))
+                  shift=shift, damping=damping(n_modes))
 
 
 def calibrate(target_bus=TARGET_BUS_HZ, target_array=TARGET_ARRAY_HZ, tol=1e-4,

@@ -7,10 +7,13 @@ Variables
 ---------
 inputs
     ``y1 .. yn`` (the law's input units: ``1`` for strain, ``m/s2`` for acceleration),
-    held between communication points; ``enable`` (Boolean, default true).
+    held between communication points; ``enable`` (Boolean, default true);
+    ``r1 .. rm`` (V) commands added to the outputs after the law and its limits (an
+    excitation injected by the control computer, as in the ten-bay truss tests).
 outputs
-    ``u1 .. um`` (V), discrete.  Delayed form (Eq. 11): no input dependency.  Non-delayed
-    form: ``u_i`` depends on ``y_j`` wherever ``D[i, j] != 0``, and on ``enable``.
+    ``u1 .. um`` (V), discrete.  ``u_i`` depends on ``r_i`` (added directly).  Delayed
+    form (Eq. 11): no dependency on the measurements.  Non-delayed form: ``u_i`` depends
+    on ``y_j`` wherever ``D[i, j] != 0``, and on ``enable``.
 parameters
     ``gain`` (-) factor on the command, ``u_min``/``u_max`` (V) limits of every output
     (the law's by default; ``+/-1e30`` stands for none), ``t_on`` (s) activation time.
@@ -85,9 +88,13 @@ class ControllerSlave(FmuSlave):
                            description=f"measurement {law.inputs[j]}")
         self.add_boolean("enable", True, causality="input", variability="discrete",
                          description="controller on; off gives zero command and resets the state")
+        for i in range(law.n_outputs):
+            self.add_input(f"r{i + 1}", unit=law.output_units[i],
+                           description=f"command added to {law.outputs[i]} (excitation)")
+        self._r_names = [f"r{i + 1}" for i in range(law.n_outputs)]
         ft = law.feedthrough
         for i in range(law.n_outputs):
-            deps = [f"y{j + 1}" for j in range(law.n_inputs) if ft[i, j]]
+            deps = [f"y{j + 1}" for j in range(law.n_inputs) if ft[i, j]] + [f"r{i + 1}"]
             if not law.delayed:
                 deps.append("enable")
             self.add_output(f"u{i + 1}", unit=law.output_units[i], depends_on=deps,
@@ -129,8 +136,8 @@ class ControllerSlave(FmuSlave):
                 u = output(law, LawState(self._x, self._u, k), self._inputs(), self.enable)
         else:
             u = self._u_prev if law.delayed else self._u
-        for name, value in zip(self._u_names, u):
-            setattr(self, name, float(value))
+        for name, rname, value in zip(self._u_names, self._r_names, u):
+            setattr(self, name, float(value) + getattr(self, rname))
 
     # ---------------------------------------------------------------- FMI
     def setup_experiment(self, start_time, stop_time, tolerance):
@@ -181,7 +188,7 @@ class ControllerSlave(FmuSlave):
 
     def set_real(self, vrs, values):
         super().set_real(vrs, values)
-        if self._ready and not self._law.delayed:
+        if self._ready:
             self._write_outputs()
 
     def set_boolean(self, vrs, values):

@@ -69,14 +69,30 @@ def test_model_structure_is_exact(fmus):
                 {v.name: v.unit for v in md.modelVariables}, md)
 
     d, units, md = deps(fmus["controller_testbed_isolation"])
-    assert d == {"u1": []}                          # Eq. (11): no direct feedthrough
+    # Eq. (11): no feedthrough from the measurements; only the additive command r1
+    assert d == {"u1": ["r1"]}
     assert (units["y1"], units["y2"], units["u1"], units["t_on"]) == ("m/s2", "m/s2", "V", "s")
     assert md.coSimulation.canGetAndSetFMUstate
     assert md.defaultExperiment.stepSize == "0.001"
     d, units, _ = deps(fmus["controller_truss10_strain_diag"])
-    assert d == {"u1": []} and units["y1"] == "1"
+    assert d == {"u1": ["r1"]} and units["y1"] == "1"
     d, _, _ = deps(fmus["direct"])
-    assert d == {"u1": ["enable", "y1"], "u2": ["enable", "y2"]}
+    assert d == {"u1": ["enable", "r1", "y1"], "u2": ["enable", "r2", "y2"]}
+
+
+def test_additive_command_is_added_after_the_law(fmus):
+    from fmukit.testing import run_fmpy
+
+    law = design(MODELS["controller_truss10_strain_diag"])
+    y = measurements(law)
+    r = 100.0 * np.sin(2 * np.pi * 8.4 * np.arange(N) * law.dt)
+    base = run_fmpy(fmus["controller_truss10_strain_diag"], inputs={"y1": y[:, 0]},
+                    outputs=["u1"], step_size=law.dt, n_steps=N)
+    with_r = run_fmpy(fmus["controller_truss10_strain_diag"],
+                      inputs={"y1": y[:, 0], "r1": r}, outputs=["u1"], step_size=law.dt,
+                      n_steps=N)
+    # the runner reads u after the step while r[k] is still set: u = law + r[k]
+    np.testing.assert_allclose(with_r[:, 0] - base[:, 0], r, rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("model", list(MODELS))

@@ -45,11 +45,11 @@ def test_variables_units_and_dependencies(tmp_path):
     slave = make_slave(tmp_path, design("testbed_isolation"))
     specs = {s.name: s for s in slave.variable_specs}
     assert (specs["y1"].unit, specs["y2"].unit, specs["u1"].unit) == ("m/s2", "m/s2", "V")
-    assert specs["u1"].depends_on == ()                  # Eq. (11): no feedthrough
+    assert specs["u1"].depends_on == ("r1",)   # Eq. (11): none from y; r1 is added directly
     assert specs["enable"].type == "Boolean" and specs["enable"].causality == "input"
     assert (slave.u_min, slave.u_max) == (-50.0, 50.0)
     direct = make_slave(tmp_path, direct_law())
-    assert {s.name: s for s in direct.variable_specs}["u1"].depends_on == ("y1", "enable")
+    assert {s.name: s for s in direct.variable_specs}["u1"].depends_on == ("y1", "r1", "enable")
 
 
 @pytest.mark.parametrize("name", ["truss10_strain_long", "testbed_isolation"])

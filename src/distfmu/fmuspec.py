@@ -9,7 +9,10 @@ __all__ = ["MODELS", "specs"]
 #: modelIdentifier -> one-line description.
 MODELS: dict[str, str] = {
     "disturbance": "EOS AM-1 disturbance event (preset) as force/torque at its mount",
+    "excitation": "two sine-burst voltage channels (test excitation of active members)",
 }
+_SLAVES = {"disturbance": "distfmu.slave:DisturbanceSlave",
+           "excitation": "distfmu.excitation:ExcitationSlave"}
 
 
 def specs(models: list[str] | None = None) -> list[FmuSpec]:
@@ -23,9 +26,9 @@ def specs(models: list[str] | None = None) -> list[FmuSpec]:
     Returns
     -------
     list of FmuSpec
-        ``[disturbance]`` when wanted, else empty.
+        ``disturbance`` and ``excitation`` when wanted.
     """
     names = list(MODELS) if models is None else [m for m in models if m in MODELS]
-    return [FmuSpec(model_identifier=name, slave_class="distfmu.slave:DisturbanceSlave",
+    return [FmuSpec(model_identifier=name, slave_class=_SLAVES[name],
                     description=MODELS[name], step_size=1e-3)
             for name in names]

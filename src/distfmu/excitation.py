@@ -1,0 +1,73 @@
+"""Sine-burst excitation signals (pure functions) and the ``excitation`` FMU slave.
+
+The ten-bay truss tests drive the active members with sine voltages for a while and
+then stop (free decay or control).  Channel ``i`` gives::
+
+    v_i(t) = a_i sin(2 pi f_i (t - t_start))   for t_start <= t < t_stop, else 0
+
+The FMU's outputs carry the value at the current communication point (a source: no
+inputs, no feedthrough).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fmukit.slave import FmuSlave
+
+N_CHANNELS = 2
+
+
+def sine_burst(t, amplitude: float, frequency: float, t_start: float = 0.0,
+               t_stop: float = math.inf):
+    """Sine burst ``a sin(2 pi f (t - t_start))`` on ``[t_start, t_stop)`` (arrays accepted).
+
+    Parameters
+    ----------
+    t : float or ndarray
+        Time (s).
+    amplitude : float
+        Amplitude (signal unit, e.g. V).
+    frequency : float
+        Frequency (Hz).
+    t_start, t_stop : float
+        Burst window (s).
+    """
+    t = np.asarray(t, float)
+    on = (t >= t_start) & (t < t_stop)
+    return np.where(on, amplitude * np.sin(2 * np.pi * frequency * (t - t_start)), 0.0)
+
+
+class ExcitationSlave(FmuSlave):
+    """Two sine-burst voltage channels ``v1``, ``v2`` (V)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        for i in range(1, N_CHANNELS + 1):
+            self.add_parameter(f"amp{i}", 0.0, unit="V", description=f"amplitude of v{i}",
+                               tunable=True)
+            self.add_parameter(f"freq{i}", 1.0, unit="Hz", description=f"frequency of v{i}",
+                               tunable=True)
+        self.add_parameter("t_start", 0.0, unit="s", description="burst start", tunable=True)
+        self.add_parameter("t_stop", 1e30, unit="s", description="burst end", tunable=True)
+        for i in range(1, N_CHANNELS + 1):
+            self.add_output(f"v{i}", unit="V", depends_on=[], description=f"excitation {i}")
+
+    def _write(self, t: float) -> None:
+        for i in range(1, N_CHANNELS + 1):
+            value = sine_burst(t, getattr(self, f"amp{i}"), getattr(self, f"freq{i}"),
+                               self.t_start, self.t_stop)
+            setattr(self, f"v{i}", float(value))
+
+    def setup_experiment(self, start_time, stop_time, tolerance):
+        self._t_start_exp = float(start_time)
+
+    def exit_initialization_mode(self):
+        self._write(getattr(self, "_t_start_exp", 0.0))
+        return True
+
+    def do_step(self, current_time, step_size):
+        self._write(current_time + step_size)
+        return True

@@ -7,21 +7,28 @@ An instance with period ``p`` ticks steps at every tick ``k`` with ``k % p == 0`
 ``t_k`` to ``t_k + p·base``; its inputs are set just before and held over the step
 (zero-order hold).  A connection carries ``gain * output + offset``.
 
-At a tick, every due instance reads its connected inputs and steps:
+After a step from ``t_k`` to ``t_k + h`` an output is the value at ``t_k + h``; it is
+*stamped* ``t_k + h`` and becomes the source's value at communication points from then
+on.  The one exception is an output with direct feedthrough (ModelStructure
+``dependencies`` on a connected input): it is computed from the inputs of the step at
+``t_k`` and is used at once, as a discrete controller's output ``u_k = C x_k + D y_k``
+is applied over its own sample interval.  At a tick, every due instance reads its
+connected inputs and steps:
 
-* ``gauss-seidel`` (default): an output with direct feedthrough (ModelStructure
-  ``dependencies`` on a connected input) is read *after* its source stepped in this
-  tick, so sources step before sinks; an output without feedthrough is read as it
-  stood at the start of the tick (its value at ``t_k``), so independent instances never
-  depend on the order they happen to step in.  A cycle of feedthrough is an algebraic
-  loop: it is iterated to a fixed point, rolling the members back with
+* ``gauss-seidel`` (default): a feedthrough output is read after its source stepped in
+  this tick (sources before sinks, topological order of the feedthrough graph); any
+  other output is read at its value at ``t_k`` (the latest value stamped ``<= t_k``),
+  so independent instances never depend on the order they step in, and a slow
+  source's output is never seen before its time.  A cycle of feedthrough is an
+  algebraic loop: it is iterated to a fixed point, rolling the members back with
   ``fmi2SetFMUstate`` between iterations, when every member can get and set its state.
-* ``jacobi``: every input reads the outputs as they stood at the start of the tick
-  (what libcosim's fixed-step algorithm does).
+* ``jacobi``: every input reads its source's value at ``t_k`` (stamped ``<= t_k``).
+  For periods that divide one another this is exactly libcosim's fixed-step algorithm
+  (libcosim exchanges values only at common multiples of the two periods, so it
+  differs when neither period divides the other).
 
-A receiver samples the source's latest output at the receiver's own communication
-points.  Recorded rows are the values at ticks that are multiples of the output
-interval, read before that tick's steps, i.e. each instance's latest output.
+Recorded rows are the values at ticks that are multiples of the output interval: each
+variable's value at ``t_k`` (the latest stamped ``<= t_k``), read before that tick's steps.
 """
 
 from __future__ import annotations
@@ -123,6 +130,8 @@ class FmuInfo:
 
 
 _INFO_CACHE: dict = {}
+#: FMU objects whose shared libraries stay loaded for the life of the process.
+_KEEP_LOADED: list = []
 
 
 def _sha256(path: Path) -> str:
@@ -473,9 +482,13 @@ class _Slave:
             except Exception:
                 pass
             try:
-                self.fmu.freeInstance()
+                # free the instance but keep the shared library loaded: a pythonfmu FMU
+                # leaves Python objects behind whose code lives in that library, and
+                # unloading it makes a later garbage collection crash the process
+                self.fmu.fmi2FreeInstance(self.comp)
             except Exception:
                 pass
+            _KEEP_LOADED.append(self.fmu)
             self.instantiated = False
 
 
@@ -514,7 +527,6 @@ class Simulation:
         self.max_iterations = max_iterations
         self.loop_tolerance = loop_tolerance
         self.slaves = {}
-        self._tmp = tempfile.mkdtemp(prefix="jitterfmu-")
         self.rows = 0
         self.tick = 0
         self._build_bus()
@@ -591,16 +603,13 @@ class Simulation:
         return SimulationError(msg, slave.name, t)
 
     def _load(self):
-        from fmpy import extract
-
         plan, sc = self.plan, self.plan.scenario
         unzipped = {}
         for inst in sc.instances:
             info = plan.fmus[inst.name]
             key = str(info.path)
             if key not in unzipped:
-                d = os.path.join(self._tmp, f"{len(unzipped)}_{info.model_identifier}")
-                unzipped[key] = extract(key, unzipdir=d)
+                unzipped[key] = _extracted(info)
             try:
                 self.slaves[inst.name] = _Slave(inst.name, info, unzipped[key], inst, plan.timebase)
             except Exception as exc:
@@ -825,6 +834,9 @@ class Simulation:
             else:
                 progs[g] = self._step_program(g[0])
         pt = tb.period_ticks
+        slots = {m: [] for m in pt}
+        for (m, _), i in self.slot.items():
+            slots[m].append(i)
 
         def due_at(k):
             calls = []
@@ -836,7 +848,13 @@ class Simulation:
                     calls.append(_bind_loop(progs[g], due))
                 else:
                     calls.append(progs[g])
-            return tuple(calls)
+            # outputs stamped t_k: those of instances whose step ends now, i.e. due now
+            due_all = [m for m in pt if k % pt[m] == 0]
+            if len(due_all) == len(pt):
+                snap_idx = None
+            else:
+                snap_idx = np.array(sorted(i for m in due_all for i in slots[m]), dtype=np.intp)
+            return snap_idx, tuple(calls)
 
         if tb.hyperperiod <= _MAX_PATTERN:
             cache, pattern = {}, []
@@ -878,16 +896,21 @@ class Simulation:
             for k in range(n_ticks + 1):
                 self.tick = k
                 t = (a + k * b) / d
+                snap_idx, calls = schedule(k)
+                if snap_idx is None:
+                    snap[:] = cur
+                elif len(snap_idx):
+                    snap[snap_idx] = cur[snap_idx]
                 if k in actions:
                     for s, values in actions[k]:
                         s.set_values(values)
                 if k % out_ticks == 0:
                     self.rows = k // out_ticks + 1
-                    rec[self.rows - 1] = cur[rec_idx] if len(rec_idx) else rec[self.rows - 1]
+                    if len(rec_idx):
+                        rec[self.rows - 1] = snap[rec_idx]
                 if k == n_ticks:
                     break
-                snap[:] = cur
-                for call in schedule(k):
+                for call in calls:
                     call(t)
                 if not isfinite(float(cur.sum())):
                     self._check_finite(t, order)
@@ -921,11 +944,28 @@ class Simulation:
         return out
 
     def close(self):
-        """Terminate and free every instance and remove the extracted FMUs."""
+        """Terminate and free every instance."""
         for s in self.slaves.values():
             s.close()
         self.slaves = {}
-        shutil.rmtree(self._tmp, ignore_errors=True)
+
+
+def _extracted(info: FmuInfo) -> str:
+    """Extract an FMU once per content hash into the temp folder and return the folder.
+
+    Runs in one process reuse the folder, so the FMU's shared library is loaded once.
+    """
+    from fmpy import extract
+
+    dest = Path(tempfile.gettempdir()) / f"jitterfmu-fmu-{info.sha256[:16]}"
+    if not (dest / "modelDescription.xml").is_file():
+        tmp = tempfile.mkdtemp(prefix="jitterfmu-fmu-", dir=tempfile.gettempdir())
+        extract(str(info.path), unzipdir=tmp)
+        try:
+            os.replace(tmp, dest)
+        except OSError:  # extracted concurrently by another process
+            shutil.rmtree(tmp, ignore_errors=True)
+    return str(dest)
 
 
 def _bind_loop(prog, due):

@@ -31,23 +31,25 @@ def loop_scenario(algorithm):
 
 
 def reference(jacobi):
-    """Sampled-data loop written out by hand: x[k+1] = x[k] + h*y, y held for 4 ticks.
+    """The sampled-data loop written out by hand, tick by tick (h = 1 ms, controller 4 h).
 
-    Gauss-Seidel: the controller samples x at its tick and the plant uses the new y at
-    once.  Jacobi: the plant uses the y computed at the previous controller tick (the
-    initial one from initialisation, k*x0 + b, at the first tick).
+    The controller samples x at its ticks j = 0, 4, 8, ...; its output is stamped
+    t_j + 4h.  Gauss-Seidel: the plant uses that output at once (direct feedthrough).
+    Jacobi: the plant uses the controller output stamped <= t_k, i.e. the one computed
+    a controller period earlier (the initialisation output k*x0 + b before that).
+    Recorded y at row k is the controller output stamped <= t_k.
     """
     n = round(STOP / H)
     x = X0
-    y = K * X0 + B          # controller output after initialisation
-    xs, ys = [x], [y]
+    pending = visible = K * X0 + B     # controller output after initialisation
+    xs, ys = [x], [visible]
     for k in range(n):
-        y_used = y
         if k % 4 == 0:
-            y = K * x + B
-        x = x + H * 1.0 * (y_used if jacobi else y)
+            visible = pending
+            pending = K * x + B
+        x = x + H * 1.0 * (visible if jacobi else pending)
         xs.append(x)
-        ys.append(y)
+        ys.append(pending if (k + 1) % 4 == 0 else visible)
     return np.array(xs), np.array(ys)
 
 

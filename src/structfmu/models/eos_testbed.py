@@ -10,54 +10,66 @@ study the SWIR and VNIR kinematic mounts carry a piezo stack in series.
 
 Body axes (as in :mod:`distfmu.presets`): x roll (along the bus length, flight
 direction), y pitch (cross track), z yaw (nadir).  The bus box spans
-``0 <= x <= 10 a``, ``0 <= y <= 4 a``, ``0 <= z <= 3 a`` with ``a`` = 0.254 m; z = 3 a is
-the nadir (instrument) face, z = 0 the zenith face.
+``0 <= x <= 16 a``, ``0 <= y <= 2 a``, ``0 <= z <= 2 a`` with ``a`` = 0.254 m; z = 2 a is
+the nadir (instrument) face, z = 0 the zenith face.  Nodes are named ``bus_i_j_k``
+(at ``(i, j, k) a``), ``<inst>_p0..p3`` (payload plate), ``<inst>_cg``,
+``<inst>_fit_<member>``, ``sa_<station>_<corner>``, ``hga_<station>_<corner>``,
+``hga_dish``.
 
-Model, piece by piece (``a`` = 10 in, "A" = assumption, "P" = paper, "C" = calibrated):
+Assumed properties, the one table (P = paper, A = assumption, C = calibrated here;
+docs/eos_testbed.md repeats it with the layout):
 
 =====================  =================================================================  ====
 item                   value                                                              src
 =====================  =================================================================  ====
 bay                    0.254 m (10 in) cubes                                              P
-bus lattice            10 x 4 x 3 bays, all cube edges + one diagonal in every cube face  A
-                       (alternating), 220 nodes
-bus strut              aluminium 6061 tube OD 1.0 in, wall 0.065 in (A = 1.24e-4 m^2),    A
-                       E = 70 GPa, rho = 2700 kg/m^3 (as the ten-bay truss hardware)
-bus joint efficiency   ``ETA_BUS`` (EA knock-down of erectable joints) so that the first  C
-                       bus mode is 23 Hz
+bus lattice            16 x 2 x 2 bays (4.06 x 0.51 x 0.51 m), every cube edge + one      A
+                       diagonal per cube face (alternating), 153 nodes, 608 struts
+bus strut              aluminium tube OD 0.75 in, wall 0.049 in (A = 6.96e-5 m^2),        A
+                       E = 70 GPa, rho = 2700 kg/m^3
+bus joint efficiency   ``ETA_BUS`` = 0.776 (EA knock-down of erectable joints) so that    C
+                       the first bus mode is 23 Hz
 node ball + rods       0.15 kg per bus node                                               A
-subsystem masses       propulsion 40 kg, power 50 kg, C&DH 20 kg, comms 15 kg, RWA/ACS    A
-                       20 kg, harness/thermal 40 kg (185 kg), each spread over the 8
-                       nodes of one bus cube (see ``SUBSYSTEMS``)
-instrument masses      1/10 of EOS AM-1 (A): CERES 9 kg, MISR 15 kg, TIR 14 kg, SWIR 11   A
-                       kg, VNIR 8 kg (60 % at the instrument CG node 0.15 m above the
-                       plate, 40 % on the 4 plate nodes); MODIS 23 kg and MOPITT 19 kg
-                       on the 4 bus nodes of their nadir cell (no station)
-payload station        plate: 4 nodes on a 0.254 m square 0.127 m above the nadir face,  A
-                       edges + one diagonal, CG node joined to the 4 corners; rod
-                       EA = 5 x bus tube (stiff: gimbal locked); 0.10 kg per plate node
-CERES mount            rigid: 4 posts + 4 side diagonals (bus tube)                       P/A
-TIR mount              kinematic: 3 bipods (6 pinned bus-tube struts) under the plate     P/A
+subsystem masses       propulsion 60, power 70, C&DH 25, comms 20, RWA/ACS 25, harness/   A
+                       thermal 60 kg (260 kg), each on the 8 nodes of one bus cube
+                       (``SUBSYSTEMS``)
+instrument masses      about 1/10 of EOS AM-1: CERES 9, MISR 15, TIR 14, SWIR 11, VNIR 8  A
+                       kg (60 % at the CG node 0.15 m above the plate centre, 40 % on the
+                       plate corners); MODIS 23 kg and MOPITT 19 kg on the 4 bus nodes of
+                       their nadir cell (no station)
+total mass             464 kg (EOS AM-1 about 5,190 kg: 1/10 scale as in the paper)       P/A
+payload station        plate: 4 nodes on a 0.254 m square 0.127 m above the nadir face    A
+                       (``STATIONS`` cell), edges + one diagonal, CG node on 4 rods; rod
+                       EA 5 x bus tube (gimbal locked, payload stiff); 0.10 kg per plate
+                       node
+CERES mount            rigid: 4 posts + 4 side diagonals (bus tube, EA not knocked down)  P/A
+TIR mount              kinematic: 3 bipods (6 pinned bus-tube struts; at plate corners    P/A
+                       0, 1, 2 one vertical and one inclined leg in a side plane)
 MISR mount             isolator: 3 vertical legs, each a P-845.37 stack (ActiveMember     P/A
-                       ``iso1..3``, 40.6 mm) + 0.05 kg fitting + solid aluminium rod
-                       (d 0.5 in), and 1 solid aluminium rod leg (d 0.5 in); lateral
-                       flexure stiffness per leg 2e5 N/m (stack legs) and 12 EI/L^3 (rod)
-SWIR, VNIR mounts      kinematic as TIR; one bipod leg carries a P-845.37 stack in        P/A
-                       series (``swir_mount``, ``vnir_mount``); ``active_legs="all"``
-                       puts a stack in all six legs (``swir_mount1..6`` ...)
+                       ``iso1..3``, k_e 6.70e7 N/m, 40.6 mm, 0.063 kg) + 0.05 kg fitting
+                       + solid aluminium rod d 0.5 in; 4th leg a solid rod d 0.5 in;
+                       lateral flexure stiffness of each leg end 2e5 N/m (stack legs) and
+                       12 EI/L^3 = 5.2e5 N/m (rod), rotation-invariant (held on the line
+                       of the bus post below the foot)
+SWIR, VNIR mounts      kinematic as TIR; the inclined leg of bipod 1 carries a P-845.37   P/A
+                       stack in series (``swir_mount``, ``vnir_mount``); with
+                       ``active_legs="all"`` every leg does (``swir_mount1..6`` ...);
+                       P-845.37 because the paper asks < 5 um and < 15 lb, at < 100 V
 strain gauges          on the stack itself (paper: gauge on the internal piezoceramic)    P
-solar array            truss boom 18 bays x 0.254 m (4.57 m) along -y from the bus -y     A
-                       face, section 0.508 m (in plane, x) x 0.254 m (out of plane, z);
-                       panels 30 kg on the boom nodes, boom 0.10 kg/m of strut
-array strut EA         ``EA_ARRAY`` (equivalent, not a tube) so that the first array     C
+solar array            boom 9 bays x 0.508 m (4.57 m) along -y, section 0.508 m (x, in    A
+                       plane) x 0.05 m (z, out of plane), on a yoke 0.10 m off the bus
+                       -y face (4 root nodes, 3 stiff struts each); panels 30 kg on the
+                       36 boom nodes; struts 0.10 kg/m; battens/diagonals EA 2.31e6 N
+                       (tube 0.5 x 0.035 in)
+array longeron EA      ``EA_ARRAY`` = 2.34e5 N (equivalent) so that the first array      C
                        mode is 0.5 Hz
-high-gain antenna      boom 5 bays x 0.254 m along -z from the zenith face, section       A
-                       0.254 m, strut EA 2.0e5 N (equivalent), 0.10 kg/m; dish 4 kg at a
-                       node 0.2 m beyond the tip
-suspension             off by default; ``suspension=True`` adds five cables 19.8 m (65    P/A
-                       ft) long (pendulum springs m g / L) and vertical pneumatic springs
-                       for 0.2 Hz bounce
-damping                modal 0.5 % (flexible modes), 0 on rigid modes; Ritz block 2 %     A
+high-gain antenna      boom 5 bays x 0.254 m along -z from the zenith face (cell 14, 0),  A
+                       section 0.254 m, longeron EA 2.0e5 N (equivalent), braces as the
+                       array, 0.10 kg/m; dish 4 kg at a node 0.2 m beyond the tip
+suspension             off by default; ``suspension=True``: five cables 19.8 m (65 ft),   P/A
+                       pendulum springs m g / (5 L) in x and y, vertical springs for a
+                       0.2 Hz bounce, on five zenith-face nodes (no geometric stiffness)
+damping                modal 0.5 % on flexible modes (0 on rigid ones), Ritz block 2 %   A
 =====================  =================================================================  ====
 
 Active members follow Eq. (1) as in :mod:`structfmu.models.truss10`: each stack is a rod
@@ -70,6 +82,15 @@ bus lattice elements; "first array mode" likewise with the array boom
 (:func:`strain_energy_fractions`).  :func:`calibrate` solves ``ETA_BUS`` and ``EA_ARRAY``
 for 23 Hz and 0.5 Hz (a fixed-point iteration on ``f ~ sqrt(stiffness)``); the stored
 constants come from it.
+
+Reduction (:func:`reduced`): 70 eigenvectors (to 162 Hz) and 59 static Ritz vectors,
+one per active member and one per disturbance wrench input, shift -100 (rad/s)^2.  The
+actuator Ritz vectors make the elongation response statically exact (self-equilibrated
+loads); the load Ritz vectors carry the local mount and payload deformation under
+instrument loads, which the eigenvectors to 160 Hz miss (at 22 Hz the SWIR-load
+response errors drop from up to a third to below 1e-4).  With shift -1 the singularity
+test of :func:`structfmu.reduce.ritz_vectors` rejects non-equilibrated loads, because
+their shifted static shape is then almost all rigid-body motion.
 
 Loads are 6-component wrench channels ``<loc>_fx .. <loc>_mz`` (N, N m) spread with
 least-norm nodal forces over a node set (:func:`wrench_channels`): on the instrument
@@ -146,9 +167,9 @@ BUS_INSTRUMENTS = {"modis": ((4, 0), 23.0), "mopitt": ((15, 1), 19.0)}
 SUBSYSTEMS = {"propulsion": ((0, 0, 0), 60.0), "power": ((3, 1, 0), 70.0),
               "cdh": ((7, 0, 1), 25.0), "comms": ((12, 1, 0), 20.0),
               "rwa": ((9, 0, 0), 25.0), "harness": ((14, 0, 1), 60.0)}
-ACS_SENSOR_CUBE = (6, 0, 0)
-ARRAY_ROOT = (3, 0)   # boom root corners: x in {1, 3} a, z in {1, 2} a on the y = 0 face
-HGA_ROOT = (14, 0)    # boom root corners: x in {8, 9} a, y in {1, 2} a on the z = 0 face
+ACS_SENSOR_CUBE = (6, 0, 0)  # att_* / rate_*: the 8 nodes of this bus cube
+ARRAY_ROOT = (3, 0)   # (i, k): yoke over bus nodes x in {3, 5} a, z in {0, 1} a, y = 0 face
+HGA_ROOT = (14, 0)    # (i, j): boom root on bus nodes x in {14, 15} a, y in {0, 1} a, z = 0
 
 
 def _bus_name(i, j, k):

@@ -30,30 +30,35 @@ def test_truss_design_emulates_spring_mass_damper(name, mode_hz):
     law = design(name)
     assert law.dt == 1 / 250 and law.delayed and (law.n_inputs, law.n_outputs) == (1, 1)
     gain = designs.DIAG_PLANT_GAIN if "diag" in name else designs.LONG_PLANT_GAIN
-    kc = designs.virtual_absorber_tf(mode_hz, gain)
+    par = designs.TRUSS10_DIAG if "diag" in name else designs.TRUSS10_LONG
+    kc = designs.virtual_absorber_tf(mode_hz, gain, **par)
+    f_c = par["tuning"] * mode_hz  # absorber frequency = prewarp frequency
     # Static gain: Tustin maps s = 0 to z = 1, so K(1) = loop_gain / plant_gain exactly.
-    np.testing.assert_allclose(frequency_response(law, [0.0])[0, 0, 0], 0.5 / gain, rtol=1e-10)
-    # Prewarped at the mode: the response there is the continuous one.
-    np.testing.assert_allclose(frequency_response(law, [mode_hz], include_delay=False)[0, 0],
-                               cont(kc, mode_hz), rtol=1e-9)
+    np.testing.assert_allclose(frequency_response(law, [0.0])[0, 0, 0],
+                               par["loop_gain"] / gain, rtol=1e-10)
+    # Prewarped at the absorber: the response there is the continuous one.
+    np.testing.assert_allclose(frequency_response(law, [f_c], include_delay=False)[0, 0],
+                               cont(kc, f_c), rtol=1e-9)
     # Tustin identity: H_d(f) = H_c(f') with f' = f_c tan(pi f dt) / tan(pi f_c dt).
     f = np.linspace(0.2, 120.0, 300)
-    warped = mode_hz * np.tan(np.pi * f * law.dt) / np.tan(np.pi * mode_hz * law.dt)
+    warped = f_c * np.tan(np.pi * f * law.dt) / np.tan(np.pi * f_c * law.dt)
     np.testing.assert_allclose(frequency_response(law, f, include_delay=False)[0, 0],
                                cont(kc, warped), rtol=1e-9)
-    # Below Nyquist/4 (31.25 Hz) the frequency warp is at most 5.1 % (at 31.25 Hz); above
-    # the absorber |K| ~ f^-2, so the magnitude error is at most (1.051)^2 - 1 = 10.5 %,
-    # and the phase error stays under 1 degree.  Assert 11 % and 1 degree.
+    # Below Nyquist/4 (31.25 Hz) the frequency warp is at most w - 1 with
+    # w = f_c tan(pi 31.25 dt) / (31.25 tan(pi f_c dt)) (5.4 % for f_c = 5 Hz); above the
+    # absorber |K| ~ f^-2, so the magnitude error is at most w^2 - 1 (11.1 %), and the
+    # phase error stays under 1.5 degrees.
     f = np.linspace(0.1, 31.25, 400)
+    w = f_c * np.tan(np.pi * 31.25 * law.dt) / (31.25 * np.tan(np.pi * f_c * law.dt))
     ratio = frequency_response(law, f, include_delay=False)[0, 0] / cont(kc, f)
-    assert np.max(np.abs(np.abs(ratio) - 1)) < 0.11
-    assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 1.0
-    # It is a second-order resonator at the mode: two poles, continuous equivalent
-    # frequency = mode and damping = 0.3 (inverse Tustin with prewarp scale).
-    scale = 2 * np.pi * mode_hz / (2 / law.dt * np.tan(np.pi * mode_hz * law.dt))
+    assert np.max(np.abs(np.abs(ratio) - 1)) < w**2 - 1 + 1e-3
+    assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 1.5
+    # It is a second-order resonator at the absorber frequency with the design damping
+    # (inverse Tustin with prewarp scale).
+    scale = 2 * np.pi * f_c / (2 / law.dt * np.tan(np.pi * f_c * law.dt))
     s = inverse_tustin(np.linalg.eigvals(law.A), law.dt) * scale
-    np.testing.assert_allclose(np.abs(s), 2 * np.pi * mode_hz, rtol=1e-9)
-    np.testing.assert_allclose(-s.real / np.abs(s), 0.3, rtol=1e-9)
+    np.testing.assert_allclose(np.abs(s), 2 * np.pi * f_c, rtol=1e-9)
+    np.testing.assert_allclose(-s.real / np.abs(s), par["zeta"], rtol=1e-9)
 
 
 def test_testbed_isolation_poles_and_zeros():

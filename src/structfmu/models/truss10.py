@@ -253,3 +253,28 @@ def calibrate(target=TARGET_HZ):
     f1 = frequencies_hz(build(1.0, r), 2)[0]
     s = (target[0] / f1) ** 2
     return s, s * r
+
+
+def plant(actuator: str, model=None):
+    """SISO plant from an actuator's voltage (V) to its own gauge strain, continuous.
+
+    Parameters
+    ----------
+    actuator : {"diag", "long"}
+        Active member.
+    model : ReducedModel, optional
+        Default :func:`reduced`.
+
+    Returns
+    -------
+    control.StateSpace
+        Includes ``f_c = c h v`` of the member's stack; no amplifier dynamics.
+    """
+    from structfmu.statespace import to_statespace
+
+    model = model or reduced()
+    if actuator not in ("diag", "long"):
+        raise KeyError(f"unknown active member {actuator!r}; expected 'diag' or 'long'")
+    ch = model.meta["actuators"][actuator]["ch"]
+    sub = model.select([f"fc_{actuator}"], [f"strain_{actuator}"])
+    return to_statespace(sub) * ch

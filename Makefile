@@ -16,6 +16,7 @@ $(STAMP): pyproject.toml
 
 demo: setup
 	$(VENV)/bin/jitterfmu reproduce truss-frf --out out/demo
+	$(VENV)/bin/jitterfmu reproduce truss-decay --out out/demo
 
 test: setup
 	$(PY) -m pytest -q

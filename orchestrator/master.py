@@ -34,6 +34,7 @@ variable's value at ``t_k`` (the latest stamped ``<= t_k``), read before that ti
 from __future__ import annotations
 
 import ctypes
+import gc
 import hashlib
 import math
 import os
@@ -446,6 +447,7 @@ class _Slave:
         self._log = log
         self._cb = cb
         self.instantiated = False
+        self.fatal = False
         self.fmu.instantiate(callbacks=cb, loggingOn=True)
         self.instantiated = True
         self.comp = self.fmu.component
@@ -476,6 +478,9 @@ class _Slave:
                 self.fmu.setString(vr, [str(value)])
 
     def close(self):
+        if self.instantiated and self.fatal:
+            _KEEP_LOADED.append((self.fmu, self._cb, self._log))
+            self.instantiated = False
         if self.instantiated:
             try:
                 self.fmu.terminate()
@@ -488,7 +493,8 @@ class _Slave:
                 self.fmu.fmi2FreeInstance(self.comp)
             except Exception:
                 pass
-            _KEEP_LOADED.append(self.fmu)
+            # keep the callbacks alive for the slave's leftovers collected later
+            _KEEP_LOADED.append((self.fmu, self._cb, self._log))
             self.instantiated = False
 
 
@@ -595,6 +601,8 @@ class Simulation:
 
     def _fail(self, slave, what, t, status=None, exc=None):
         msg = f"instance {slave.name!r} failed in {what} at t = {t!r} s"
+        if status == 4 or any(st == 4 for st, _ in slave.messages):
+            slave.fatal = True  # FMI 2.0: after fmi2Fatal no further call is allowed
         if status is not None:
             msg += f" with status {_STATUS[status] if status < len(_STATUS) else status}"
         detail = slave.last_message() or (str(exc) if exc else "")
@@ -948,6 +956,7 @@ class Simulation:
         for s in self.slaves.values():
             s.close()
         self.slaves = {}
+        gc.collect()  # free the slaves' Python leftovers while their callbacks exist
 
 
 def _extracted(info: FmuInfo) -> str:

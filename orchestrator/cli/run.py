@@ -1,0 +1,56 @@
+"""``jitterfmu run``: co-simulate a scenario (TOML or SSP) and write its results."""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+COMMAND = "run"
+HELP = "co-simulate a scenario (.toml or .ssp) and write results.parquet and run.json"
+
+
+def add_arguments(parser) -> None:
+    """Declare the options of ``jitterfmu run``."""
+    parser.add_argument("scenario", help="scenario file (.toml) or SSP archive (.ssp)")
+    parser.add_argument("--out", default=None,
+                        help="output folder (default: runs/<scenario name>)")
+    parser.add_argument("--stop-time", type=float, default=None, help="stop time (s)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[],
+                        metavar="INST.VAR=VALUE", help="set a start value (repeatable)")
+    parser.add_argument("--algorithm", choices=["gauss-seidel", "jacobi"], default=None)
+    parser.add_argument("--csv", action="store_true", help="write results.csv instead")
+    parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run(args) -> int:
+    """Run the scenario; return 0, or 1 when the run failed part-way."""
+    from orchestrator.master import SimulationError, run_scenario
+    from orchestrator.scenario import parse_override
+
+    out = Path(args.out) if args.out else Path("runs") / Path(args.scenario).stem
+    overrides = dict(parse_override(s) for s in args.overrides)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            result = run_scenario(args.scenario, out, stop_time=args.stop_time,
+                                  overrides=overrides, algorithm=args.algorithm,
+                                  quiet=args.quiet, csv=args.csv, fmu_dir=args.fmu_dir)
+        except SimulationError as exc:
+            _warn(caught)
+            rows = len(exc.result.table["time"]) if exc.result else 0
+            print(f"jitterfmu: error: {exc}", file=sys.stderr)
+            print(f"jitterfmu: the {rows} rows recorded so far are in {out}", file=sys.stderr)
+            return 1
+    _warn(caught)
+    meta = result.metadata
+    name = "results.csv" if args.csv else "results.parquet"
+    print(f"{meta['rows']} rows x {len(result.table) - 1} variables in {out / name} "
+          f"({meta['wall_time_s']:.2f} s wall)")
+    return 0
+
+
+def _warn(caught) -> None:
+    for w in caught:
+        print(f"jitterfmu: warning: {w.message}", file=sys.stderr)

@@ -101,7 +101,7 @@ def test_unknown_preset_is_a_clear_error():
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory):
     out = tmp_path_factory.mktemp("fmus")
-    (spec,) = specs(None)
+    (spec,) = specs(["disturbance"])
     assert spec.model_identifier == "disturbance"
     real = build_fmu(spec, out)
     # the test hosts set Real parameters only: a variant whose String/Boolean defaults

@@ -498,14 +498,6 @@ class _Slave:
             self.instantiated = False
 
 
-class _Port:
-    """Values an instance exchanges with the bus, grouped by FMI type."""
-
-    def __init__(self, n_values):
-        self.vr = (ctypes.c_uint32 * max(n_values, 1))()
-        self.n = n_values
-
-
 class Simulation:
     """Instantiate, initialise and step a prepared scenario.
 
@@ -552,9 +544,6 @@ class Simulation:
             for vname, v in info.variables.items():
                 if v.causality == "output" and v.type in wanted:
                     wanted[v.type].append(v)
-            for c in sc.connections:
-                if c.source == inst.name:
-                    pass  # outputs already included
             for ref in sc.record:
                 i, var = ref.split(".", 1)
                 if i == inst.name:

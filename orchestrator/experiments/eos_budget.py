@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 import sys
 import zipfile
@@ -60,9 +61,11 @@ def _moment_units_fixed(src: Path, dst_dir: Path) -> Path | None:
             return None
         if 'name="N.m"' not in fixed:
             fixed = fixed.replace("\t</UnitDefinitions>", _NM_UNIT, 1)
-        dst_dir.mkdir(parents=True, exist_ok=True)
         dst = dst_dir / src.name
-        tmp = dst.with_suffix(".tmp")
+        if dst.is_file() and dst.stat().st_mtime >= src.stat().st_mtime:
+            return dst
+        dst_dir.mkdir(parents=True, exist_ok=True)
+        tmp = dst.with_name(f".{src.stem}-{os.getpid()}.tmp")
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zout:
             for item in zin.infolist():
                 data = fixed.encode() if item.filename == "modelDescription.xml" \
@@ -75,14 +78,15 @@ def _moment_units_fixed(src: Path, dst_dir: Path) -> Path | None:
 def fmu_dir(base="fmus") -> Path:
     """Build the EOS FMUs if needed; the folder to search first for them.
 
-    Returns ``base`` itself, or ``base/moment_units`` holding the structure FMU with its
-    moment inputs in ``N.m`` (see :func:`_moment_units_fixed`) while the built FMU
+    Returns ``base`` itself, or ``build/fmus-moment-units`` (next to ``base``) holding
+    the structure FMU with its moment inputs in ``N.m`` (see :func:`_moment_units_fixed`) while the built FMU
     declares them in ``N``.
     """
     from orchestrator.fmucache import ensure_fmus
 
     paths = ensure_fmus(FMUS, base)
-    fixed = _moment_units_fixed(paths[STRUCTURE], Path(base) / "moment_units")
+    fixed = _moment_units_fixed(paths[STRUCTURE],
+                                Path(base).resolve().parent / "build" / "fmus-moment-units")
     return Path(base).resolve() if fixed is None else fixed.parent.resolve()
 
 

@@ -559,12 +559,18 @@ class Simulation:
                     n += 1
             self.reads[inst.name] = reads
         self.n_bus = n
-        # big[:n] is the snapshot at the start of the tick, big[n:] the latest values
-        self.big = np.zeros(2 * max(n, 1))
+        # big[:n] is the snapshot at the start of the tick, big[n:2n] the latest values,
+        # big[2n:] the outputs of feedthrough sources read at t_k after their inputs
+        # were set and before they step (FMI: the outputs at t_k for the inputs at t_k)
+        self.big = np.zeros(3 * max(n, 1))
         # inputs: per instance, gather indices into big and scale
         in_loop = {m for g in plan.groups if len(g) > 1 for m in g}
         in_loop |= {l.members[0] for l in plan.loops}
         ft = {(c.source, c.source_var, c.target, c.target_var) for c in plan.feedthrough_edges}
+        gs = algorithm == "gauss-seidel"
+        # sources of feedthrough edges outside algebraic loops: read before stepping
+        self.ft_sources = {c.source for c in plan.feedthrough_edges
+                           if gs and c.source not in in_loop}
         self.inputs = {}
         for inst in sc.instances:
             by_type = {"Real": [], "Integer": [], "Boolean": []}
@@ -573,13 +579,23 @@ class Simulation:
                     continue
                 v = plan.fmus[inst.name].variables[c.target_var]
                 src = self.slot[(c.source, c.source_var)]
-                latest = algorithm == "gauss-seidel" and (
-                    (c.source, c.source_var, c.target, c.target_var) in ft)
-                idx = src + (n if latest else 0)
+                latest = gs and (c.source, c.source_var, c.target, c.target_var) in ft
+                if latest and c.source in self.ft_sources:
+                    idx = src + 2 * n      # value at t_k, read before the source steps
+                elif latest:
+                    idx = src + n          # inside an algebraic loop: iterated values
+                else:
+                    idx = src              # value stamped <= t_k
                 by_type[v.type].append((v, idx, c.gain, c.offset))
             self.inputs[inst.name] = by_type
-        self.record_idx = np.array(
-            [self.slot[tuple(r.split(".", 1))] for r in sc.record], dtype=np.intp)
+        rec_idx = []
+        for r in sc.record:
+            inst, var = r.split(".", 1)
+            i = self.slot[(inst, var)]
+            if inst in self.ft_sources and plan.fmus[inst].feedthrough.get(var):
+                i += 2 * n  # a feedthrough output's value at t_k is the one read before stepping
+            rec_idx.append(i)
+        self.record_idx = np.array(rec_idx, dtype=np.intp)
         tb = plan.timebase
         self.n_rows = tb.n_ticks // tb.output_ticks + 1
         self.rec = np.full((self.n_rows, len(sc.record)), np.nan)
@@ -637,7 +653,7 @@ class Simulation:
             s = self.slaves[name]
             try:
                 self._read_all(order)
-                self.big[:n] = self.big[n:]
+                self.big[:n] = self.big[n:2 * n]
                 self._push_inputs(name)
                 s.fmu.exitInitializationMode()
             except SimulationError:
@@ -645,7 +661,7 @@ class Simulation:
             except Exception as exc:
                 raise self._fail(s, "initialisation", t0, exc=exc) from exc
         self._read_all(order)
-        self.big[:n] = self.big[n:]
+        self.big[:n] = self.big[n:2 * n]
         for name in order:
             self._push_inputs(name)
         self._check_finite(t0, order)
@@ -682,6 +698,7 @@ class Simulation:
         dbl_p = ctypes.POINTER(ctypes.c_double)
         base_addr = big.ctypes.data
         self._readers, self._writers, self._steps = {}, {}, {}
+        self._pre_readers = {}
         keep = self._keep = []
         for name, s in self.slaves.items():
             reads = self.reads[name]
@@ -704,6 +721,17 @@ class Simulation:
                                   slice(n + off, n + off + len(vs))))
             self._readers[name] = self._make_reader(s, parts)
             self._writers[name] = self._make_writer(s, self.inputs[name])
+            if name in self.ft_sources:
+                pre = []
+                for kind, fn, vr, nv, buf, view, sl in parts:
+                    if kind == "R":
+                        off = (ctypes.cast(buf, ctypes.c_void_p).value - base_addr) // 8 - n
+                        buf = ctypes.cast(base_addr + 8 * (2 * n + off), dbl_p)
+                        keep.append(buf)
+                    else:
+                        sl = slice(sl.start + n, sl.stop + n)
+                    pre.append((kind, fn, vr, nv, buf, view, sl))
+                self._pre_readers[name] = self._make_reader(s, pre)
 
     def _make_reader(self, s, parts):
         comp = s.comp
@@ -777,6 +805,35 @@ class Simulation:
             read()
         return step
 
+    def _set_program(self, name):
+        """Gauss-Seidel phase 1: set inputs at t_k; a feedthrough source then publishes
+        its outputs at t_k (read before stepping) for its sinks."""
+        write = self._writers[name]
+        pre = self._pre_readers.get(name)
+        if pre is None:
+            return lambda t: write()
+
+        def set_and_read(t):
+            write()
+            pre()
+        return set_and_read
+
+    def _advance_program(self, name):
+        """Gauss-Seidel phase 2: doStep from t_k with the inputs set in phase 1."""
+        s = self.slaves[name]
+        comp, do_step, h = s.comp, s.doStep, s.h
+        read = self._readers[name]
+
+        def advance(t):
+            try:
+                st = do_step(comp, t, h, 1)
+            except Exception as exc:  # an FMU that raises through ctypes
+                raise self._fail(s, "fmi2DoStep", t, exc=exc) from exc
+            if st > 1:
+                raise self._fail(s, "fmi2DoStep", t, st)
+            read()
+        return advance
+
     def _loop_program(self, members):
         """Return ``step(t, due)`` iterating an algebraic loop to a fixed point."""
         plan = self.plan
@@ -824,19 +881,23 @@ class Simulation:
         else:
             groups = plan.groups
             loops = {g for g in groups if len(g) > 1 or any(g == l.members for l in plan.loops)}
-        progs = {}
+        progs, advance = {}, {}
+        jacobi = sc.experiment.algorithm == "jacobi"
         for g in groups:
             if g in loops:
                 progs[g] = self._loop_program(g)
-            else:
+            elif jacobi:
                 progs[g] = self._step_program(g[0])
+            else:
+                progs[g] = self._set_program(g[0])
+                advance[g] = self._advance_program(g[0])
         pt = tb.period_ticks
         slots = {m: [] for m in pt}
         for (m, _), i in self.slot.items():
             slots[m].append(i)
 
         def due_at(k):
-            calls = []
+            calls, later = [], []
             for g in groups:
                 due = tuple(m for m in g if k % pt[m] == 0)
                 if not due:
@@ -845,13 +906,16 @@ class Simulation:
                     calls.append(_bind_loop(progs[g], due))
                 else:
                     calls.append(progs[g])
+                    if g in advance:
+                        later.append(advance[g])
             # outputs stamped t_k: those of instances whose step ends now, i.e. due now
             due_all = [m for m in pt if k % pt[m] == 0]
             if len(due_all) == len(pt):
                 snap_idx = None
             else:
                 snap_idx = np.array(sorted(i for m in due_all for i in slots[m]), dtype=np.intp)
-            return snap_idx, tuple(calls)
+            # Jacobi: whole steps; Gauss-Seidel: set/read all (sources first), then step all
+            return snap_idx, tuple(calls), tuple(later)
 
         if tb.hyperperiod <= _MAX_PATTERN:
             cache, pattern = {}, []
@@ -875,7 +939,7 @@ class Simulation:
         tb = plan.timebase
         schedule = self._schedule()
         n, big = self.n_bus, self.big
-        cur = big[n:]
+        cur = big[n:2 * n]
         snap = big[:n]
         rec, rec_idx = self.rec, self.record_idx
         out_ticks = tb.output_ticks
@@ -893,7 +957,7 @@ class Simulation:
             for k in range(n_ticks + 1):
                 self.tick = k
                 t = (a + k * b) / d
-                snap_idx, calls = schedule(k)
+                snap_idx, calls, later = schedule(k)
                 if snap_idx is None:
                     snap[:] = cur
                 elif len(snap_idx):
@@ -901,10 +965,14 @@ class Simulation:
                 if k in actions:
                     for s, values in actions[k]:
                         s.set_values(values)
+                if later or k == n_ticks:
+                    pre_calls, calls = calls, later
+                    for call in pre_calls:
+                        call(t)
                 if k % out_ticks == 0:
                     self.rows = k // out_ticks + 1
                     if len(rec_idx):
-                        rec[self.rows - 1] = snap[rec_idx]
+                        rec[self.rows - 1] = big[rec_idx]
                 if k == n_ticks:
                     break
                 for call in calls:

@@ -28,9 +28,10 @@ class StructureSlave(FmuSlave):
         model = ReducedModel.load(self.resource_path(self.model_file))
         self.stepper = Stepper(model)
         self._x = self.stepper.x  # the state vector (restored in place by set-state)
+        units = model.meta.get("input_units") or ["N"] * model.n_inputs
         self.u = self.add_real_block(
-            "u", names=list(model.input_names), causality="input", unit="N", start=0.0,
-            description="load / actuator force")
+            "u", names=list(model.input_names), causality="input", unit=list(units),
+            start=0.0, description="load (force N or torque N.m) / actuator force")
         deps = []
         for i in range(model.n_outputs):
             deps.append([model.input_names[j] for j in np.flatnonzero(self.stepper.D[i])])

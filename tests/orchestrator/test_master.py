@@ -33,11 +33,12 @@ def loop_scenario(algorithm):
 def reference(jacobi):
     """The sampled-data loop written out by hand, tick by tick (h = 1 ms, controller 4 h).
 
-    The controller samples x at its ticks j = 0, 4, 8, ...; its output is stamped
-    t_j + 4h.  Gauss-Seidel: the plant uses that output at once (direct feedthrough).
+    The controller samples x at its ticks j = 0, 4, 8, ...  Gauss-Seidel: the plant
+    uses the controller's output at t_j for the input set at t_j (direct feedthrough,
+    FMI 2.0), held over [t_j, t_j + 4h); the recorded y at row k is that value.
     Jacobi: the plant uses the controller output stamped <= t_k, i.e. the one computed
-    a controller period earlier (the initialisation output k*x0 + b before that).
-    Recorded y at row k is the controller output stamped <= t_k.
+    a controller period earlier (the initialisation output k*x0 + b before that), and
+    the recorded y at row k is the controller output stamped <= t_k.
     """
     n = round(STOP / H)
     x = X0
@@ -50,7 +51,10 @@ def reference(jacobi):
         x = x + H * 1.0 * (visible if jacobi else pending)
         xs.append(x)
         ys.append(pending if (k + 1) % 4 == 0 else visible)
-    return np.array(xs), np.array(ys)
+    xs = np.array(xs)
+    if not jacobi:
+        ys = K * xs[(np.arange(n + 1) // 4) * 4] + B
+    return xs, np.array(ys)
 
 
 @pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])

@@ -118,3 +118,15 @@ def test_analytic_step_force_response_through_the_fmu(tmp_path):
     t = np.arange(1, 401) * 2.5e-3
     np.testing.assert_allclose(y[:, 0], F / w**2 * (1 - np.cos(w * t)), atol=1e-12)
     np.testing.assert_allclose(y[:, 1], F * np.cos(w * t), atol=1e-9)
+
+
+def test_torque_inputs_are_declared_in_newton_metres(tmp_path):
+    from fmpy import read_model_description
+
+    from fmukit.build import build_fmu
+    from structfmu.fmuspec import spec_from_model
+    from structfmu.models import eos_testbed
+    fmu = build_fmu(spec_from_model(eos_testbed.reduced(), "eos_units_structure"), tmp_path)
+    units = {v.name: v.unit for v in read_model_description(str(fmu)).modelVariables}
+    assert units["swir_mx"] == "N.m" and units["acs_tz"] == "N.m"
+    assert units["swir_fx"] == "N" and units["fc_iso1"] == "N"

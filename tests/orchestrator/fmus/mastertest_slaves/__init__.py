@@ -56,6 +56,19 @@ class Gain(FmuSlave):
     def exit_initialization_mode(self):
         self.y = self._out()
 
+    # FMI 2.0: an output with direct feedthrough reflects the inputs just set
+    def set_real(self, vrs, values):
+        super().set_real(vrs, values)
+        self.y = self._out()
+
+    def set_integer(self, vrs, values):
+        super().set_integer(vrs, values)
+        self.y = self._out()
+
+    def set_boolean(self, vrs, values):
+        super().set_boolean(vrs, values)
+        self.y = self._out()
+
     def do_step(self, current_time, step_size):
         self.y = self._out()
         self.acc = self.acc + step_size * self.u

@@ -207,7 +207,7 @@ def test_parallel_result_identical_to_serial(tmp_path):
 
 
 def test_dask_local_cluster_identical_to_local(tmp_path):
-    distributed = pytest.importorskip("distributed")
+    import distributed
     camp = campaign_from_dict(campaign_data())
     run_campaign(camp, tmp_path / "local", synthetic_runner, workers=0, progress=False)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,

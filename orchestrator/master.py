@@ -700,14 +700,15 @@ class Simulation:
         self._readers, self._writers, self._steps = {}, {}, {}
         self._pre_readers = {}
         keep = self._keep = []
-        for name, s in self.slaves.items():
-            reads = self.reads[name]
+
+        def reader_parts(s, reads, region):
+            """Getter calls writing ``s``'s outputs into ``big[region:]`` (n or 2n)."""
             parts = []
             off, vs = reads["Real"]
             if vs:
                 vr = (ctypes.c_uint32 * len(vs))(*[v.vr for v in vs])
-                ptr = ctypes.cast(base_addr + 8 * (n + off), dbl_p)
-                keep += [vr, ptr]
+                ptr = ctypes.cast(base_addr + 8 * (region + off), dbl_p)
+                keep.extend((vr, ptr))
                 parts.append(("R", s.getReal, vr, len(vs), ptr, None, None))
             for t, getter, ctype in (("Integer", s.getInteger, ctypes.c_int32),
                                      ("Boolean", s.getBoolean, ctypes.c_int32)):
@@ -716,22 +717,17 @@ class Simulation:
                     vr = (ctypes.c_uint32 * len(vs))(*[v.vr for v in vs])
                     buf = (ctype * len(vs))()
                     view = np.frombuffer(buf, dtype=np.int32)
-                    keep += [vr, buf]
+                    keep.extend((vr, buf))
                     parts.append(("I", getter, vr, len(vs), buf, view,
-                                  slice(n + off, n + off + len(vs))))
-            self._readers[name] = self._make_reader(s, parts)
+                                  slice(region + off, region + off + len(vs))))
+            return parts
+
+        for name, s in self.slaves.items():
+            reads = self.reads[name]
+            self._readers[name] = self._make_reader(s, reader_parts(s, reads, n))
             self._writers[name] = self._make_writer(s, self.inputs[name])
             if name in self.ft_sources:
-                pre = []
-                for kind, fn, vr, nv, buf, view, sl in parts:
-                    if kind == "R":
-                        off = (ctypes.cast(buf, ctypes.c_void_p).value - base_addr) // 8 - n
-                        buf = ctypes.cast(base_addr + 8 * (2 * n + off), dbl_p)
-                        keep.append(buf)
-                    else:
-                        sl = slice(sl.start + n, sl.stop + n)
-                    pre.append((kind, fn, vr, nv, buf, view, sl))
-                self._pre_readers[name] = self._make_reader(s, pre)
+                self._pre_readers[name] = self._make_reader(s, reader_parts(s, reads, 2 * n))
 
     def _make_reader(self, s, parts):
         comp = s.comp
@@ -790,19 +786,11 @@ class Simulation:
 
     def _step_program(self, name):
         """Return a function ``step(t)``: set inputs, doStep, read outputs."""
-        s = self.slaves[name]
-        comp, do_step, h = s.comp, s.doStep, s.h
-        write, read = self._writers[name], self._readers[name]
+        write, advance = self._writers[name], self._advance_program(name)
 
         def step(t):
             write()
-            try:
-                st = do_step(comp, t, h, 1)
-            except Exception as exc:  # an FMU that raises through ctypes
-                raise self._fail(s, "fmi2DoStep", t, exc=exc) from exc
-            if st > 1:
-                raise self._fail(s, "fmi2DoStep", t, st)
-            read()
+            advance(t)
         return step
 
     def _set_program(self, name):
@@ -819,7 +807,7 @@ class Simulation:
         return set_and_read
 
     def _advance_program(self, name):
-        """Gauss-Seidel phase 2: doStep from t_k with the inputs set in phase 1."""
+        """doStep from t_k with the inputs already set, then read the outputs."""
         s = self.slaves[name]
         comp, do_step, h = s.comp, s.doStep, s.h
         read = self._readers[name]
@@ -897,25 +885,29 @@ class Simulation:
             slots[m].append(i)
 
         def due_at(k):
-            calls, later = [], []
+            first, then, settle = [], [], []
             for g in groups:
                 due = tuple(m for m in g if k % pt[m] == 0)
                 if not due:
                     continue
                 if g in loops:
-                    calls.append(_bind_loop(progs[g], due))
+                    first.append(_bind_loop(progs[g], due))
+                elif jacobi:
+                    then.append(progs[g])
                 else:
-                    calls.append(progs[g])
-                    if g in advance:
-                        later.append(advance[g])
+                    first.append(progs[g])
+                    settle.append(progs[g])
+                    then.append(advance[g])
             # outputs stamped t_k: those of instances whose step ends now, i.e. due now
             due_all = [m for m in pt if k % pt[m] == 0]
             if len(due_all) == len(pt):
                 snap_idx = None
             else:
                 snap_idx = np.array(sorted(i for m in due_all for i in slots[m]), dtype=np.intp)
-            # Jacobi: whole steps; Gauss-Seidel: set/read all (sources first), then step all
-            return snap_idx, tuple(calls), tuple(later)
+            # Gauss-Seidel: `first` sets inputs and reads feedthrough outputs at t_k (sources
+            # first; loops are solved there), `then` steps; Jacobi: `then` does whole steps.
+            # `settle` is what runs at the stop time: set/read only, no step.
+            return snap_idx, tuple(first), tuple(then), tuple(settle)
 
         if tb.hyperperiod <= _MAX_PATTERN:
             cache, pattern = {}, []
@@ -957,7 +949,7 @@ class Simulation:
             for k in range(n_ticks + 1):
                 self.tick = k
                 t = (a + k * b) / d
-                snap_idx, calls, later = schedule(k)
+                snap_idx, first, then, settle = schedule(k)
                 if snap_idx is None:
                     snap[:] = cur
                 elif len(snap_idx):
@@ -965,17 +957,15 @@ class Simulation:
                 if k in actions:
                     for s, values in actions[k]:
                         s.set_values(values)
-                if later or k == n_ticks:
-                    pre_calls, calls = calls, later
-                    for call in pre_calls:
-                        call(t)
+                for call in (settle if k == n_ticks else first):
+                    call(t)
                 if k % out_ticks == 0:
                     self.rows = k // out_ticks + 1
                     if len(rec_idx):
                         rec[self.rows - 1] = big[rec_idx]
                 if k == n_ticks:
                     break
-                for call in calls:
+                for call in then:
                     call(t)
                 if not isfinite(float(cur.sum())):
                     self._check_finite(t, order)

@@ -81,10 +81,9 @@ def cycles_to_fraction(t, y, f_hz, t0=T_EXC, fraction=0.1):
     return float((t[after[0]] - t0) * f_hz)
 
 
-def _run(fmus: dict, stop: float, gain: float):
+def _run(fmu_dir, stop: float, gain: float):
     from orchestrator.master import run_scenario
 
-    fmu_dir = next(iter(fmus.values())).parent
     res = run_scenario(SCENARIO, stop_time=stop, fmu_dir=fmu_dir,
                        overrides={"ctrl_diag.gain": gain, "ctrl_long.gain": gain})
     return res.table
@@ -93,9 +92,9 @@ def _run(fmus: dict, stop: float, gain: float):
 def compute(fmu_dir="fmus", quick=False):
     from orchestrator.fmucache import ensure_fmus
 
-    fmus = ensure_fmus(FMUS, fmu_dir)
-    ol = _run(fmus, 20.0 if quick else 40.0, 0.0)
-    cl = _run(fmus, 8.0 if quick else 12.0, 1.0)
+    ensure_fmus(FMUS, fmu_dir)
+    ol = _run(fmu_dir, 20.0 if quick else 40.0, 0.0)
+    cl = _run(fmu_dir, 8.0 if quick else 12.0, 1.0)
     t_ol = ol["time"]
     decay = t_ol > T_EXC + 0.2
     damping, fitted = {}, {}

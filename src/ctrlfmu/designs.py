@@ -205,10 +205,7 @@ def truss10_strain_diag(plant=None, *, mode_hz: float = 8.4,
     DiscreteLaw
         SISO law ``truss10_strain_diag``.
     """
-    kw.setdefault("name", "truss10_strain_diag")
-    for key, value in TRUSS10_DIAG.items():
-        kw.setdefault(key, value)
-    return virtual_absorber(mode_hz, plant_gain, plant=plant, **kw)
+    return _truss10("truss10_strain_diag", TRUSS10_DIAG, mode_hz, plant_gain, plant, kw)
 
 
 def truss10_strain_long(plant=None, *, mode_hz: float = 9.5,
@@ -231,10 +228,12 @@ def truss10_strain_long(plant=None, *, mode_hz: float = 9.5,
     DiscreteLaw
         SISO law ``truss10_strain_long``.
     """
-    kw.setdefault("name", "truss10_strain_long")
-    for key, value in TRUSS10_LONG.items():
-        kw.setdefault(key, value)
-    return virtual_absorber(mode_hz, plant_gain, plant=plant, **kw)
+    return _truss10("truss10_strain_long", TRUSS10_LONG, mode_hz, plant_gain, plant, kw)
+
+
+def _truss10(name, defaults, mode_hz, plant_gain, plant, kw) -> DiscreteLaw:
+    """A ten-bay truss absorber: the member's stored tuning unless overridden."""
+    return virtual_absorber(mode_hz, plant_gain, plant=plant, **{"name": name, **defaults, **kw})
 
 
 # -- EOS testbed isolation ----------------------------------------------------------------

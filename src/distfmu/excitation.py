@@ -54,6 +54,7 @@ class ExcitationSlave(FmuSlave):
         self.add_parameter("t_stop", 1e30, unit="s", description="burst end", tunable=True)
         for i in range(1, N_CHANNELS + 1):
             self.add_output(f"v{i}", unit="V", depends_on=[], description=f"excitation {i}")
+        self._t0 = 0.0
 
     def _write(self, t: float) -> None:
         for i in range(1, N_CHANNELS + 1):
@@ -62,10 +63,10 @@ class ExcitationSlave(FmuSlave):
             setattr(self, f"v{i}", float(value))
 
     def setup_experiment(self, start_time, stop_time, tolerance):
-        self._t_start_exp = float(start_time)
+        self._t0 = float(start_time)
 
     def exit_initialization_mode(self):
-        self._write(getattr(self, "_t_start_exp", 0.0))
+        self._write(self._t0)
         return True
 
     def do_step(self, current_time, step_size):

@@ -324,8 +324,8 @@ class Truss:
 
     def rate_channels(self, prefix, nodes, axes=("roll", "pitch", "yaw")) -> tuple:
         """Angular rate of a node set (rad/s), the time derivative of :meth:`angle_channels`."""
-        return tuple(Channel(c.name.replace(f"{prefix}_", f"{prefix}_", 1), "rate", c.dofs,
-                             c.weights) for c in self.angle_channels(prefix, nodes, axes))
+        return tuple(Channel(c.name, "rate", c.dofs, c.weights)
+                     for c in self.angle_channels(prefix, nodes, axes))
 
 
 def channel_matrix(channels, n_dof: int) -> sp.csr_matrix:

@@ -39,7 +39,6 @@ class StructureSlave(FmuSlave):
             "y", names=list(model.output_names), causality="output",
             unit=[UNITS[k] for k in model.output_kinds], depends_on=deps,
             description="structural output")
-        self._u_seen = np.zeros(model.n_inputs)
 
     def exit_initialization_mode(self):
         self.stepper.update_state_outputs()

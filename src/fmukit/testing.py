@@ -147,11 +147,14 @@ def compile_c_host(out: str | Path, source: str | Path | None = None) -> Path:
 def run_c_host(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n_steps: int,
                inputs: Mapping[str, object] | None = None,
                parameters: Mapping[str, float] | None = None,
-               host: str | Path | None = None) -> np.ndarray:
+               host: str | Path | None = None, wrapper: Sequence[str] = (),
+               env: Mapping[str, str] | None = None) -> np.ndarray:
     """Run ``fmu`` in the plain C host, in a subprocess with :func:`clean_env`.
 
     Parameters are as in :func:`run_fmpy`; ``host`` is a compiled host executable
-    (compiled into a temporary folder when None).
+    (compiled into a temporary folder when None); ``wrapper`` is a command prefix the
+    host runs under (e.g. ``["valgrind", "--log-file=vg.txt"]``); ``env`` adds variables
+    to the clean environment.
 
     Returns
     -------
@@ -175,11 +178,12 @@ def run_c_host(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n_s
             zf.extractall(unzip)
         input_file = tmp / "inputs.txt"
         np.savetxt(input_file, u.reshape(n_steps, -1), fmt="%.17g")
-        cmd = [str(exe), str(unzip), md.coSimulation.modelIdentifier, md.guid, repr(step_size),
+        cmd = [*wrapper, str(exe), str(unzip), md.coSimulation.modelIdentifier, md.guid, repr(step_size),
                str(n_steps), str(input_file),
                ",".join(map(str, in_vrs)) or "-", ",".join(map(str, out_vrs)),
                ",".join(f"{vr}={float(v)!r}" for vr, v in zip(par_vrs, par.values()))]
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=clean_env(), cwd=tmp)
+        proc = subprocess.run(cmd, capture_output=True, text=True,
+                              env={**clean_env(), **(env or {})}, cwd=tmp)
     if proc.returncode != 0:
         raise HostError(f"C host run of {Path(fmu).name} failed with status {proc.returncode}: "
                         f"{proc.stderr.strip()[-2000:]}")

@@ -202,3 +202,38 @@ def test_c_host_and_libcosim_reproduce_fmpy(fmu):
     # or VIRTUAL_ENV: the loader finds libpython and the venv on its own.
     np.testing.assert_array_equal(run_c_host(fmu, **kw), y_fmpy)
     np.testing.assert_allclose(run_libcosim(fmu, **kw), y_fmpy, rtol=1e-12, atol=0)
+
+
+def _memcheck_errors(log: str) -> list[str]:
+    """valgrind error blocks that involve a binary of the FMU (loader or pythonfmu)."""
+    blocks, current = [], []
+    for line in log.splitlines():
+        text = line.split("== ", 1)[-1]
+        if not text.strip():
+            if current:
+                blocks.append("\n".join(current))
+            current = []
+        else:
+            current.append(text)
+    kinds = ("Invalid read", "Invalid write", "Invalid free", "Mismatched free")
+    return [b for b in blocks if b.startswith(kinds) and "binaries/linux64" in b]
+
+
+@pytest.mark.slow
+def test_c_host_run_is_clean_under_memcheck(fmu, tmp_path):
+    """No invalid read, write or free in the FMU's binaries, exit handlers included.
+
+    pythonfmu 0.7 resets its interpreter state twice at exit (static destructor, then
+    library destructor) and so wrote to freed memory; the C host aborted now and then
+    with "free(): corrupted unsorted chunks".  The loader releases the state first.
+    """
+    from fmukit.testing import run_c_host, run_fmpy
+
+    log = tmp_path / "memcheck.txt"
+    kw = dict(inputs=_inputs(), outputs=OUTPUTS, step_size=H, n_steps=N, parameters={"b": 0.2})
+    y = run_c_host(fmu, **kw, wrapper=["valgrind", f"--log-file={log}", "--num-callers=40"],
+                   env={"PYTHONMALLOC": "malloc"})
+    np.testing.assert_array_equal(y, run_fmpy(fmu, **kw))
+    text = log.read_text()
+    assert "ERROR SUMMARY" in text  # valgrind ran to the end of the process
+    assert _memcheck_errors(text) == []

@@ -8,7 +8,9 @@
  *   1. loads libpython with RTLD_GLOBAL unless the process already has Python symbols,
  *   2. initialises the interpreter (if nobody did) as the build environment's Python,
  *      so that its site-packages (numpy, scipy, ...) are importable,
- *   3. opens the real binary and forwards every fmi2* call to it.
+ *   3. opens the real binary and forwards every fmi2* call to it,
+ *   4. releases pythonfmu's shared interpreter state at exit, before that binary's own
+ *      static destructor runs (see release_pythonfmu_state).
  *
  * Compile-time definitions (set by fmukit.loader.compile_loader):
  *   FMUKIT_LIBPYTHON   path of the shared libpython
@@ -138,6 +140,23 @@ static int start_python(void)
     return 0;
 }
 
+/*
+ * pythonfmu keeps its interpreter state in a namespace-scope std::shared_ptr and also
+ * resets that pointer from a __attribute__((destructor)) function.  At process exit the
+ * C++ static destructor runs first (an atexit handler) and frees the state; the library
+ * destructor then resets the already destroyed shared_ptr and decrements freed memory,
+ * which corrupts the heap ("free(): corrupted unsorted chunks", SIGABRT, now and then).
+ * Resetting the pointer through pythonfmu's own finalizePythonInterpreter from an atexit
+ * handler registered after the binary is loaded runs before its static destructor
+ * (atexit handlers run last-registered first), so both later resets see a null pointer.
+ */
+static void (*g_release)(void) = NULL;
+
+static void release_pythonfmu_state(void)
+{
+    if (g_release) g_release();
+}
+
 static void load(void)
 {
     if (start_python() != 0) return;
@@ -162,6 +181,8 @@ static void load(void)
     }
 #define RESOLVE(name) p_##name = dlsym(g_real, #name);
     FMI_FUNCTIONS(RESOLVE)
+    g_release = (void (*)(void))dlsym(g_real, "finalizePythonInterpreter");
+    if (g_release) atexit(release_pythonfmu_state);
 }
 
 static int ready(void)

@@ -20,6 +20,7 @@ import numpy as np
 import scipy.linalg as la
 
 from structfmu.reduced import ReducedModel
+from structfmu.sensors import filter_blocks
 
 
 def modal_zoh(omega, c, h):
@@ -109,7 +110,9 @@ def block_zoh(K, D, h):
 class DiscreteModel:
     """A reduced model discretised for one step ``h`` (ZOH inputs).
 
-    State vector layout: ``x = [q_e (n_m), v_e (n_m), q_o (n_r), v_o (n_r)]``.
+    State vector layout: ``x = [q_e (n_m), v_e (n_m), q_o (n_r), v_o (n_r), x_f (n_f)]``
+    with ``x_f`` the accelerometer low-pass states (``n_f = 0`` without one), advanced
+    by ``x_f+ = F_x x_s + F_f x_f + F_u u`` from the structural part ``x_s``.
     """
 
     h: float
@@ -122,6 +125,9 @@ class DiscreteModel:
     Phi_o: np.ndarray  # (2 n_r, 2 n_r)
     G_o: np.ndarray  # (2 n_r, n_in) = Gamma_o B_o
     model: ReducedModel
+    F_x: np.ndarray | None = None  # (n_f, n_s)
+    F_f: np.ndarray | None = None  # (n_f, n_f)
+    F_u: np.ndarray | None = None  # (n_f, n_in)
 
     @property
     def n_states(self) -> int:
@@ -135,31 +141,82 @@ def discretize(model: ReducedModel, h: float) -> DiscreteModel:
     a11, a12, a21, a22, g1, g2 = modal_zoh(model.omega, model.modal_damping, h)
     Phi_o, Gam_o = block_zoh(model.K_oo, model.D_oo, h)
     G_o = Gam_o @ model.B_o if model.n_ritz else np.zeros((0, model.n_inputs))
+    F_x, F_f, F_u = _filter_zoh(model, h)
     return DiscreteModel(h, a11, a12, a21, a22, g1[:, None] * model.B_e,
-                         g2[:, None] * model.B_e, Phi_o, G_o, model)
+                         g2[:, None] * model.B_e, Phi_o, G_o, model, F_x, F_f, F_u)
+
+
+def accel_rows(model: ReducedModel):
+    """Acceleration outputs as ``C x_s + D u`` on the structural states (layout above).
+
+    Returns
+    -------
+    C : ndarray, shape (n_acc, n_s)
+    D : ndarray, shape (n_acc, n_in)
+    """
+    acc = model.is_accel
+    Ce, Co = model.C_e[acc], model.C_o[acc]
+    C = np.hstack([-Ce * model.omega**2, -Ce * model.modal_damping,
+                   -Co @ model.K_oo, -Co @ model.D_oo])
+    return C, Ce @ model.B_e + Co @ model.B_o
+
+
+def _filter_zoh(model: ReducedModel, h: float):
+    """Exact ZOH rows of the accelerometer filter states, or three ``None``.
+
+    One ``expm`` of the structure, the filter and the held input together, for
+    ``x_f+ = F_x x_s + F_f x_f + F_u u``.
+    """
+    nf = model.n_filter_states
+    if nf == 0:
+        return None, None, None
+    n_m, n_r, n_in = model.n_modes, model.n_ritz, model.n_inputs
+    ns = model.n_struct_states
+    Af, Bf, _ = filter_blocks(model.accel_lowpass, int(model.is_accel.sum()))
+    Ca, Da = accel_rows(model)
+    n = ns + nf + n_in
+    M = np.zeros((n, n))
+    e, o = np.arange(n_m), 2 * n_m + np.arange(n_r)
+    M[e, n_m + e] = 1.0
+    M[n_m + e, e] = -model.omega**2
+    M[n_m + e, n_m + e] = -model.modal_damping
+    M[np.ix_(n_m + e, ns + nf + np.arange(n_in))] = model.B_e
+    M[o, n_r + o] = 1.0
+    M[np.ix_(n_r + o, o)] = -model.K_oo
+    M[np.ix_(n_r + o, n_r + o)] = -model.D_oo
+    M[np.ix_(n_r + o, ns + nf + np.arange(n_in))] = model.B_o
+    M[ns:ns + nf, :ns] = Bf @ Ca
+    M[ns:ns + nf, ns:ns + nf] = Af
+    M[ns:ns + nf, ns + nf:] = Bf @ Da
+    E = la.expm(M * h)[ns:ns + nf]
+    return E[:, :ns], E[:, ns:ns + nf], E[:, ns + nf:]
 
 
 def step(dm: DiscreteModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Advance the state one step with inputs ``u`` held (returns a new array)."""
-    n_m = dm.model.n_modes
-    q, v, xo = x[:n_m], x[n_m:2 * n_m], x[2 * n_m:]
+    n_m, ns = dm.model.n_modes, dm.model.n_struct_states
+    q, v, xo, xf = x[:n_m], x[n_m:2 * n_m], x[2 * n_m:ns], x[ns:]
     qn = dm.a11 * q + dm.a12 * v + dm.G1 @ u
     vn = dm.a21 * q + dm.a22 * v + dm.G2 @ u
     xon = dm.Phi_o @ xo + dm.G_o @ u if xo.size else xo
-    return np.concatenate([qn, vn, xon])
+    xfn = dm.F_x @ x[:ns] + dm.F_f @ xf + dm.F_u @ u if xf.size else xf
+    return np.concatenate([qn, vn, xon, xfn])
 
 
 def output(model: ReducedModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Outputs for state ``x`` and current inputs ``u`` (accelerations feed through)."""
-    n_m, n_r = model.n_modes, model.n_ritz
+    n_m, n_r, ns = model.n_modes, model.n_ritz, model.n_struct_states
     q, v = x[:n_m], x[n_m:2 * n_m]
-    qo, vo = x[2 * n_m:2 * n_m + n_r], x[2 * n_m + n_r:]
+    qo, vo = x[2 * n_m:2 * n_m + n_r], x[2 * n_m + n_r:ns]
     y = model.C_e @ q + model.C_o @ qo
     rate = model.is_rate
     if rate.any():
         y[rate] = model.C_e[rate] @ v + model.C_o[rate] @ vo
     acc = model.is_accel
-    if acc.any():
+    if acc.any() and model.n_filter_states:
+        _, _, Cf = filter_blocks(model.accel_lowpass, int(acc.sum()))
+        y[acc] = Cf @ x[ns:]
+    elif acc.any():
         qdd = model.B_e @ u - model.modal_damping * v - model.omega**2 * q
         qodd = model.B_o @ u - model.D_oo @ vo - model.K_oo @ qo
         y[acc] = model.C_e[acc] @ qdd + model.C_o[acc] @ qodd
@@ -203,12 +260,14 @@ class Stepper:
 
     def __init__(self, model: ReducedModel):
         self.model = model
-        n_m, n_r = model.n_modes, model.n_ritz
+        n_m, n_r, ns = model.n_modes, model.n_ritz, model.n_struct_states
         self.x = np.zeros(model.n_states)
         self._cache: dict = {}
         self._q = self.x[:n_m]
         self._v = self.x[n_m:2 * n_m]
-        self._xo = self.x[2 * n_m:]
+        self._xo = self.x[2 * n_m:ns]
+        self._xs = self.x[:ns]
+        self._xf = self.x[ns:]
         self._tq = np.empty(n_m)
         self._tv = np.empty(n_m)
         self._t1 = np.empty(n_m)
@@ -219,15 +278,15 @@ class Stepper:
         Cv = np.where(rate[:, None], model.C_e, 0.0)
         Cqo = np.where(disp[:, None], model.C_o, 0.0)
         Cvo = np.where(rate[:, None], model.C_o, 0.0)
-        if acc.any():
-            Cq[acc] = -model.C_e[acc] * model.omega**2
-            Cv[acc] = -model.C_e[acc] * model.modal_damping
-            Cqo[acc] = -model.C_o[acc] @ model.K_oo
-            Cvo[acc] = -model.C_o[acc] @ model.D_oo
-        self.C_x = np.hstack([Cq, Cv, Cqo, Cvo])  # (n_out, n_states)
         self.D = np.zeros((model.n_outputs, model.n_inputs))
-        if acc.any():
-            self.D[acc] = model.C_e[acc] @ model.B_e + model.C_o[acc] @ model.B_o
+        Cf = np.zeros((model.n_outputs, model.n_filter_states))
+        if acc.any() and model.n_filter_states:
+            Cf[acc] = filter_blocks(model.accel_lowpass, int(acc.sum()))[2]
+        elif acc.any():
+            Ca, self.D[acc] = accel_rows(model)
+            Cq[acc], Cv[acc], Cqo[acc], Cvo[acc] = np.split(Ca, np.cumsum([n_m, n_m, n_r]),
+                                                            axis=1)
+        self.C_x = np.hstack([Cq, Cv, Cqo, Cvo, Cf])  # (n_out, n_states)
         self.has_feedthrough = bool(np.any(self.D))
         self.y_state = np.zeros(model.n_outputs)
 
@@ -242,6 +301,8 @@ class Stepper:
     def step(self, u: np.ndarray, h: float) -> None:
         """Advance ``x`` in place by ``h`` with inputs ``u`` held."""
         dm = self.discrete(h)
+        # The filter reads the structural state before the step.
+        xf = dm.F_x @ self._xs + dm.F_f @ self._xf + dm.F_u @ u if self._xf.size else None
         q, v = self._q, self._v
         np.dot(dm.G1, u, out=self._tq)
         np.dot(dm.G2, u, out=self._tv)
@@ -257,6 +318,8 @@ class Stepper:
         v[:] = self._tv
         if self._xo.size:
             self._xo[:] = dm.Phi_o @ self._xo + dm.G_o @ u
+        if xf is not None:
+            self._xf[:] = xf
 
     def update_state_outputs(self) -> np.ndarray:
         """Recompute the state part of the outputs (after a step or a state change)."""

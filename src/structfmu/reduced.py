@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from structfmu.errors import DimensionError, ModelError
+from structfmu.sensors import SensorLowpass
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,9 @@ class ReducedModel:
         Model name.
     meta : dict
         Free-form metadata (JSON-serialisable): source model, DOFs, damping spec...
+    accel_lowpass : SensorLowpass, optional
+        Sensor bandwidth applied to every acceleration output (:mod:`structfmu.sensors`);
+        its states follow the structural ones and those outputs lose their feedthrough.
     """
 
     omega: np.ndarray
@@ -69,6 +73,7 @@ class ReducedModel:
     output_kinds: tuple
     name: str = "reduced"
     meta: dict = field(default_factory=dict)
+    accel_lowpass: SensorLowpass | None = None
 
     def __post_init__(self):
         arrays = {k: np.array(getattr(self, k), float) for k in
@@ -93,6 +98,9 @@ class ReducedModel:
         object.__setattr__(self, "input_names", tuple(self.input_names))
         object.__setattr__(self, "output_names", tuple(self.output_names))
         object.__setattr__(self, "output_kinds", tuple(self.output_kinds))
+        lp = self.accel_lowpass
+        if lp is not None and not isinstance(lp, SensorLowpass):
+            object.__setattr__(self, "accel_lowpass", SensorLowpass(*lp))
 
     # -- sizes -------------------------------------------------------------------------
     @property
@@ -112,8 +120,21 @@ class ReducedModel:
         return len(self.output_names)
 
     @property
-    def n_states(self) -> int:
+    def n_struct_states(self) -> int:
+        """Structural states ``2 (n_modes + n_ritz)``."""
         return 2 * (self.n_modes + self.n_ritz)
+
+    @property
+    def n_filter_states(self) -> int:
+        """States of the accelerometer low-pass (0 without one)."""
+        if self.accel_lowpass is None:
+            return 0
+        return self.accel_lowpass.order * int(self.is_accel.sum())
+
+    @property
+    def n_states(self) -> int:
+        """All states: structural, then accelerometer filter."""
+        return self.n_struct_states + self.n_filter_states
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -127,7 +148,7 @@ class ReducedModel:
 
     @property
     def is_accel(self) -> np.ndarray:
-        """Boolean mask of acceleration outputs (these have direct feedthrough)."""
+        """Boolean mask of acceleration outputs (direct feedthrough unless filtered)."""
         return np.array([k == "accel" for k in self.output_kinds], bool)
 
     def input_index(self, name: str) -> int:
@@ -180,7 +201,9 @@ class ReducedModel:
                      "format": "jitterfmu-reduced-model", "version": 1, "name": self.name,
                      "input_names": list(self.input_names),
                      "output_names": list(self.output_names),
-                     "output_kinds": list(self.output_kinds), "meta": self.meta})))
+                     "output_kinds": list(self.output_kinds), "meta": self.meta,
+                     "accel_lowpass": (self.accel_lowpass.to_json()
+                                       if self.accel_lowpass is not None else None)})))
         tmp.replace(path)
         return path
 
@@ -202,7 +225,9 @@ class ReducedModel:
         return cls(**arrays, input_names=tuple(header["input_names"]),
                    output_names=tuple(header["output_names"]),
                    output_kinds=tuple(header["output_kinds"]), name=header["name"],
-                   meta=header.get("meta", {}))
+                   meta=header.get("meta", {}),
+                   accel_lowpass=(SensorLowpass(*header["accel_lowpass"])
+                                  if header.get("accel_lowpass") else None))
 
 
 def _index(names, name, what, model):

@@ -1,6 +1,7 @@
 """First-order form (Eq. 9-10), frequency responses, full-FEM reference FRFs.
 
-State ordering for the dense form: ``x = [z_e, z_o, z_e', z_o']``.
+State ordering for the dense form: ``x = [z_e, z_o, z_e', z_o', x_f]`` with ``x_f`` the
+accelerometer low-pass states (:mod:`structfmu.sensors`), if the model has one.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import scipy.sparse.linalg as spla
 
 from structfmu.fem import Truss, assemble, input_matrix, output_matrix
 from structfmu.reduced import ReducedModel
+from structfmu.sensors import filter_blocks
 
 
 def reduced_matrices(model: ReducedModel):
@@ -36,7 +38,8 @@ def first_order(model: ReducedModel):
     B : ndarray, shape (2n, n_in)
     C : ndarray, shape (n_out, 2n)
     D : ndarray, shape (n_out, n_in)
-        Non-zero only on acceleration rows.
+        Non-zero only on acceleration rows, and zero there too when the model has an
+        accelerometer low-pass (its states are appended to ``x``).
     """
     K, Dm, Bh, Ch = reduced_matrices(model)
     n = K.shape[0]
@@ -51,6 +54,15 @@ def first_order(model: ReducedModel):
     if acc.any():
         C[acc] = np.hstack([-Ch[acc] @ K, -Ch[acc] @ Dm])
         D[acc] = Ch[acc] @ Bh
+    if model.n_filter_states:
+        Af, Bf, Cf = filter_blocks(model.accel_lowpass, int(acc.sum()))
+        nf = Af.shape[0]
+        A = np.block([[A, np.zeros((2 * n, nf))], [Bf @ C[acc], Af]])
+        B = np.vstack([B, Bf @ D[acc]])
+        C = np.hstack([C, np.zeros((model.n_outputs, nf))])
+        C[acc] = 0.0
+        C[np.ix_(acc, np.arange(2 * n, 2 * n + nf))] = Cf
+        D[acc] = 0.0
     return A, B, C, D
 
 
@@ -93,6 +105,8 @@ def frf(model: ReducedModel, freqs_hz, outputs=None, inputs=None):
     acc = sub.is_accel
     if acc.any():
         H[:, acc] *= -(w**2)[:, None, None]
+        if sub.accel_lowpass is not None:
+            H[:, acc] *= sub.accel_lowpass.response(np.asarray(freqs_hz, float))[:, None, None]
     rate = sub.is_rate
     if rate.any():
         H[:, rate] *= (1j * w)[:, None, None]

@@ -188,6 +188,7 @@ def test_all_legs_active_variant_keeps_six_rigid_modes():
 def test_reduced_defaults(red):
     assert red.n_modes == eos.N_MODES
     assert red.frequencies_hz[-1] >= 150.0            # covers up to 150 Hz
+    assert red.accel_lowpass == eos.ACCEL_LOWPASS and eos.ACCEL_LOWPASS.cutoff_hz == 150.0
     assert red.n_ritz == 5 + 54
     assert np.all(red.modal_damping[:6] == 0.0)       # rigid modes undamped
     np.testing.assert_allclose(red.modal_damping[6:], 2 * eos.ZETA * red.omega[6:])
@@ -198,7 +199,9 @@ FC = ["fc_iso1", "fc_iso2", "fc_iso3", "fc_swir_mount", "fc_vnir_mount"]
 
 
 def _undamped(model):
-    return replace(model.with_modal_damping(0.0), D_oo=np.zeros_like(model.D_oo))
+    """Structure alone, as the full FEM: no damping, no accelerometer low-pass."""
+    return replace(model.with_modal_damping(0.0), D_oo=np.zeros_like(model.D_oo),
+                   accel_lowpass=None)
 
 
 def test_ritz_vectors_make_actuator_response_statically_exact(truss, red):
@@ -247,4 +250,5 @@ def test_structure_fmu_builds_and_validates(tmp_path):
     outs = {u.variable.name: u.dependencies for u in md.outputs}
     assert "swir_fx" in ins and "acs_tz" in ins and "fc_iso3" in ins and len(ins) == 62
     assert outs["los_misr_pitch"] == [] and outs["strain_iso1"] == []
-    assert outs["acc_pay_iso1"]
+    # accelerometers see the structure through their 150 Hz low-pass: no feedthrough
+    assert outs["acc_pay_iso1"] == [] and outs["acc_bus_iso3"] == []

@@ -23,5 +23,16 @@ demo: setup
 test: setup
 	$(PY) -m pytest -q
 
+build: setup
+	$(VENV)/bin/jitterfmu build
+
+# The paper's experiments at full length (the tests run them with --quick).
+EXPERIMENTS := truss-frf truss-decay testbed-isolation swir-isolation eos-budget
+reproduce: setup
+	for e in $(EXPERIMENTS); do $(VENV)/bin/jitterfmu reproduce $$e --out out/reproduce || exit 1; done
+
+bench: setup
+	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
 clean:
 	rm -rf out build

@@ -3,7 +3,8 @@
 Inputs are the model's load channels and one force per active member (``fc_<name>``,
 N).  Outputs are its named sensors: LOS angles (rad), angular rates (rad/s), gauge
 strains, member elongations (m) and accelerations (m/s^2).  Only accelerations have
-direct feedthrough, and each declares exactly the inputs it depends on.  Any
+direct feedthrough, and each declares exactly the inputs it depends on; a model whose
+accelerometers have a bandwidth (``ReducedModel.accel_lowpass``) has none.  Any
 communication step is accepted; the discretisation is cached per step size.
 """
 

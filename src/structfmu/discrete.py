@@ -21,6 +21,7 @@ import scipy.linalg as la
 
 from structfmu.reduced import ReducedModel
 from structfmu.sensors import filter_blocks
+from structfmu.statespace import first_order
 
 
 def modal_zoh(omega, c, h):
@@ -112,7 +113,7 @@ class DiscreteModel:
 
     State vector layout: ``x = [q_e (n_m), v_e (n_m), q_o (n_r), v_o (n_r), x_f (n_f)]``
     with ``x_f`` the accelerometer low-pass states (``n_f = 0`` without one), advanced
-    by ``x_f+ = F_x x_s + F_f x_f + F_u u`` from the structural part ``x_s``.
+    by ``x_f+ = F_x x + F_u u`` from the whole state before the step.
     """
 
     h: float
@@ -125,8 +126,7 @@ class DiscreteModel:
     Phi_o: np.ndarray  # (2 n_r, 2 n_r)
     G_o: np.ndarray  # (2 n_r, n_in) = Gamma_o B_o
     model: ReducedModel
-    F_x: np.ndarray | None = None  # (n_f, n_s)
-    F_f: np.ndarray | None = None  # (n_f, n_f)
+    F_x: np.ndarray | None = None  # (n_f, n_states)
     F_u: np.ndarray | None = None  # (n_f, n_in)
 
     @property
@@ -141,9 +141,9 @@ def discretize(model: ReducedModel, h: float) -> DiscreteModel:
     a11, a12, a21, a22, g1, g2 = modal_zoh(model.omega, model.modal_damping, h)
     Phi_o, Gam_o = block_zoh(model.K_oo, model.D_oo, h)
     G_o = Gam_o @ model.B_o if model.n_ritz else np.zeros((0, model.n_inputs))
-    F_x, F_f, F_u = _filter_zoh(model, h)
+    F_x, F_u = _filter_zoh(model, h)
     return DiscreteModel(h, a11, a12, a21, a22, g1[:, None] * model.B_e,
-                         g2[:, None] * model.B_e, Phi_o, G_o, model, F_x, F_f, F_u)
+                         g2[:, None] * model.B_e, Phi_o, G_o, model, F_x, F_u)
 
 
 def accel_rows(model: ReducedModel):
@@ -162,34 +162,22 @@ def accel_rows(model: ReducedModel):
 
 
 def _filter_zoh(model: ReducedModel, h: float):
-    """Exact ZOH rows of the accelerometer filter states, or three ``None``.
+    """Exact ZOH rows of the accelerometer filter states, or two ``None``.
 
-    One ``expm`` of the structure, the filter and the held input together, for
-    ``x_f+ = F_x x_s + F_f x_f + F_u u``.
+    One ``expm`` of :func:`structfmu.statespace.first_order` (structure and filter) with
+    the held input, for ``x_f+ = F_x x + F_u u`` in the layout of :class:`DiscreteModel`.
     """
-    nf = model.n_filter_states
-    if nf == 0:
-        return None, None, None
-    n_m, n_r, n_in = model.n_modes, model.n_ritz, model.n_inputs
-    ns = model.n_struct_states
-    Af, Bf, _ = filter_blocks(model.accel_lowpass, int(model.is_accel.sum()))
-    Ca, Da = accel_rows(model)
-    n = ns + nf + n_in
-    M = np.zeros((n, n))
-    e, o = np.arange(n_m), 2 * n_m + np.arange(n_r)
-    M[e, n_m + e] = 1.0
-    M[n_m + e, e] = -model.omega**2
-    M[n_m + e, n_m + e] = -model.modal_damping
-    M[np.ix_(n_m + e, ns + nf + np.arange(n_in))] = model.B_e
-    M[o, n_r + o] = 1.0
-    M[np.ix_(n_r + o, o)] = -model.K_oo
-    M[np.ix_(n_r + o, n_r + o)] = -model.D_oo
-    M[np.ix_(n_r + o, ns + nf + np.arange(n_in))] = model.B_o
-    M[ns:ns + nf, :ns] = Bf @ Ca
-    M[ns:ns + nf, ns:ns + nf] = Af
-    M[ns:ns + nf, ns + nf:] = Bf @ Da
-    E = la.expm(M * h)[ns:ns + nf]
-    return E[:, :ns], E[:, ns:ns + nf], E[:, ns + nf:]
+    if model.n_filter_states == 0:
+        return None, None
+    A, B, _, _ = first_order(model)
+    n, n_in = A.shape[0], model.n_inputs
+    M = np.zeros((n + n_in, n + n_in))
+    M[:n, :n], M[:n, n:] = A, B
+    E = la.expm(M * h)[model.n_struct_states:n]
+    # dense layout [q_e, q_o, v_e, v_o, x_f] -> ours [q_e, v_e, q_o, v_o, x_f]
+    n_m, n_r, ns = model.n_modes, model.n_ritz, model.n_struct_states
+    ours = np.r_[0:n_m, n_m + n_r:2 * n_m + n_r, n_m:n_m + n_r, 2 * n_m + n_r:ns, ns:n]
+    return E[:, ours], E[:, n:]
 
 
 def step(dm: DiscreteModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -199,7 +187,7 @@ def step(dm: DiscreteModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
     qn = dm.a11 * q + dm.a12 * v + dm.G1 @ u
     vn = dm.a21 * q + dm.a22 * v + dm.G2 @ u
     xon = dm.Phi_o @ xo + dm.G_o @ u if xo.size else xo
-    xfn = dm.F_x @ x[:ns] + dm.F_f @ xf + dm.F_u @ u if xf.size else xf
+    xfn = dm.F_x @ x + dm.F_u @ u if xf.size else xf
     return np.concatenate([qn, vn, xon, xfn])
 
 
@@ -266,8 +254,8 @@ class Stepper:
         self._q = self.x[:n_m]
         self._v = self.x[n_m:2 * n_m]
         self._xo = self.x[2 * n_m:ns]
-        self._xs = self.x[:ns]
         self._xf = self.x[ns:]
+        self._tf = np.empty(model.n_filter_states)
         self._tq = np.empty(n_m)
         self._tv = np.empty(n_m)
         self._t1 = np.empty(n_m)
@@ -301,8 +289,9 @@ class Stepper:
     def step(self, u: np.ndarray, h: float) -> None:
         """Advance ``x`` in place by ``h`` with inputs ``u`` held."""
         dm = self.discrete(h)
-        # The filter reads the structural state before the step.
-        xf = dm.F_x @ self._xs + dm.F_f @ self._xf + dm.F_u @ u if self._xf.size else None
+        if self._xf.size:  # the filter reads the state before the step
+            np.dot(dm.F_x, self.x, out=self._tf)
+            self._tf += dm.F_u @ u
         q, v = self._q, self._v
         np.dot(dm.G1, u, out=self._tq)
         np.dot(dm.G2, u, out=self._tv)
@@ -318,8 +307,8 @@ class Stepper:
         v[:] = self._tv
         if self._xo.size:
             self._xo[:] = dm.Phi_o @ self._xo + dm.G_o @ u
-        if xf is not None:
-            self._xf[:] = xf
+        if self._xf.size:
+            self._xf[:] = self._tf
 
     def update_state_outputs(self) -> np.ndarray:
         """Recompute the state part of the outputs (after a step or a state change)."""

@@ -13,6 +13,7 @@ filtered signal.  A filtered acceleration output has no direct feedthrough.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,8 +73,9 @@ class SensorLowpass:
         return [self.order, self.cutoff_hz]
 
 
+@functools.lru_cache(maxsize=32)
 def filter_blocks(lowpass: SensorLowpass | None, n_channels: int):
-    """Block-diagonal filter for ``n_channels`` signals.
+    """Block-diagonal filter for ``n_channels`` signals (cached, read-only arrays).
 
     Returns
     -------
@@ -84,4 +86,7 @@ def filter_blocks(lowpass: SensorLowpass | None, n_channels: int):
         return np.zeros((0, 0)), np.zeros((0, n_channels)), np.zeros((n_channels, 0))
     a, b, c = lowpass.siso()
     eye = np.eye(n_channels)
-    return np.kron(eye, a), np.kron(eye, b), np.kron(eye, c)
+    blocks = np.kron(eye, a), np.kron(eye, b), np.kron(eye, c)
+    for m in blocks:
+        m.setflags(write=False)
+    return blocks

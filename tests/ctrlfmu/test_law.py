@@ -140,8 +140,10 @@ def samples_until_unsaturated(law):
     y = np.r_[np.ones(100), -np.ones(100)]
     u, _ = simulate(law, y)
     assert np.all(u <= 0.5) and np.all(u >= -0.5)
-    after = u[100:, 0]
-    return int(np.argmax(after < 0.5 - 1e-12))
+    after = u[100:, 0] < 0.5 - 1e-12
+    # argmax of an all-False array is 0: a law that never leaves the limit must not
+    # look like one that leaves it at once
+    return int(np.argmax(after)) if after.any() else len(after)
 
 
 def test_limits_and_backcalculation_antiwindup():
@@ -157,6 +159,36 @@ def test_limits_and_backcalculation_antiwindup():
     # Unsaturated, anti-windup changes nothing (u - v == 0 exactly).
     y = 0.1 * np.sin(np.arange(50))
     np.testing.assert_array_equal(simulate(plain, y)[0], simulate(aw, y)[0])
+
+
+def test_backcalculation_sign_on_a_hand_computed_saturated_step():
+    # Scalar delayed law x(k+1) = x + 1.0*y + L (u - v), v = x, u = clip(v, -1, 1), L = 0.5,
+    # fed y = 2, 2, 2, 2, -2, -2 (hand-computed; u[k] is the command held at t_k):
+    #   k  y   x(k)    v = x    u(k+1) = clip(v)   u - v     x(k+1) = x + y + 0.5 (u - v)
+    #   0  2   0       0        0                  0         0 + 2 + 0          = 2
+    #   1  2   2       2        1                  -1        2 + 2 - 0.5        = 3.5
+    #   2  2   3.5     3.5      1                  -2.5      3.5 + 2 - 1.25     = 4.25
+    #   3  2   4.25    4.25     1                  -3.25     4.25 + 2 - 1.625   = 4.625
+    #   4  -2  4.625   4.625    1                  -3.625    4.625 - 2 - 1.8125 = 0.8125
+    #   5  -2  0.8125  0.8125   0.8125             0         0.8125 - 2 + 0     = -1.1875
+    # While saturated, x - 5 halves every sample (fixed point x + 2 + 0.5 (1 - x) = x at
+    # x = 5), and the output leaves the limit on the second sample of y = -2.  Without
+    # anti-windup x would be 0, 2, 4, 6, 8, 6, 4 (u still at the limit); with the sign of
+    # the correction flipped, x(2) = 2 + 2 + 0.5 = 4.5 and the state runs away.
+    law = DiscreteLaw([[1.0]], [[1.0]], [[1.0]], [[0.0]], 0.1, u_min=-1.0, u_max=1.0,
+                      aw_gain=[[0.5]])
+    y = [2.0, 2.0, 2.0, 2.0, -2.0, -2.0]
+    state = initial_state(law)
+    xs = [state.x[0]]
+    for yk in y:
+        state, _ = step(law, state, yk)
+        xs.append(state.x[0])
+    np.testing.assert_allclose(xs, [0.0, 2.0, 3.5, 4.25, 4.625, 0.8125, -1.1875],
+                               rtol=0, atol=1e-15)
+    u, last = simulate(law, y)
+    np.testing.assert_allclose(u[:, 0], [0.0, 0.0, 1.0, 1.0, 1.0, 1.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(last.u, [0.8125], rtol=0, atol=1e-15)  # off the limit
+    np.testing.assert_allclose(step(law, state, 0.0)[1], [-1.0])  # clip(-1.1875)
 
 
 @pytest.mark.parametrize("law", [design("truss10_strain_long"), design("eos_isolation"),

@@ -28,15 +28,15 @@ Integer, Boolean and String variables are plain attributes.
 The FMU state (``fmi2GetFMUstate``) holds a copy of every variable value and a deep
 copy of every attribute named in :attr:`FmuSlave.state_attributes`; restoring it
 writes numpy arrays back in place, so views and aliases the slave keeps stay valid.
-Serialized states are pickles that only accept builtins and numpy on load.
+Serialized states use the plain, versioned byte layout of :mod:`fmukit.state` (data
+only: no pickle, nothing is imported or called on restore) and are checked against
+the slave's declared variables and state attributes before anything is written.
 """
 
 from __future__ import annotations
 
 import copy
-import io
 import math
-import pickle
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +46,8 @@ import numpy as np
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
 from pythonfmu.variables import Boolean, Integer, Real, String
+
+from fmukit.state import FmuStateError, decode_state, encode_state
 
 __all__ = [
     "FmuSlave",
@@ -62,10 +64,6 @@ _KINDS = {"dependent", "constant", "fixed", "tunable", "discrete"}
 
 class DeclarationError(ValueError):
     """A variable declaration is inconsistent."""
-
-
-class FmuStateError(ValueError):
-    """An FMU state cannot be restored into this slave."""
 
 
 @dataclass(frozen=True)
@@ -104,24 +102,6 @@ class VariableSpec:
     dependencies_kind: str = "dependent"
     description: str = ""
     block: str | None = field(default=None, compare=False)
-
-
-class _Unpickler(pickle.Unpickler):
-    """Unpickler that only rebuilds builtins and numpy objects."""
-
-    _SAFE_BUILTINS = {"dict", "list", "tuple", "set", "frozenset", "complex", "bytearray",
-                      "int", "float", "bool", "str", "bytes", "slice", "range"}
-
-    def find_class(self, module: str, name: str) -> Any:
-        if module == "builtins" and name in self._SAFE_BUILTINS:
-            return super().find_class(module, name)
-        if module == "numpy" or module.startswith(("numpy.", "numpy._")):
-            return super().find_class(module, name)
-        if module == "collections" and name == "OrderedDict":
-            return super().find_class(module, name)
-        raise FmuStateError(
-            f"serialized FMU state refers to {module}.{name}; expected only builtins and numpy"
-        )
 
 
 def _enum(enum_type, value):
@@ -622,12 +602,14 @@ class FmuSlave(Fmi2Slave):
         }
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        """Restore a snapshot made by :meth:`_get_fmu_state` (the snapshot stays intact)."""
-        real = state["real"]
-        if real.shape != (self._n_real,):
-            raise FmuStateError(f"FMU state holds {real.shape[0]} Real values; slave "
-                                f"{self.instance_name!r} has {self._n_real}")
-        self._real_values[: self._n_real] = real
+        """Restore a snapshot made by :meth:`_get_fmu_state` (the snapshot stays intact).
+
+        The whole snapshot is checked against this slave's variables and
+        ``state_attributes`` first; on any mismatch :class:`FmuStateError` is raised
+        and nothing is changed.
+        """
+        self._check_fmu_state(state)
+        self._real_values[: self._n_real] = state["real"]
         for name, value in state["other"].items():
             setattr(self, name, value)
         for name, saved in state["attrs"].items():
@@ -639,13 +621,54 @@ class FmuSlave(Fmi2Slave):
             else:
                 setattr(self, name, copy.deepcopy(saved))
 
+    def _check_fmu_state(self, state: Any) -> None:
+        """Raise FmuStateError unless ``state`` fits this slave exactly."""
+        who = f"slave {self.instance_name!r} ({type(self).__name__})"
+        if not isinstance(state, dict) or set(state) != {"real", "other", "attrs"}:
+            raise FmuStateError(f"FMU state for {who} is not a dict with keys real, other, "
+                                "attrs")
+        real = state["real"]
+        if not isinstance(real, np.ndarray) or real.dtype != np.float64 or real.ndim != 1:
+            raise FmuStateError(f"FMU state for {who} has Real values of type "
+                                f"{type(real).__name__}; expected a 1-d float64 array")
+        if real.shape != (self._n_real,):
+            raise FmuStateError(f"FMU state holds {real.shape[0]} Real values; {who} has "
+                                f"{self._n_real}")
+        kinds = {name: var_type for name, var_type in self._other_attr.values()}
+        other = state["other"]
+        if not isinstance(other, dict) or set(other) != set(kinds):
+            got = sorted(other) if isinstance(other, dict) else type(other).__name__
+            raise FmuStateError(f"FMU state for {who} has Integer/Boolean/String variables "
+                                f"{got}; expected {sorted(kinds)}")
+        py_types = {Integer: (int,), Boolean: (bool,), String: (str,)}
+        for name, value in other.items():
+            expected = py_types[kinds[name]]
+            if not isinstance(value, expected) or (expected == (int,) and isinstance(value, bool)):
+                raise FmuStateError(f"FMU state for {who} sets {kinds[name].__name__} "
+                                    f"{name!r} to a {type(value).__name__}")
+        attrs = state["attrs"]
+        names = set(type(self).state_attributes)
+        if not isinstance(attrs, dict) or set(attrs) != names:
+            got = sorted(attrs) if isinstance(attrs, dict) else type(attrs).__name__
+            raise FmuStateError(f"FMU state for {who} has state attributes {got}; expected "
+                                f"{sorted(names)}")
+        for name, saved in attrs.items():
+            current = getattr(self, name, None)
+            if isinstance(current, np.ndarray) and current.flags.writeable and (
+                    not isinstance(saved, np.ndarray) or saved.shape != current.shape):
+                shape = saved.shape if isinstance(saved, np.ndarray) else type(saved).__name__
+                raise FmuStateError(f"FMU state for {who} gives attribute {name!r} as {shape}; "
+                                    f"expected an array of shape {current.shape}")
+
     @staticmethod
     def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
-        return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+        """Serialize a snapshot into the data-only layout of :mod:`fmukit.state`."""
+        return encode_state(state)
 
     @staticmethod
     def _fmu_state_from_bytes(data: bytes) -> dict[str, Any]:
-        state = _Unpickler(io.BytesIO(data)).load()
+        """Rebuild a snapshot from bytes; :class:`FmuStateError` if they are not one."""
+        state = decode_state(data)
         if not isinstance(state, dict) or set(state) != {"real", "other", "attrs"}:
             raise FmuStateError("serialized FMU state is not a dict with keys real, other, "
                                 "attrs")

@@ -227,7 +227,7 @@ def run_libcosim(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n
         if proc.returncode != 0 or not out.is_file():
             raise HostError(f"libcosim run of {Path(fmu).name} failed (exit "
                             f"{proc.returncode}): {proc.stderr.strip()[-2000:]}")
-        return np.load(out)
+        return np.load(out, allow_pickle=False)
 
 
 def _run_libcosim_here(fmu, *, outputs, step_size, n_steps, inputs=None, parameters=None):
@@ -272,7 +272,7 @@ def _child_main(job_path: str) -> None:
     import json
     import os
 
-    with np.load(job_path) as job:
+    with np.load(job_path, allow_pickle=False) as job:
         spec = json.loads(str(job["spec"]))
         u = job["u"]
     inputs = {name: u[:, i] for i, name in enumerate(spec["in_names"])}

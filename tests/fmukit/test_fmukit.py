@@ -94,10 +94,10 @@ def test_state_round_trip_covers_internal_arrays_bit_for_bit():
         assert s.get_real(list(range(9, 13))) == first
 
 
-def test_serialized_state_refuses_foreign_objects():
+def test_serialized_state_refuses_pickles():
     import pickle
 
-    with pytest.raises(FmuStateError, match="system"):
+    with pytest.raises(FmuStateError, match="serialized FMU state is invalid"):
         ToyFilter._fmu_state_from_bytes(pickle.dumps({"real": __import__("os").system}))
 
 
@@ -187,6 +187,29 @@ def test_fmpy_get_set_and_serialized_state_reproduce_outputs_bit_for_bit(fmu):
     assert np.any(first != 0.0)
     s.freeFMUstate(state)
     s.freeFMUstate(restored)
+    s.terminate()
+    s.freeInstance()
+
+
+@pytest.mark.slow
+def test_crafted_state_bytes_through_fmpy_run_nothing_and_fail_cleanly(fmu, tmp_path):
+    """Issue 12: a pickle handed to fmi2DeSerializeFMUstate once ran a shell command."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    from test_state import crafted_pickle
+
+    md = read_model_description(str(fmu))
+    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu), unzipdir=tmp_path / "x"),
+                  modelIdentifier="ToyFilterFmu", instanceName="s")
+    s.instantiate()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.exitInitializationMode()
+    marker = tmp_path / "pwned"
+    with pytest.raises(Exception, match="fmi2DeSerializeFMUstate"):
+        s.deSerializeFMUstate(crafted_pickle(marker))
+    assert not marker.exists()
+    s.doStep(0.0, H)  # the instance is still usable
     s.terminate()
     s.freeInstance()
 

@@ -37,9 +37,6 @@ import ctypes
 import gc
 import hashlib
 import math
-import os
-import shutil
-import tempfile
 import time as _time
 import warnings
 from dataclasses import dataclass, field
@@ -1007,21 +1004,13 @@ class Simulation:
 
 
 def _extracted(info: FmuInfo) -> str:
-    """Extract an FMU once per content hash into the temp folder and return the folder.
+    """Folder of the FMU unpacked in the private cache, checked against its hash.
 
     Runs in one process reuse the folder, so the FMU's shared library is loaded once.
     """
-    from fmpy import extract
+    from orchestrator.fmucache import extract_cached
 
-    dest = Path(tempfile.gettempdir()) / f"jitterfmu-fmu-{info.sha256[:16]}"
-    if not (dest / "modelDescription.xml").is_file():
-        tmp = tempfile.mkdtemp(prefix="jitterfmu-fmu-", dir=tempfile.gettempdir())
-        extract(str(info.path), unzipdir=tmp)
-        try:
-            os.replace(tmp, dest)
-        except OSError:  # extracted concurrently by another process
-            shutil.rmtree(tmp, ignore_errors=True)
-    return str(dest)
+    return str(extract_cached(info.path, info.sha256, kind="fmu"))
 
 
 def _bind_loop(prog, due):

@@ -11,7 +11,6 @@ that other tools ignore.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import tempfile
 import xml.etree.ElementTree as ET
@@ -221,23 +220,13 @@ def _convert(text: str, t: str, where: str):
 
 
 def _extract(path: Path) -> Path:
-    """Extract an archive once into a cache folder keyed by its content hash."""
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-    dest = Path(tempfile.gettempdir()) / f"jitterfmu-ssp-{digest}"
-    if not (dest / "SystemStructure.ssd").is_file():
-        tmp = Path(tempfile.mkdtemp(prefix="jitterfmu-ssp-", dir=tempfile.gettempdir()))
-        try:
-            with zipfile.ZipFile(path) as z:
-                z.extractall(tmp)
-        except zipfile.BadZipFile:
-            raise ScenarioError(f"SSP file {str(path)!r} is not a zip archive") from None
-        if not (tmp / "SystemStructure.ssd").is_file():
-            raise ScenarioError(f"SSP file {str(path)!r} has no SystemStructure.ssd")
-        try:
-            os.replace(tmp, dest)
-        except OSError:  # another process extracted it first
-            pass
-    return dest
+    """Unpack an archive once per content hash into the private extraction cache."""
+    from orchestrator.fmucache import CacheError, extract_cached
+
+    try:
+        return extract_cached(path, kind="ssp", required="SystemStructure.ssd")
+    except CacheError as exc:
+        raise ScenarioError(str(exc)) from None
 
 
 def read_ssp(path) -> Scenario:

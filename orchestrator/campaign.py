@@ -135,6 +135,18 @@ METRIC_KINDS = {
     "rms": "RMS about the record mean (no window)",
 }
 RSS_EVENT = "RSS"
+# Valid keys of every table of a campaign file.
+_KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metrics",
+         "requirements")
+_CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm")
+_ITEM_KEYS = {
+    "events": ("name", "overrides"),
+    "configurations": ("name", "overrides"),
+    "sweeps": ("parameter", "values"),
+    "instruments": ("name", "axes", "requirement"),
+    "metrics": ("kind", "windows", "window"),
+    "requirements": ("instrument", "value", "axis", "metric", "window"),
+}
 _STATUS_FILE = "case.json"
 
 
@@ -231,6 +243,31 @@ def _canonical(obj) -> str:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
 
 
+def _check_requirement(r: dict, number: int, axes: dict, metrics: list) -> None:
+    """A requirement's axis, metric and window must match something, else it never applies."""
+    from .scenario import closest
+
+    what = f"requirement {number} ({r['instrument']})"
+    if "axis" in r and r["axis"] not in axes:
+        raise CampaignError(f"{what} has axis {r['axis']!r}{closest(r['axis'], axes)}; "
+                            f"expected one of {', '.join(axes)}")
+    if "metric" in r and r["metric"] not in METRIC_KINDS:
+        raise CampaignError(f"{what} has metric {r['metric']!r}{closest(r['metric'], METRIC_KINDS)}"
+                            f"; expected one of {', '.join(METRIC_KINDS)}")
+    if "window" in r:
+        w = r["window"]
+        windows = sorted({win for kind, win in metrics if win is not None
+                          and r.get("metric", kind) == kind})
+        if not (isinstance(w, (int, float)) and not isinstance(w, bool)
+                and any(math.isclose(float(w), win) for win in windows)):
+            raise CampaignError(f"{what} has window {w!r} s, which no [[metrics]] entry "
+                                f"computes; expected one of {windows}")
+    value = r["value"]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
+            or not math.isfinite(value):
+        raise CampaignError(f"{what} has value {value!r}; expected a positive number")
+
+
 def _overrides(item, what: str) -> dict:
     ov = item.get("overrides", {})
     if not isinstance(ov, dict):
@@ -241,12 +278,30 @@ def _overrides(item, what: str) -> dict:
     return dict(ov)
 
 
-def _named(items, what: str) -> list:
+def _check_keys(table, allowed, what: str) -> None:
+    from .scenario import check_keys
+
+    check_keys(table, allowed, what, CampaignError)
+
+
+def _table_list(items, what: str, allowed) -> list:
+    """Check an array of tables ``[[what]]`` and the keys of each of its tables."""
     if not isinstance(items, list):
         raise CampaignError(f"{what} must be an array of tables ([[{what}]])")
+    for i, it in enumerate(items):
+        if not isinstance(it, dict):
+            raise CampaignError(f"[[{what}]] entry {i + 1} is a {type(it).__name__}; expected "
+                                "a table")
+        label = f" ({it['name']!r})" if isinstance(it.get("name"), str) else ""
+        _check_keys(it, allowed, f"[[{what}]] entry {i + 1}{label}")
+    return items
+
+
+def _named(items, what: str) -> list:
+    _table_list(items, what, _ITEM_KEYS[what])
     names = []
     for i, it in enumerate(items):
-        if not isinstance(it, dict) or "name" not in it:
+        if "name" not in it:
             raise CampaignError(f"{what} entry {i + 1} has no 'name'")
         names.append(str(it["name"]))
     if len(set(names)) != len(names):
@@ -290,10 +345,8 @@ def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:
     head = data.get("campaign")
     if not isinstance(head, dict):
         raise CampaignError("campaign file has no [campaign] table")
-    known = {"name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm"}
-    for k in head:
-        if k not in known:
-            raise CampaignError(f"[campaign] has an unknown key {k!r}; expected {sorted(known)}")
+    _check_keys(data, _KEYS, "campaign file")
+    _check_keys(head, _CAMPAIGN_KEYS, "[campaign]")
     name = str(head.get("name", "campaign"))
     scen = head.get("scenario")
     if isinstance(scen, str):
@@ -330,9 +383,7 @@ def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:
     cf_names = _named(configurations, "configurations")
     if RSS_EVENT in ev_names:
         raise CampaignError(f"event name {RSS_EVENT!r} is reserved for the RSS total")
-    sweeps = data.get("sweeps", [])
-    if not isinstance(sweeps, list):
-        raise CampaignError("sweeps must be an array of tables ([[sweeps]])")
+    sweeps = _table_list(data.get("sweeps", []), "sweeps", _ITEM_KEYS["sweeps"])
     axes_sweep = []
     for i, s in enumerate(sweeps):
         if not isinstance(s, dict) or "parameter" not in s or not s.get("values"):
@@ -342,6 +393,7 @@ def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:
     instruments = data.get("instruments")
     if not isinstance(instruments, list) or not instruments:
         raise CampaignError("campaign has no [[instruments]] (name and axes of recorded LOS)")
+    _table_list(instruments, "instruments", _ITEM_KEYS["instruments"])
     inst_map = {}
     shorthand = []
     for i, it in enumerate(instruments):
@@ -354,6 +406,7 @@ def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:
             shorthand.append({"instrument": str(it["name"]), "value": it["requirement"]})
 
     metric_items = data.get("metrics", [{"kind": "peak_to_peak", "windows": [1.0]}])
+    _table_list(metric_items, "metrics", _ITEM_KEYS["metrics"])
     metrics = []
     for i, m in enumerate(metric_items):
         kind = m.get("kind") if isinstance(m, dict) else None
@@ -373,14 +426,17 @@ def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:
             metrics.append((kind, float(w)))
 
     reqs = []
-    for i, r in enumerate(list(data.get("requirements", [])) + shorthand):
-        if not isinstance(r, dict) or "instrument" not in r or "value" not in r:
+    explicit = _table_list(data.get("requirements", []), "requirements",
+                           _ITEM_KEYS["requirements"])
+    for i, r in enumerate(list(explicit) + shorthand):
+        if "instrument" not in r or "value" not in r:
             raise CampaignError(f"requirement {i + 1} needs 'instrument' and 'value'")
         if r["instrument"] not in inst_map:
             raise CampaignError(
                 f"requirement {i + 1} names unknown instrument {r['instrument']!r} "
                 f"(instruments: {sorted(inst_map)})"
             )
+        _check_requirement(r, i + 1, inst_map[r["instrument"]], metrics)
         reqs.append(dict(r))
 
     cases = []

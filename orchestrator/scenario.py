@@ -56,6 +56,7 @@ __all__ = [
     "scenario_from_dict",
     "parse_override",
     "closest",
+    "check_keys",
 ]
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
@@ -327,10 +328,25 @@ def _expect_table(value, what: str) -> dict:
     return value
 
 
-def _unknown_keys(table: dict, allowed, what: str) -> None:
+def check_keys(table, allowed, what: str, error: type[Exception] = ScenarioError) -> None:
+    """Raise ``error`` naming the first key of ``table`` not in ``allowed``.
+
+    Parameters
+    ----------
+    table : mapping
+        A table read from a scenario or campaign file.
+    allowed : iterable of str
+        Its valid keys.
+    what : str
+        How the message names the table, e.g. ``"[experiment]"``.
+    error : exception class
+        Raised with one sentence: the key, the closest valid keys, all valid keys.
+    """
+    allowed = tuple(allowed)
     for key in table:
         if key not in allowed:
-            raise ScenarioError(f"{what} has an unknown key {key!r}{closest(key, allowed)}")
+            raise error(f"{what} has an unknown key {key!r}{closest(key, allowed)}; expected "
+                        f"one of {', '.join(allowed)}")
 
 
 def _parse_instance(name: str, spec) -> Instance:
@@ -338,7 +354,7 @@ def _parse_instance(name: str, spec) -> Instance:
     if not _NAME.match(name):
         raise ScenarioError(f"instance name {name!r} is not an identifier (letters, digits, _)")
     spec = _expect_table(spec, what)
-    _unknown_keys(spec, ("fmu", "period", "rate_hz", "parameters"), what)
+    check_keys(spec, ("fmu", "period", "rate_hz", "parameters"), what)
     if "fmu" not in spec:
         raise ScenarioError(f"{what} has no 'fmu' (an FMU name in fmus/ or a path)")
     if ("period" in spec) == ("rate_hz" in spec):
@@ -365,7 +381,7 @@ def _parse_instance(name: str, spec) -> Instance:
 def _parse_connection(i: int, spec, names) -> Connection:
     what = f"connection {i + 1}"
     spec = _expect_table(spec, what)
-    _unknown_keys(spec, ("from", "to", "gain", "offset"), what)
+    check_keys(spec, ("from", "to", "gain", "offset"), what)
     for key in ("from", "to"):
         if key not in spec:
             raise ScenarioError(f"{what} has no '{key}' ('instance.variable')")
@@ -387,7 +403,7 @@ def _parse_connection(i: int, spec, names) -> Connection:
 def _parse_action(i: int, spec, names) -> Action:
     what = f"action {i + 1}"
     spec = _expect_table(spec, what)
-    _unknown_keys(spec, ("time", "set"), what)
+    check_keys(spec, ("time", "set"), what)
     if "time" not in spec or "set" not in spec:
         raise ScenarioError(f"{what} needs 'time' (s) and 'set' (a table of values)")
     t = _time(spec["time"], f"{what} time")
@@ -418,9 +434,9 @@ def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Sce
     Scenario
     """
     data = _expect_table(data, "scenario")
-    _unknown_keys(data, ("experiment", "fmus", "connections", "actions", "record"), source)
+    check_keys(data, ("experiment", "fmus", "connections", "actions", "record"), source)
     exp = _expect_table(data.get("experiment", {}), "[experiment]")
-    _unknown_keys(exp, ("start", "stop", "output_interval", "algorithm"), "[experiment]")
+    check_keys(exp, ("start", "stop", "output_interval", "algorithm"), "[experiment]")
     for key in ("stop", "output_interval"):
         if key not in exp:
             raise ScenarioError(f"[experiment] has no '{key}' (s)")
@@ -446,7 +462,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Sce
     actions = tuple(sorted((_parse_action(i, a, names) for i, a in enumerate(acts)),
                            key=lambda a: a.time))
     rec = _expect_table(data.get("record", {}), "[record]")
-    _unknown_keys(rec, ("variables",), "[record]")
+    check_keys(rec, ("variables",), "[record]")
     variables = rec.get("variables", [])
     if not isinstance(variables, list):
         raise ScenarioError("record.variables must be an array of 'instance.variable' strings")

@@ -158,6 +158,79 @@ def test_bad_campaigns_are_rejected_with_the_culprit_named():
         campaign_from_dict(d)
 
 
+def _set(path, value):
+    """Return an edit that sets ``data[path[0]][path[1]]... = value``."""
+    def edit(d):
+        target = d
+        for key in path[:-1]:
+            target = target[key]
+        target[path[-1]] = value
+    return edit
+
+
+@pytest.mark.parametrize("edit, message", [
+    # issue 12: this typo ran the event unexcited, "pass" at 0 arcsec, exit status 0
+    (lambda d: d["events"][0].update(overide=d["events"][0].pop("overrides")),
+     r"\[\[events\]\] entry 1 \('event0'\) has an unknown key 'overide' \(did you mean "
+     r"'overrides'\?\); expected one of name, overrides"),
+    (lambda d: d["metrics"][0].update(windos=[1.0]),
+     r"\[\[metrics\]\] entry 1 has an unknown key 'windos' \(did you mean 'windows' or "
+     r"'window'.*\?\); expected one of kind, windows, window"),
+    (lambda d: d["configurations"][1].update(overides={}),
+     r"\[\[configurations\]\] entry 2 \('isolation on'\) has an unknown key 'overides'"),
+    (lambda d: d["instruments"][0].update(axis={}), r"\[\[instruments\]\] entry 1 \('A'\) "
+     r"has an unknown key 'axis' \(did you mean 'axes'\?\); expected one of name, axes, "
+     r"requirement"),
+    (lambda d: d["requirements"][0].update(windw=0.2),
+     r"\[\[requirements\]\] entry 1 has an unknown key 'windw'"),
+    (lambda d: d.update(sweeps=[{"parameter": "sc.mass", "value": [1.0]}]),
+     r"\[\[sweeps\]\] entry 1 has an unknown key 'value' \(did you mean 'values'\?\)"),
+    (lambda d: d["campaign"].update(skp=0.1),
+     r"\[campaign\] has an unknown key 'skp' \(did you mean 'skip'.*\?\); expected one of "
+     r"name, scenario, unit, skip, stop, output_interval, algorithm"),
+    (lambda d: d.update(event=[]),
+     r"campaign file has an unknown key 'event' \(did you mean 'events'\?\)"),
+    (lambda d: d["requirements"][0].update(metric="peak2peak"),
+     r"requirement 1 \(A\) has metric 'peak2peak' \(did you mean 'peak_to_peak'\?\)"),
+    (lambda d: d["requirements"][0].update(axis="pich"),
+     r"requirement 1 \(A\) has axis 'pich' \(did you mean 'pitch'\?\); expected one of "
+     r"pitch, yaw"),
+    (lambda d: d["requirements"][0].update(window=0.3),
+     r"requirement 1 \(A\) has window 0.3 s, which no \[\[metrics\]\] entry computes; "
+     r"expected one of \[0.2\]"),
+    (lambda d: d["requirements"][0].update(value="1"), r"has value '1'; expected a positive"),
+    (lambda d: d["events"].append(3), r"\[\[events\]\] entry 4 is a int; expected a table"),
+])
+def test_campaign_typos_are_rejected_in_one_sentence(edit, message):
+    d = campaign_data()
+    edit(d)
+    with pytest.raises(CampaignError, match=message) as info:
+        campaign_from_dict(d)
+    assert "\n" not in str(info.value)
+
+
+def test_campaign_typo_in_a_toml_file_fails_the_cli_before_any_case(tmp_path, capsys):
+    import tomli_w
+
+    data = campaign_data()
+    data["events"][0]["overide"] = data["events"][0].pop("overrides")
+    path = tmp_path / "c.toml"
+    path.write_text(tomli_w.dumps(data))
+    code = cli_main(["campaign", str(path), "--out", str(tmp_path / "o"), "--workers", "0",
+                     "--runner", f"{__name__}:synthetic_runner", "--quiet"])
+    assert code != 0
+    assert "unknown key 'overide'" in capsys.readouterr().err
+    assert not (tmp_path / "o" / "summary.parquet").exists()
+
+
+def test_shipped_campaigns_still_load():
+    from orchestrator.campaign import load_campaign
+
+    root = Path(__file__).resolve().parents[2] / "campaigns"
+    for path in sorted(root.glob("*.toml")):
+        assert load_campaign(path).cases
+
+
 # ----------------------------------------------------------------------------- results
 
 

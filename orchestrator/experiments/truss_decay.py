@@ -7,6 +7,10 @@ control.  Damping is identified from the free decay by fitting two exponentially
 decaying sinusoids to each gauge; "cycles to 90 %" is the time after 4.5 s until the
 one-period running peak of the gauge strain stays below 10 % of its value over the last
 excitation period, times the mode frequency.
+
+The absorbers are tuned on that decay itself (:func:`tune`), on the scenario's linear
+closed loop (:mod:`orchestrator.analysis`), which matches the co-simulation to about
+1e-14.
 """
 
 from __future__ import annotations
@@ -81,6 +85,124 @@ def cycles_to_fraction(t, y, f_hz, t0=T_EXC, fraction=0.1):
     return float((t[after[0]] - t0) * f_hz)
 
 
+CONTROLLERS = ("ctrl_diag", "ctrl_long")
+RECORD = ("structure.strain_diag", "structure.strain_long", "ctrl_diag.u1", "ctrl_long.u1")
+
+
+def linear_decay(lin, laws=None, after=3.0):
+    """Cycles to 90 % decay of both gauges on the scenario's linear closed loop.
+
+    The excitation of the co-simulation (10 V sines at 8.4 / 9.5 Hz for 4.5 s) drives
+    the loop with both controllers off, then their states start from zero and the loop
+    closes, exactly as ``t_on = 4.5`` does in the FMUs.
+
+    Parameters
+    ----------
+    lin : orchestrator.analysis.LinearScenario
+        ``linearize(SCENARIO)``.
+    laws : dict of str to DiscreteLaw, optional
+        Laws to use instead of the FMUs' (keys ``ctrl_diag``, ``ctrl_long``).
+    after : float
+        Simulated time after the switch-on (s).
+
+    Returns
+    -------
+    cycles : dict of str to float or None
+        ``{"diagonal": ..., "longeron": ...}``.
+    peak_voltage : float
+        Largest controller command after the switch-on (V).
+    """
+    from distfmu.excitation import sine_burst
+
+    for name, law in (laws or {}).items():
+        lin = lin.with_law(name, law)
+    off = lin
+    for name in CONTROLLERS:
+        off = off.with_gain(name, 0.0)
+    n_exc = int(round(T_EXC / lin.base))
+
+    def w(name, k):
+        t = k * lin.base
+        return np.array([sine_burst(t, 10.0, 8.4, 0.0, T_EXC),
+                         sine_burst(t, 10.0, 9.5, 0.0, T_EXC)])
+
+    y0, x = off.simulate(n_exc, w=w, record=RECORD)
+    for name in CONTROLLERS:
+        x[lin.slots[name][0]] = 0.0          # t_on: the law starts from rest
+    y1, _ = lin.simulate(int(round(after / lin.base)), x0=x, record=RECORD)
+    y = np.vstack([y0, y1])
+    t = np.arange(len(y)) * lin.base
+    cycles = {m: cycles_to_fraction(t, y[:, i], f0)
+              for i, (m, (_, f0)) in enumerate(MODES.items())}
+    return cycles, float(np.abs(y1[:, 2:]).max())
+
+
+def tune(fmu_dir="fmus", starts=None):
+    """Absorber tuning, damping and loop gain of both members on the closed-loop decay.
+
+    Minimises the larger of the two gauges' cycles to 90 % decay
+    (:func:`linear_decay`, both loops and both amplifiers in the loop, Eq. 11's delay)
+    by Nelder-Mead from a few starts; unstable loops and commands above 900 V are
+    penalised.  About a minute.  The result is what ``ctrlfmu.designs.TRUSS10_DIAG``
+    and ``TRUSS10_LONG`` store (rounded to two decimals).
+
+    Returns
+    -------
+    dict
+        ``{"diag": {...}, "long": {...}, "cycles": {...}, "peak_voltage_v": float}``.
+    """
+    from scipy.optimize import minimize
+
+    from ctrlfmu.designs import TRUSS10_DIAG, TRUSS10_LONG, truss10_strain_diag, \
+        truss10_strain_long
+    from orchestrator.analysis import linearize
+    from orchestrator.fmucache import ensure_fmus
+
+    ensure_fmus(FMUS, fmu_dir)
+    lin = linearize(SCENARIO, fmu_dir=fmu_dir)
+    keys = ("tuning", "zeta", "loop_gain")
+
+    def laws(p):
+        return {"ctrl_diag": truss10_strain_diag(**dict(zip(keys, p[:3]))),
+                "ctrl_long": truss10_strain_long(**dict(zip(keys, p[3:])))}
+
+    def objective(p):
+        if min(p) <= 0:
+            return 1e3
+        ls = laws(p)
+        trial = lin.with_law("ctrl_diag", ls["ctrl_diag"]).with_law("ctrl_long", ls["ctrl_long"])
+        if not trial.is_stable():
+            return 1e3
+        cycles, volts = linear_decay(trial)
+        if None in cycles.values():
+            return 1e3
+        return max(cycles.values()) + 0.01 * sum(cycles.values()) + 0.1 * max(0.0, volts - 900)
+
+    starts = starts or [[TRUSS10_DIAG[k] for k in keys] + [TRUSS10_LONG[k] for k in keys],
+                        [0.8, 0.5, 0.6, 0.8, 0.5, 0.6]]
+    best = min((minimize(objective, s, method="Nelder-Mead",
+                         options={"maxfev": 250, "xatol": 1e-3, "fatol": 1e-3})
+                for s in starts), key=lambda r: r.fun)
+    cycles, volts = linear_decay(lin, laws(best.x))
+    return {"diag": dict(zip(keys, best.x[:3].tolist())),
+            "long": dict(zip(keys, best.x[3:].tolist())),
+            "cycles": cycles, "peak_voltage_v": volts}
+
+
+def linear_prediction(fmu_dir="fmus") -> dict:
+    """What the linear closed loop predicts for the shipped laws (see ``analyze``)."""
+    from orchestrator.analysis import linearize
+
+    lin = linearize(SCENARIO, fmu_dir=fmu_dir)
+    cycles, volts = linear_decay(lin)
+    margins = {c: lin.gain_margins(c) for c in CONTROLLERS}
+    poles = [p for p in lin.poles() if 3.0 <= p.freq_hz <= 20.0 and p.z.imag > 0]
+    return {"cycles_to_90pct": cycles, "peak_voltage_v": volts,
+            "gain_margin_db": {c: m.upper_db for c, m in margins.items()},
+            "lower_gain_factor": {c: m.lower for c, m in margins.items()},
+            "poles_3_20_hz": [{"freq_hz": p.freq_hz, "damping": p.zeta} for p in poles]}
+
+
 def _run(fmu_dir, stop: float, gain: float):
     from orchestrator.master import run_scenario
 
@@ -139,7 +261,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
     data = compute(fmu_dir, quick)
     plot(data, Path(out_dir))
     cycles = data["closed_loop_cycles_to_90pct"]
-    reproduced = all(c is not None and c <= 3 for c in cycles.values())
+    reproduced = (all(c is not None and c <= 2.0 for c in cycles.values())
+                  and not data["saturated"])
     return {
         "open_loop_damping": data["open_loop_damping"],
         "closed_loop_cycles_to_90pct": cycles,
@@ -147,14 +270,14 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
         "peak_voltage_v": data["peak_voltage_v"],
         "saturated": data["saturated"],
         "fits": data["fits"],
+        "linear_prediction": linear_prediction(fmu_dir),
         "paper": {"open_loop_damping": {"diagonal": 0.0018, "longeron": 0.004},
                   "closed_loop_cycles_to_90pct": 2},
         "reproduces_paper_cycles": reproduced,
-        "note": ("" if reproduced else
-                 "with Eq. 11's one-sample delay at 250 Hz the SISO virtual-absorber "
-                 "designs reach only a few percent closed-loop damping on this model's "
-                 "gauge-strain plant (a Ritz-captured zero near 5.6 Hz sits below the "
-                 "modes), so the slower member takes more cycles than the paper's "
-                 "simulation; see docs/controllers.md"),
+        "note": ("Both members decay to 10 % within the paper's two cycles with Eq. 11's "
+                 "one-sample delay at 250 Hz, amplifiers in the loop and no saturation; "
+                 "the absorbers are tuned on this decay with both loops closed "
+                 "(truss_decay.tune)." if reproduced else
+                 "Not reproduced: see linear_prediction and docs/controllers.md."),
         "figures": ["truss-decay-open-loop.png", "truss-decay-closed-loop.png"],
     }

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ctrlfmu import designs
-from ctrlfmu.analysis import closed_loop, mode_damping, optimise_gain
+from ctrlfmu.analysis import closed_loop
 from structfmu.models import truss10
 
 
@@ -19,18 +19,14 @@ def test_stored_plant_gains_match_the_model(plants):
     assert abs(control.dcgain(plants["long"])) == pytest.approx(designs.LONG_PLANT_GAIN, rel=1e-3)
 
 
-@pytest.mark.parametrize("act, mode, fn", [("diag", 8.4, designs.truss10_strain_diag),
-                                           ("long", 9.5, designs.truss10_strain_long)])
-def test_default_design_is_the_optimum_and_damps_the_mode(plants, act, mode, fn):
-    law = fn()
-    res = optimise_gain(plants[act], law, mode, gain_range=(0.1, 10), n_grid=41)
-    # the stored loop gain is the optimum of the damping objective (gain factor ~1)
-    assert res.gain == pytest.approx(1.0, rel=0.05)
-    # the mode's own closed-loop damping is at least ten times the open loop's
-    poles = closed_loop(plants[act], law).poles()
-    f_n, zeta = mode_damping(poles, law.dt)
-    near = (f_n > 0.7 * mode) & (f_n < 1.4 * mode)
-    assert zeta[near].min() > 10 * res.open_loop_damping
+@pytest.mark.parametrize("act, fn", [("diag", designs.truss10_strain_diag),
+                                    ("long", designs.truss10_strain_long)])
+def test_default_design_is_stable_alone_on_its_plant(plants, act, fn):
+    # The stored tuning is chosen on the decay with both loops and both amplifiers in
+    # the loop (tests/orchestrator/test_analysis.py); each law alone on its own
+    # member's voltage-to-strain plant must still be a stable loop.
+    poles = closed_loop(plants[act], fn()).poles()
+    assert np.all(np.abs(poles) < 1)
 
 
 def test_dc_gain_sign_would_destabilise(plants):

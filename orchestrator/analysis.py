@@ -1,0 +1,830 @@
+"""Attenuation design: the linear closed loop of a scenario, before any tuning.
+
+A scenario's FMUs are replaced by the linear, exactly discretised models they step
+(:func:`linearize`): the reduced structure (the FMU's own ``model.npz``, ZOH at its
+period, accelerometer low-pass included), the piezo amplifiers (their low-pass over the
+internal sub-steps, ``f = c h v``, rails and slew limit assumed inactive), the control
+laws of Eq. (11) (the FMU's ``law.npz`` with its ``gain``; controllers assumed on) and
+the attitude controller (PID with its one-sample delay).  Sources (disturbances,
+excitation) become exogenous inputs.  The models are assembled tick by tick with the
+master's Gauss–Seidel rules (:mod:`orchestrator.master`): an instance due at a tick
+publishes its outputs at ``t_k``, reads its inputs in feedthrough order, then steps;
+between its ticks its outputs hold.  Over one hyperperiod ``T`` of the periods this
+gives an exact linear map ``X(T) = Phi X(0) + Gamma w`` of everything the co-simulation
+carries, from which:
+
+* :meth:`LinearScenario.poles` -- closed-loop poles, frequency and damping;
+* :meth:`LinearScenario.gain_margins` -- the factor on one controller's ``gain`` at
+  which the loop goes unstable (up and down), with every other loop closed;
+* :meth:`LinearScenario.decay` -- cycles to 90 % decay of the pole nearest a mode;
+* :meth:`LinearScenario.frequency_response` -- steady-state response to a harmonic
+  exogenous input (the fundamental, exact for single-rate loops);
+* :func:`ceiling` -- the ideal ceiling: the largest reduction of a performance output
+  under a harmonic disturbance that any controller driving the chosen actuators could
+  reach, either by cancelling the chosen sensor signals perfectly (``"cancel"``) or by
+  the best actuator commands at each frequency (``"optimal"``, a bound no causal
+  controller can beat).
+
+``jitterfmu analyze SCENARIO`` prints these as a table.
+
+Example
+-------
+>>> from orchestrator.analysis import linearize             # doctest: +SKIP
+>>> lin = linearize("scenarios/truss10_closed_loop.toml")   # doctest: +SKIP
+>>> lin.decay(8.4).cycles_to_90pct                          # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import tempfile
+import zipfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+__all__ = [
+    "AnalysisError",
+    "Block",
+    "LinearScenario",
+    "Pole",
+    "Margins",
+    "Decay",
+    "Ceiling",
+    "linearize",
+    "ceiling",
+    "report",
+]
+
+_LN10 = math.log(10.0)
+
+
+class AnalysisError(ValueError):
+    """A scenario cannot be analysed as a linear closed loop."""
+
+
+# ---------------------------------------------------------------------------------------
+# Blocks: one discrete LTI per FMU instance, at its own period
+
+
+@dataclass(frozen=True, eq=False)
+class Block:
+    """One instance as a discrete linear system at its communication period.
+
+    ``x+ = A x + B u``, ``y = C x + D u`` with ``u`` the inputs held over the step.
+
+    Parameters
+    ----------
+    name : str
+        Instance name.
+    kind : str
+        ``"structure"``, ``"piezo"``, ``"controller"``, ``"acs"`` or ``"source"``.
+    period : int
+        Period in base ticks.
+    A, B, C, D : ndarray
+        Shapes ``(n, n)``, ``(n, n_in)``, ``(n_out, n)``, ``(n_out, n_in)``.
+    inputs, outputs : tuple of str
+        FMU variable names of ``u`` and ``y``.
+    feedthrough : ndarray of bool, shape (n_out,)
+        Outputs the FMU declares as depending on an input (read after the inputs are
+        set at the tick); the others are read as stamped at ``t_k``.
+    rebuild : callable, optional
+        ``rebuild(factor) -> Block`` with the controller's command scaled by ``factor``.
+    """
+
+    name: str
+    kind: str
+    period: int
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    inputs: tuple
+    outputs: tuple
+    feedthrough: np.ndarray
+    rebuild: Callable | None = field(default=None, repr=False)
+
+    @property
+    def n(self) -> int:
+        return self.A.shape[0]
+
+
+def _lift(A, B, n):
+    """``n`` steps of ``x+ = A x + B u`` with ``u`` held: ``(A^n, sum A^k B)``."""
+    An, Bn = np.eye(A.shape[0]), np.zeros_like(B)
+    for _ in range(n):
+        Bn = A @ Bn + B
+        An = A @ An
+    return An, Bn
+
+
+def _structure_block(slave, name, period, h, ft):
+    from structfmu.discrete import discretize, step
+
+    stepper = slave.stepper
+    model = stepper.model
+    dm = discretize(model, h)
+    n, m = model.n_states, model.n_inputs
+    A = np.column_stack([step(dm, e, np.zeros(m)) for e in np.eye(n)]) if n else np.zeros((0, 0))
+    B = np.column_stack([step(dm, np.zeros(n), e) for e in np.eye(m)])
+    return Block(name, "structure", period, A, B, stepper.C_x.copy(), stepper.D.copy(),
+                 tuple(model.input_names), tuple(model.output_names), ft)
+
+
+def _piezo_block(slave, name, period, h, ft):
+    from piezofmu.amplifier import _coefficients, substeps
+
+    act = slave.actuator()
+    if act.hysteresis is not None:
+        raise AnalysisError(f"instance {name!r} has hysteresis on; the linear analysis "
+                            "needs hysteresis=false")
+    amp, stack = act.amplifier, act.stack
+    n_sub, hs = substeps(h, amp.internal_step)
+    coef = _coefficients(amp, hs)
+    ch = float(stack.force(1.0))
+    cap = stack.capacitance
+    ins = ("v_cmd", "elongation")
+    outs = ("force", "voltage", "current", "free_stroke", "strain")
+    gl = act.gauge.length
+    if amp.order == 1:
+        a = coef[0] ** n_sub
+        A, B = np.array([[a]]), np.array([[1.0 - a, 0.0]])
+        w = amp.omega
+        C = np.array([[ch], [1.0], [-cap * w], [act.stroke_per_volt], [0.0]])
+        D = np.array([[0, 0], [0, 0], [cap * w, 0], [0, 0], [0, 1.0 / gl]], dtype=float)
+    else:
+        a11, a12, a21, a22, b1, b2 = coef
+        A1, B1 = _lift(np.array([[a11, a12], [a21, a22]]), np.array([[b1], [b2]]), n_sub)
+        A, B = A1, np.hstack([B1, np.zeros((2, 1))])
+        C = np.array([[ch, 0], [1.0, 0], [0, cap], [act.stroke_per_volt, 0], [0, 0]])
+        D = np.zeros((5, 2))
+        D[4, 1] = 1.0 / gl
+    return Block(name, "piezo", period, A, B, C, D, ins, outs, ft)
+
+
+def _law_block(law, name, period, h, ft, factor=1.0):
+    from ctrlfmu.law import DiscreteLaw  # noqa: F401  (type of ``law``)
+
+    n_samples = h / law.dt
+    k = round(n_samples)
+    if k < 1 or abs(n_samples - k) > 1e-9 * max(1.0, n_samples):
+        raise AnalysisError(f"controller {name!r} runs at {h} s but its law samples every "
+                            f"{law.dt} s; the linear analysis needs a period that is a "
+                            "multiple of the law's sample time")
+    a, b, c, d = law.A, law.B, law.C * factor, law.D * factor
+    n, n_in, n_out = law.n_states, law.n_inputs, law.n_outputs
+    if law.delayed:   # state [x; u]: u+ = C x + D y, output u
+        As = np.block([[a, np.zeros((n, n_out))], [c, np.zeros((n_out, n_out))]])
+        Bs = np.vstack([b, d])
+        Cs = np.hstack([np.zeros((n_out, n)), np.eye(n_out)])
+        Ds = np.zeros((n_out, n_in))
+        As, Bs = _lift(As, Bs, k)
+    else:
+        if k != 1:
+            raise AnalysisError(f"controller {name!r}: a non-delayed law must run at its "
+                                "own sample time for the linear analysis")
+        As, Bs, Cs, Ds = a, b, c, d
+    ins = tuple(f"y{j + 1}" for j in range(n_in)) + tuple(f"r{i + 1}" for i in range(n_out))
+    outs = tuple(f"u{i + 1}" for i in range(n_out))
+    B = np.hstack([Bs, np.zeros((As.shape[0], n_out))])
+    D = np.hstack([Ds, np.eye(n_out)])   # r is added after the law
+    return Block(name, "controller", period, As, B, Cs, D, ins, outs, ft,
+                 rebuild=lambda f: _law_block(law, name, period, h, ft, factor * f))
+
+
+def _controller_block(slave, name, period, h, ft):
+    slave._apply_parameters()
+    return _law_block(slave.law, name, period, h, ft)
+
+
+def _acs_block(slave, name, period, h, ft):
+    cfg = slave.config()
+    T = cfg.sample_time
+    if abs(h - T) > 1e-9 * T:
+        raise AnalysisError(f"ACS {name!r} communicates every {h} s but samples every {T} s; "
+                            "the linear analysis needs the two equal")
+    g = cfg.gains
+    kp, ki, kd = (np.asarray(v, float) * np.ones(3) for v in (g.kp, g.ki, g.kd))
+    # state [z (3), u (3)]: z+ = z + T e, u+ = -(kp e + kd r + ki z); torque = u
+    A = np.zeros((6, 6))
+    A[:3, :3] = np.eye(3)
+    A[3:, :3] = -np.diag(ki)
+    B = np.zeros((6, 6))
+    B[:3, :3] = T * np.eye(3)
+    B[3:, :3] = -np.diag(kp)
+    B[3:, 3:] = -np.diag(kd)
+    C = np.zeros((6, 6))
+    C[:3, 3:] = np.eye(3)
+    C[3:, :] = 0.0   # wheel speeds: not fed back in the linear analysis
+    ins = ("roll", "pitch", "yaw", "rate_x", "rate_y", "rate_z")
+    outs = ("Tx", "Ty", "Tz", "wheel_speed_x", "wheel_speed_y", "wheel_speed_z")
+    return Block(name, "acs", period, A, B, C, np.zeros((6, 6)), ins, outs, ft)
+
+
+_KINDS = {
+    "structfmu.slave:StructureSlave": _structure_block,
+    "piezofmu.slave:PiezoSlave": _piezo_block,
+    "ctrlfmu.slave:ControllerSlave": _controller_block,
+    "acsfmu.slave:AcsSlave": _acs_block,
+}
+_SOURCES = ("distfmu.slave:DisturbanceSlave", "distfmu.excitation:ExcitationSlave")
+
+
+def _slave_class(resources: Path, fmu_name: str):
+    """The project slave class of an extracted FMU, read from its generated module.
+
+    The module is parsed, never executed: its base-class import names a class of this
+    project's packages, imported from the installed packages; its class attributes
+    (plain literals) are set on a subclass.
+    """
+    import importlib
+
+    scripts = sorted(resources.glob("fmuslave_*.py"))
+    if not scripts:
+        raise AnalysisError(f"FMU {fmu_name} was not built by this project (no generated "
+                            "slave module); the linear analysis knows only its own FMUs")
+    tree = ast.parse(scripts[0].read_text())
+    base, attrs = None, {}
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom) and any(a.asname == "Fmi2Slave" for a in node.names):
+            base = f"{node.module}:{[a.name for a in node.names if a.asname == 'Fmi2Slave'][0]}"
+        if isinstance(node, ast.ClassDef):
+            for st in node.body:
+                if isinstance(st, ast.Assign) and len(st.targets) == 1 \
+                        and isinstance(st.targets[0], ast.Name):
+                    try:
+                        attrs[st.targets[0].id] = ast.literal_eval(st.value)
+                    except ValueError:
+                        pass
+    if base not in _KINDS and base not in _SOURCES:
+        raise AnalysisError(f"FMU {fmu_name} has slave class {base}; the linear analysis "
+                            f"knows {', '.join(list(_KINDS) + list(_SOURCES))}")
+    if base in _SOURCES:
+        return base, None
+    module, cls = base.split(":")
+    klass = getattr(importlib.import_module(module), cls)
+    attrs.pop("default_experiment", None)
+    return base, type(attrs.get("model_identifier", cls), (klass,), attrs)
+
+
+def _instance_block(plan, inst, tmp: Path, base_step: float) -> Block:
+    info = plan.fmus[inst.name]
+    res = tmp / inst.name
+    with zipfile.ZipFile(info.path) as z:
+        for member in z.namelist():
+            if member.startswith("resources/") and not member.endswith("/"):
+                target = res / member[len("resources/"):]
+                if not target.resolve().is_relative_to(res.resolve()):
+                    raise AnalysisError(f"FMU {info.path.name} has an unsafe path {member!r}")
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_bytes(z.read(member))
+    base, klass = _slave_class(res, info.path.name)
+    period = plan.timebase.period_ticks[inst.name]
+    h = float(inst.period)
+    outs = [n for n, v in info.variables.items() if v.causality == "output"]
+    if klass is None:
+        ft = np.zeros(len(outs), bool)
+        z0 = np.zeros((0, 0))
+        return Block(inst.name, "source", period, z0, np.zeros((0, 0)), np.zeros((len(outs), 0)),
+                     np.zeros((len(outs), 0)), (), tuple(outs), ft)
+    slave = klass(instance_name=inst.name, resources=str(res))
+    for pname, value in inst.parameters.items():
+        setattr(slave, pname, value)
+    slave.setup_experiment(float(plan.scenario.experiment.start), None, None)
+    block = _KINDS[base](slave, inst.name, period, h, None)
+    ft = np.array([bool(info.feedthrough.get(o)) for o in block.outputs])
+    return replace(block, feedthrough=ft)
+
+
+# ---------------------------------------------------------------------------------------
+# The assembled scenario
+
+
+@dataclass(frozen=True)
+class Pole:
+    """A closed-loop pole: z-plane value, natural frequency (Hz), damping ratio (-)."""
+
+    z: complex
+    freq_hz: float
+    zeta: float
+
+
+@dataclass(frozen=True)
+class Margins:
+    """Gain margins of one loop: factors on its gain at the stability limits.
+
+    ``upper`` > 1 (``inf`` if none found up to the search limit), ``lower`` < 1
+    (``-inf`` when the loop stays stable down to and through zero gain, i.e. also with
+    the sign flipped, within the search limit).  In dB: ``20 log10(upper)``.
+    """
+
+    instance: str
+    upper: float
+    lower: float
+    stable: bool
+
+    @property
+    def upper_db(self) -> float:
+        return 20 * math.log10(self.upper) if self.upper > 0 else -math.inf
+
+    @property
+    def lower_db(self) -> float:
+        return 20 * math.log10(self.lower) if self.lower > 0 else -math.inf
+
+
+@dataclass(frozen=True)
+class Decay:
+    """Decay of the closed-loop pole nearest a mode."""
+
+    mode_hz: float
+    pole: Pole
+    cycles_to_90pct: float
+
+
+@dataclass(frozen=True)
+class Ceiling:
+    """Ideal ceiling of one performance output under one harmonic disturbance.
+
+    Attributes
+    ----------
+    performance : tuple of str
+    method : str
+        ``"cancel"`` or ``"optimal"``.
+    freqs_hz : ndarray, shape (n_f,)
+    open_loop : ndarray, shape (n_f,)
+        RMS over the performance outputs of the response without control, per frequency.
+    ideal : ndarray, shape (n_f,)
+        Same with the ideal actuator commands.
+    reduction_pct : float
+        ``100 (1 - |ideal| / |open_loop|)`` over all frequencies (RSS, weighted by the
+        disturbance amplitudes).
+    """
+
+    performance: tuple
+    method: str
+    freqs_hz: np.ndarray
+    open_loop: np.ndarray
+    ideal: np.ndarray
+    reduction_pct: float
+
+
+class LinearScenario:
+    """The linear closed loop of a scenario (see the module docstring).
+
+    Build with :func:`linearize`.  The lifted state ``X`` holds, per instance, its state,
+    its held inputs and its published outputs; exogenous inputs ``w`` are the outputs of
+    source instances at their due ticks.
+    """
+
+    def __init__(self, plan, blocks: dict, order: list):
+        self.plan = plan
+        self.blocks = blocks
+        self.order = order                      # Gauss-Seidel step order
+        self.base = float(plan.timebase.base)
+        periods = [b.period for b in blocks.values()]
+        self.hyper = int(np.lcm.reduce(periods)) if periods else 1
+        self.T = self.hyper * self.base
+        self._layout()
+        self._conns = []
+        for c in plan.scenario.connections:
+            src, dst = blocks[c.source], blocks[c.target]
+            if c.target_var not in dst.inputs:
+                continue   # e.g. a Boolean enable: constant in the analysis
+            if c.source_var not in src.outputs:
+                continue
+            self._conns.append((c.target, dst.inputs.index(c.target_var), c.source,
+                                src.outputs.index(c.source_var), float(c.gain)))
+
+    # ------------------------------------------------------------------ layout
+    def _layout(self):
+        off = 0
+        self.slots = {}
+        for name, b in self.blocks.items():
+            nx, nu, ny = b.n, len(b.inputs), len(b.outputs)
+            self.slots[name] = (slice(off, off + nx), slice(off + nx, off + nx + nu),
+                                slice(off + nx + nu, off + nx + nu + ny))
+            off += nx + nu + ny
+        self.n = off
+        self.sources = [n for n, b in self.blocks.items() if b.kind == "source"]
+
+    def index(self, ref: str) -> int:
+        """Row of ``X`` holding the published output ``instance.variable``."""
+        inst, var = ref.split(".", 1)
+        if inst not in self.blocks:
+            raise AnalysisError(f"no instance {inst!r} in the scenario; instances: "
+                                f"{', '.join(self.blocks)}")
+        b = self.blocks[inst]
+        if var not in b.outputs:
+            raise AnalysisError(f"{ref} is not an output of {inst!r}; outputs: "
+                                f"{', '.join(b.outputs[:12])}{' ...' if len(b.outputs) > 12 else ''}")
+        return self.slots[inst][2].start + b.outputs.index(var)
+
+    def with_gain(self, instance: str, factor: float) -> "LinearScenario":
+        """Copy with controller ``instance``'s command scaled by ``factor``."""
+        b = self.blocks.get(instance)
+        if b is None or b.rebuild is None:
+            raise AnalysisError(f"{instance!r} is not a controller of the scenario; "
+                                f"controllers: {', '.join(self.controllers())}")
+        blocks = dict(self.blocks)
+        blocks[instance] = replace(b.rebuild(factor), feedthrough=b.feedthrough)
+        return LinearScenario(self.plan, blocks, self.order)
+
+    def with_law(self, instance: str, law) -> "LinearScenario":
+        """Copy with controller ``instance`` running ``law`` (a ``DiscreteLaw``) instead."""
+        b = self.blocks.get(instance)
+        if b is None or b.kind != "controller":
+            raise AnalysisError(f"{instance!r} is not a controller of the scenario; "
+                                f"controllers: {', '.join(self.controllers())}")
+        blocks = dict(self.blocks)
+        blocks[instance] = _law_block(law, instance, b.period, b.period * self.base,
+                                      b.feedthrough)
+        return LinearScenario(self.plan, blocks, self.order)
+
+    def opened(self, instances) -> "LinearScenario":
+        """Copy with the named controllers removed: their outputs become free inputs."""
+        blocks = dict(self.blocks)
+        for name in instances:
+            b = blocks[name]
+            blocks[name] = Block(name, "source", b.period, np.zeros((0, 0)), np.zeros((0, 0)),
+                                 np.zeros((len(b.outputs), 0)), np.zeros((len(b.outputs), 0)),
+                                 (), b.outputs, np.zeros(len(b.outputs), bool))
+        return LinearScenario(self.plan, blocks, self.order)
+
+    def controllers(self) -> list:
+        return [n for n, b in self.blocks.items() if b.kind == "controller"]
+
+    # ------------------------------------------------------------------ stepping
+    def _tick(self, X, k, w_next):
+        """Advance ``X`` (rows = lifted state, any number of columns) over tick ``k``.
+
+        ``w_next(name)`` returns the rows to publish for a due source.
+        """
+        due = [n for n in self.order if k % self.blocks[n].period == 0]
+        for name in due:
+            b = self.blocks[name]
+            sx, su, sy = self.slots[name]
+            if b.kind == "source":
+                X[sy] = w_next(name)
+            else:
+                X[sy] = b.C @ X[sx] + b.D @ X[su]
+        dueset = set(due)
+        for name in due:
+            b = self.blocks[name]
+            if b.kind == "source":
+                continue
+            sx, su, sy = self.slots[name]
+            for tgt, j, src, i, gain in self._conns:
+                if tgt == name:
+                    X[su.start + j] = gain * X[self.slots[src][2].start + i]
+            if b.feedthrough.any():
+                rows = np.flatnonzero(b.feedthrough)
+                X[sy.start + rows] = b.C[rows] @ X[sx] + b.D[rows] @ X[su]
+        for name in dueset:
+            b = self.blocks[name]
+            if b.kind == "source" or b.n == 0:
+                continue
+            sx, su, _ = self.slots[name]
+            X[sx] = b.A @ X[sx] + b.B @ X[su]
+        return X
+
+    def exogenous(self) -> list:
+        """Exogenous channels ``(source instance, output, tick)`` over one hyperperiod."""
+        out = []
+        for k in range(self.hyper):
+            for name in self.order:
+                b = self.blocks[name]
+                if b.kind == "source" and k % b.period == 0:
+                    out += [(name, o, k) for o in b.outputs]
+        return out
+
+    def lifted(self):
+        """``Phi`` (n, n) and ``Gamma`` (n, n_w) over one hyperperiod from tick 0."""
+        chans = self.exogenous()
+        nw = len(chans)
+        X = np.hstack([np.eye(self.n), np.zeros((self.n, nw))])
+        pos = 0
+
+        def w_next(name):
+            nonlocal pos
+            m = len(self.blocks[name].outputs)
+            rows = np.zeros((m, self.n + nw))
+            rows[np.arange(m), self.n + pos + np.arange(m)] = 1.0
+            pos += m
+            return rows
+
+        for k in range(self.hyper):
+            X = self._tick(X, k, w_next)
+        return X[:, :self.n], X[:, self.n:]
+
+    def simulate(self, n_ticks: int, w: Callable | None = None, x0=None, record=()):
+        """Tick-by-tick linear simulation.
+
+        Parameters
+        ----------
+        n_ticks : int
+            Number of base ticks.
+        w : callable, optional
+            ``w(instance, tick) -> ndarray (n_outputs,)`` values a source publishes at
+            its due ticks; zero when omitted.
+        x0 : ndarray, shape (n,), optional
+        record : sequence of str
+            Outputs ``instance.variable`` to record at every tick (value at ``t_k``
+            after the tick's inputs are set, before it steps).
+
+        Returns
+        -------
+        ndarray, shape (n_ticks, len(record)), and the final ``X``.
+        """
+        X = np.zeros((self.n, 1)) if x0 is None else np.asarray(x0, float).reshape(-1, 1).copy()
+        rows = [self.index(r) for r in record]
+        out = np.empty((n_ticks, len(rows)))
+        k_now = [0]
+
+        def w_next(name):
+            if w is None:
+                return np.zeros((len(self.blocks[name].outputs), 1))
+            return np.asarray(w(name, k_now[0]), float).reshape(-1, 1)
+
+        for k in range(n_ticks):
+            k_now[0] = k
+            X = self._tick(X, k % self.hyper, w_next)
+            # _tick leaves the published values of tick k in X (states already advanced)
+            out[k] = X[rows, 0]
+        return out, X[:, 0]
+
+    # ------------------------------------------------------------------ analysis
+    def poles(self) -> list[Pole]:
+        """Closed-loop poles (z over one hyperperiod), origin poles left out."""
+        Phi, _ = self.lifted()
+        return _poles(np.linalg.eigvals(Phi), self.T)
+
+    def is_stable(self, tol: float = 1e-9) -> bool:
+        """All poles inside the unit circle; rigid-body poles at exactly 1 allowed."""
+        Phi, _ = self.lifted()
+        return _stable(np.linalg.eigvals(Phi), tol)
+
+    def gain_margins(self, instance: str, limit: float = 1e3, rtol: float = 1e-3) -> Margins:
+        """Gain margins of controller ``instance``, the other loops closed.
+
+        The factor on the controller's gain is searched on a logarithmic grid up to
+        ``limit`` and down to ``-limit`` (through zero, i.e. with the sign flipped), then
+        refined by bisection to ``rtol``.
+        """
+        def stable(f):
+            return self.with_gain(instance, f).is_stable()
+
+        ok = stable(1.0)
+        up = _boundary(stable, 1.0, np.geomspace(1.0, limit, 41)[1:], rtol)
+        downs = np.r_[np.geomspace(1.0, 1e-3, 31)[1:], 0.0, -np.geomspace(1e-3, limit, 41)]
+        lo = _boundary(stable, 1.0, downs, rtol)
+        return Margins(instance, up, lo, ok)
+
+    def decay(self, mode_hz: float) -> Decay:
+        """Cycles to 90 % decay of the closed-loop pole nearest ``mode_hz``.
+
+        ``ln(10) sqrt(1 - zeta^2) / (2 pi zeta)`` damped cycles; poles whose frequency
+        aliases (above half the hyperperiod rate) are not resolved.
+        """
+        ps = [p for p in self.poles() if p.freq_hz > 0]
+        if not ps:
+            raise AnalysisError("the closed loop has no oscillatory pole")
+        p = min(ps, key=lambda q: abs(q.freq_hz - mode_hz))
+        cyc = math.inf if p.zeta <= 0 else _LN10 * math.sqrt(max(0.0, 1 - p.zeta**2)) / (
+            2 * math.pi * p.zeta)
+        return Decay(mode_hz, p, cyc)
+
+    def frequency_response(self, inputs, outputs, freqs_hz) -> np.ndarray:
+        """Steady-state response to harmonic exogenous inputs.
+
+        Parameters
+        ----------
+        inputs : sequence of str
+            Source outputs ``instance.variable`` driven by ``exp(j 2 pi f t)``.
+        outputs : sequence of str
+            Published outputs ``instance.variable``.
+        freqs_hz : array_like, shape (n_f,)
+
+        Returns
+        -------
+        ndarray, shape (n_out, n_in, n_f)
+            Fundamental component of each output per unit input (exact for a loop
+            whose instances share one period; for mixed rates the component at ``f``
+            of the periodic steady state).
+        """
+        freqs = np.atleast_1d(np.asarray(freqs_hz, float))
+        chans = self.exogenous()
+        for ref in inputs:
+            inst, var = ref.split(".", 1)
+            if inst not in self.sources or var not in self.blocks[inst].outputs:
+                raise AnalysisError(f"{ref} is not an output of a source instance; sources: "
+                                    f"{', '.join(self.sources)}")
+        Phi, Gam = self.lifted()
+        rows = [self.index(r) for r in outputs]
+        H = np.zeros((len(rows), len(inputs), freqs.size), complex)
+        tk = np.arange(self.hyper) * self.base
+        for fi, f in enumerate(freqs):
+            w = 2 * np.pi * f
+            zT = np.exp(1j * w * self.T)
+            W = np.zeros((len(chans), len(inputs)), complex)
+            for c, (inst, var, k) in enumerate(chans):
+                ref = f"{inst}.{var}"
+                if ref in inputs:
+                    W[c, inputs.index(ref)] = np.exp(1j * w * k * self.base)
+            rhs = Gam @ W
+            try:
+                X0 = np.linalg.solve(zT * np.eye(self.n) - Phi, rhs)
+            except np.linalg.LinAlgError:
+                raise AnalysisError(f"the loop has a pole at {f} Hz (a multiple of the "
+                                    "hyperperiod rate on a neutral mode); choose another "
+                                    "frequency") from None
+            X = X0.copy()
+            acc = np.zeros((len(rows), len(inputs)), complex)
+            pos = [0]
+
+            def w_next(name, W=W):
+                m = len(self.blocks[name].outputs)
+                r = W[pos[0]:pos[0] + m]
+                pos[0] += m
+                return r
+
+            for k in range(self.hyper):
+                X = self._tick(X, k, w_next)
+                acc += X[rows] * np.exp(-1j * w * tk[k])
+            H[:, :, fi] = acc / self.hyper
+        return H
+
+
+def _poles(ev, T) -> list[Pole]:
+    out = []
+    for z in ev:
+        if abs(z) < 1e-12:
+            continue
+        s = np.log(complex(z)) / T
+        wn = abs(s)
+        out.append(Pole(complex(z), wn / (2 * np.pi), -s.real / wn if wn > 0 else 1.0))
+    out.sort(key=lambda p: (p.freq_hz, p.zeta))
+    return out
+
+
+def _stable(ev, tol=1e-9) -> bool:
+    """All eigenvalues inside the unit circle; rigid-body ones at 1 allowed."""
+    ev = np.asarray(ev)
+    rigid = np.abs(ev - 1.0) < 1e-7
+    return bool(np.all(rigid | (np.abs(ev) < 1.0 - tol)))
+
+
+def _boundary(stable, start, grid, rtol):
+    """First factor along ``grid`` (from ``start``) where stability changes, bisected."""
+    prev, s_prev = start, stable(start)
+    for g in grid:
+        s = stable(g)
+        if s != s_prev:
+            a, b = prev, g
+            while abs(b - a) > rtol * max(abs(a), abs(b), 1e-6):
+                m = 0.5 * (a + b)
+                if stable(m) == s_prev:
+                    a = m
+                else:
+                    b = m
+            return float(0.5 * (a + b))
+        prev = g
+    return math.inf if grid[-1] > start else -math.inf
+
+
+# ---------------------------------------------------------------------------------------
+# Building, ceiling, report
+
+
+def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
+    """The linear closed loop of a scenario.
+
+    Parameters
+    ----------
+    scenario : path-like, dict or Scenario
+        As :func:`orchestrator.master.run_scenario`.
+    overrides : mapping of str to value, optional
+        ``{"instance.parameter": value}`` start values.
+    fmu_dir : path-like, optional
+        Folder searched first for FMUs.
+
+    Returns
+    -------
+    LinearScenario
+    """
+    import warnings
+
+    from orchestrator.master import prepare
+    from orchestrator.scenario import load_scenario
+
+    sc = load_scenario(scenario).with_overrides(overrides or {})
+    if sc.experiment.algorithm != "gauss-seidel":
+        raise AnalysisError("the linear analysis follows the Gauss-Seidel master; the "
+                            f"scenario uses {sc.experiment.algorithm!r}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plan = prepare(sc, fmu_dir)
+    order = []
+    for group in plan.groups:
+        if len(group) > 1:
+            raise AnalysisError(f"the scenario has an algebraic loop {group}; the linear "
+                                "analysis needs a loop with a delay")
+        order.append(group[0])
+    base = float(plan.timebase.base)
+    with tempfile.TemporaryDirectory(prefix="jitterfmu-analyze-") as tmp:
+        blocks = {i.name: _instance_block(plan, i, Path(tmp), base)
+                  for i in sc.instances}
+    return LinearScenario(plan, blocks, order)
+
+
+def ceiling(lin: LinearScenario, performance, disturbance: str, freqs_hz, *,
+            actuators, sensors=None, method: str = "cancel", amplitudes=None) -> Ceiling:
+    """Ideal ceiling of the reduction of ``performance`` under a harmonic disturbance.
+
+    The named controllers are removed (their command outputs become free actuator
+    commands ``v``).  With ``method="cancel"``, ``v`` zeroes the signals the removed
+    controllers measured (``sensors``; by default their connected inputs): what a loop
+    of infinite gain on those sensors would do.  With ``"optimal"``, ``v`` minimises the
+    performance outputs at each frequency (least squares): no controller driving these
+    actuators, causal or not, can do better in steady state.
+
+    Parameters
+    ----------
+    lin : LinearScenario
+    performance : sequence of str
+        Outputs whose RMS is to be reduced (e.g. ``structure.los_misr_roll``).
+    disturbance : str
+        Source output ``instance.variable`` carrying the disturbance.
+    freqs_hz : array_like, shape (n_f,)
+        Disturbance lines (Hz).
+    actuators : sequence of str
+        Controller instances whose commands are free.
+    sensors : sequence of str, optional
+        Signals to cancel (``instance.variable``); default: the outputs connected to the
+        removed controllers' measurement inputs.
+    method : {"cancel", "optimal"}
+    amplitudes : array_like, shape (n_f,), optional
+        Disturbance amplitude per line; 1 by default.
+
+    Returns
+    -------
+    Ceiling
+    """
+    if method not in ("cancel", "optimal"):
+        raise AnalysisError(f"ceiling method {method!r} is unknown; use 'cancel' or 'optimal'")
+    freqs = np.atleast_1d(np.asarray(freqs_hz, float))
+    amps = np.ones_like(freqs) if amplitudes is None else np.asarray(amplitudes, float)
+    performance = list(performance)
+    opened = lin.opened(actuators)
+    v = [f"{a}.{o}" for a in actuators for o in lin.blocks[a].outputs]
+    if sensors is None:
+        sensors = []
+        for c in lin.plan.scenario.connections:
+            if c.target in actuators and c.target_var.startswith("y"):
+                sensors.append(c.start)
+    sensors = list(sensors)
+    outs = performance + sensors
+    Hd = opened.frequency_response([disturbance], outs, freqs)[:, 0, :]   # (n_o, n_f)
+    Hv = opened.frequency_response(v, outs, freqs)                        # (n_o, n_v, n_f)
+    npf = len(performance)
+    ol, ideal = np.zeros(freqs.size), np.zeros(freqs.size)
+    for i in range(freqs.size):
+        zd, zv = Hd[:npf, i], Hv[:npf, :, i]
+        if method == "cancel":
+            yd, yv = Hd[npf:, i], Hv[npf:, :, i]
+            vopt = -np.linalg.lstsq(yv, yd, rcond=None)[0]
+        else:
+            vopt = -np.linalg.lstsq(zv, zd, rcond=None)[0]
+        ol[i] = np.linalg.norm(zd) * amps[i]
+        ideal[i] = np.linalg.norm(zd + zv @ vopt) * amps[i]
+    red = 100.0 * (1.0 - math.sqrt(np.sum(ideal**2)) / math.sqrt(np.sum(ol**2)))
+    return Ceiling(tuple(performance), method, freqs, ol, ideal, float(red))
+
+
+def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
+    """A readable table: poles (in ``band`` Hz), decay of ``modes``, gain margins."""
+    lines = [f"linear closed loop: {len(lin.blocks)} instances, {lin.n} lifted states, "
+             f"hyperperiod {lin.T * 1e3:g} ms"]
+    poles = lin.poles()
+    lo, hi = band if band else (0.0, 0.5 / lin.T)
+    sel = [p for p in poles if lo <= p.freq_hz <= hi and p.z.imag >= 0]
+    lines.append("")
+    lines.append(f"closed-loop poles {lo:g}-{hi:g} Hz")
+    lines.append(f"  {'freq (Hz)':>10}  {'damping (%)':>11}  {'|z|':>8}")
+    for p in sel:
+        lines.append(f"  {p.freq_hz:10.3f}  {100 * p.zeta:11.3f}  {abs(p.z):8.5f}")
+    lines.append(f"  stable: {'yes' if lin.is_stable() else 'NO'}")
+    for m in modes:
+        d = lin.decay(m)
+        lines.append(f"mode {m:g} Hz: nearest pole {d.pole.freq_hz:.3f} Hz, damping "
+                     f"{100 * d.pole.zeta:.2f} %, {d.cycles_to_90pct:.2f} cycles to 90 % decay")
+    if margins:
+        lines.append("")
+        lines.append("gain margins (factor on each controller's gain, other loops closed)")
+        lines.append(f"  {'controller':<24} {'upper':>9} {'(dB)':>7} {'lower':>9}")
+        for c in lin.controllers():
+            g = lin.gain_margins(c)
+            lines.append(f"  {c:<24} {g.upper:9.3g} {g.upper_db:7.2f} {g.lower:9.3g}")
+    return "\n".join(lines)

@@ -1,9 +1,10 @@
 """Presets for the twelve EOS AM-1 disturbance events (plus ``"none"``).
 
-The paper names the events but gives no amplitudes.  The values below are representative
-choices; most are assumptions, and the few taken from public instrument descriptions say
-so.  ``docs/disturbances.md`` has the single table of events, frequency content,
-amplitudes, mounts and sources; keep the two in step.
+The paper names the events but gives no amplitudes.  Every value below says where it
+comes from: a public instrument description, the paper, or an assumption with its
+reasoning (one order-of-magnitude argument each).  ``docs/disturbances.md`` has the single
+table of events, frequency content, amplitudes, what each implies on the spacecraft,
+mounts and sources; keep the two in step.
 
 Body axes: x roll (along track), y pitch (cross track), z yaw (nadir).  Cross-track
 scanners and pointers rotate about x.
@@ -39,6 +40,12 @@ _RPM = 2.0 * math.pi / 60.0
 
 RWA_SPEED = 1000.0 * _RPM
 """Nominal wheel speed of the RWA preset (rad/s), used unless a speed input drives it."""
+
+CERES_SCALE = 1.0 / 60.0
+"""Factor on the CERES scan inertias (a whole scan head: 0.6 kg m^2 elevation, 4 kg m^2
+azimuth): the net momentum exchanged with the bus is set so the CERES scan gives about
+1 arcsec per 1.8 s, the order of the paper's other primary contributors, instead of 81
+arcsec (an assumption calibrated to the paper's ranking; docs/disturbances.md)."""
 
 
 class PresetError(KeyError):
@@ -81,19 +88,25 @@ def _build() -> dict[str, Preset]:
         Preset(
             "ceres_scan", "CERES biaxial scan", "CERES",
             Sum((
-                # elevation: 6.6 s scan cycle (public), +-78 deg sweep, head inertia assumed
-                ScanMirror(inertia=0.6, period=6.6, amplitude=78.0 * _DEG,
+                # elevation: 6.6 s scan cycle and +-78 deg (public); the inertias are the
+                # net momentum the scan exchanges with the bus per unit rate, scaled to the
+                # paper's ranking (CERES one of four primary contributors, of the order of
+                # VNIR's ~1 arcsec/1.8 s), not CERES data: 0.6 and 4 kg m^2 (a whole head)
+                # gave 81 arcsec of roll, 60x VNIR (docs/disturbances.md)
+                ScanMirror(inertia=CERES_SCALE * 0.6, period=6.6, amplitude=78.0 * _DEG,
                            retrace_fraction=0.5, turnaround=0.3, axis=(1.0, 0.0, 0.0)),
                 # azimuth: 90 deg back and forth at 6 deg/s every 32 s (assumption)
                 Slew(angle=90.0 * _DEG, max_rate=6.0 * _DEG, max_accel=6.0 * _DEG,
-                     inertia=4.0, start=0.0, axis=(0.0, 0.0, 1.0), repeat=32.0),
+                     inertia=CERES_SCALE * 4.0, start=0.0, axis=(0.0, 0.0, 1.0),
+                     repeat=32.0),
             )),
         ),
         Preset(
             "misr_calibration", "MISR calibration", "MISR",
-            # diffuser panel deployment and stow, 90 deg (assumption)
+            # diffuser panel deployment and stow, 90 deg (assumption); J of a ~1 kg panel
+            # about a hinge on its 0.3 m edge, m L^2 / 3 = 0.03 kg m^2 (assumption)
             Slew(angle=90.0 * _DEG, max_rate=10.0 * _DEG, max_accel=20.0 * _DEG,
-                 inertia=0.5, start=1.0, axis=(0.0, 1.0, 0.0), repeat=30.0),
+                 inertia=0.03, start=1.0, axis=(0.0, 1.0, 0.0), repeat=30.0),
         ),
         Preset(
             "modis_scan", "MODIS scan mirror imbalance", "MODIS",
@@ -109,9 +122,10 @@ def _build() -> dict[str, Preset]:
         ),
         Preset(
             "swir_pointing", "ASTER-SWIR pointing", "SWIR",
-            # +-8.55 deg cross-track pointing mirror (public); dynamics assumed
+            # +-8.55 deg cross-track pointing mirror (public); rate, acceleration and
+            # J = 0.02 kg m^2 (a ~2 kg flat mirror with its rotor) assumed
             Slew(angle=8.55 * _DEG, max_rate=2.0 * _DEG, max_accel=40.0 * _DEG,
-                 inertia=0.3, start=1.0, axis=(1.0, 0.0, 0.0), repeat=30.0),
+                 inertia=0.02, start=1.0, axis=(1.0, 0.0, 0.0), repeat=30.0),
         ),
         Preset(
             "tir_chopper", "ASTER-TIR chopper", "TIR",

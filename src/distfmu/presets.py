@@ -92,7 +92,7 @@ def _build() -> dict[str, Preset]:
                 # net momentum the scan exchanges with the bus per unit rate, scaled to the
                 # paper's ranking (CERES one of four primary contributors, of the order of
                 # VNIR's ~1 arcsec/1.8 s), not CERES data: 0.6 and 4 kg m^2 (a whole head)
-                # gave 81 arcsec of roll, 60x VNIR (docs/disturbances.md)
+                # gave 81 arcsec of roll, 60x that (docs/disturbances.md)
                 ScanMirror(inertia=CERES_SCALE * 0.6, period=6.6, amplitude=78.0 * _DEG,
                            retrace_fraction=0.5, turnaround=0.3, axis=(1.0, 0.0, 0.0)),
                 # azimuth: 90 deg back and forth at 6 deg/s every 32 s (assumption)
@@ -110,13 +110,15 @@ def _build() -> dict[str, Preset]:
         ),
         Preset(
             "modis_scan", "MODIS scan mirror imbalance", "MODIS",
-            # 20.3 rpm double-sided mirror (public); imbalance torques assumed
+            # 20.3 rpm double-sided mirror (public); imbalance torques assumed: the
+            # residual of a balanced, continuously turning mirror (not ranked in the paper)
             Harmonic(frequency=20.3 / 60.0, amplitudes=(0.01, 0.004), harmonics=(1.0, 2.0),
                      direction=(0.0, 0.0, 1.0), kind="torque"),
         ),
         Preset(
             "mopitt_scan", "MOPITT scan", "MOPITT",
-            # +-26.1 deg cross-track scan (public); period, inertia, retrace assumed
+            # +-26.1 deg cross-track scan (public); period, retrace and J assumed (a ~1 kg
+            # mirror with its rotor at 0.14 m radius of gyration)
             ScanMirror(inertia=0.02, period=12.0, amplitude=26.1 * _DEG,
                        retrace_fraction=0.1, turnaround=0.1, axis=(1.0, 0.0, 0.0)),
         ),
@@ -129,7 +131,8 @@ def _build() -> dict[str, Preset]:
         ),
         Preset(
             "tir_chopper", "ASTER-TIR chopper", "TIR",
-            # about 7 Hz mirror oscillation (ASTER handbook); torque amplitude assumed
+            # about 7 Hz mirror oscillation (ASTER handbook); torque amplitude assumed:
+            # J (2 pi f)^2 theta for J ~ 2e-4 kg m^2 swinging +-3 deg at 7 Hz
             Chopper(frequency=7.0, amplitude=0.02, direction=(1.0, 0.0, 0.0),
                     kind="torque", rise_time=0.005),
         ),
@@ -142,16 +145,20 @@ def _build() -> dict[str, Preset]:
         ),
         Preset(
             "mopitt_cryocooler", "MOPITT cryocooler", "MOPITT",
+            # assumed: balanced Stirling-class residual, 0.1-1 N; harmonics 30 %, 10 %
             Harmonic(frequency=40.0, amplitudes=(0.2, 0.06, 0.02),
                      direction=(0.0, 1.0, 0.0), kind="force"),
         ),
         Preset(
             "swir_cryocooler", "ASTER-SWIR cryocooler", "SWIR",
+            # 22 Hz: the paper's "cryocooler-like" testbed disturbance; amplitudes assumed
+            # as for MOPITT, at the high end (the paper ranks it a primary contributor)
             Harmonic(frequency=22.0, amplitudes=(0.5, 0.15, 0.05),
                      direction=(0.0, 0.0, 1.0), kind="force"),
         ),
         Preset(
             "tir_cryocooler", "ASTER-TIR cryocooler", "TIR",
+            # frequency and amplitudes assumed as for MOPITT
             Harmonic(frequency=26.0, amplitudes=(0.4, 0.12, 0.04),
                      direction=(0.0, 0.0, 1.0), kind="force"),
         ),
@@ -167,7 +174,8 @@ def _build() -> dict[str, Preset]:
         ),
         Preset(
             "sad", "solar array drive", "SAD",
-            # stepper at 0.5 steps/s, 0.5 s half-sine pulse pairs of 0.5 N m (assumption);
+            # stepper at 0.5 steps/s, 0.5 s half-sine pulse pairs of 0.5 N m (assumption,
+            # consistent with the paper ranking the SAD primary: about 1 arcsec per 1.8 s);
             # content below about 3 Hz, near the 0.5 Hz solar-array mode
             Stepper(step_rate=0.5, peak_torque=0.5, pulse_width=0.5, axis=(0.0, 1.0, 0.0)),
         ),

@@ -51,6 +51,7 @@ from .timebase import Timebase, make_timebase
 __all__ = [
     "SimulationError",
     "UnconnectedInputWarning",
+    "EarlyEndWarning",
     "FmuInfo",
     "Variable",
     "Plan",
@@ -83,6 +84,20 @@ class SimulationError(RuntimeError):
         self.instance = instance
         self.time = time
         self.result = None
+
+
+class _TerminationRequested(Exception):
+    """An FMU's fmi2DoStep returned Discard with fmi2Terminated true (a normal end)."""
+
+    def __init__(self, instance, time, message=""):
+        super().__init__(instance, time, message)
+        self.instance = instance
+        self.time = time
+        self.message = message
+
+
+class EarlyEndWarning(UserWarning):
+    """An FMU ended the run before the stop time by asking to terminate (not an error)."""
 
 
 class UnconnectedInputWarning(UserWarning):
@@ -456,6 +471,23 @@ class _Slave:
         self.getBoolean = fn["fmi2GetBoolean"]
         self.setBoolean = fn["fmi2SetBoolean"]
         self.doStep = fn["fmi2DoStep"]
+        self._getBooleanStatus = fn["fmi2GetBooleanStatus"]
+
+    def asks_to_terminate(self) -> bool:
+        """True if ``fmi2GetBooleanStatus(fmi2Terminated)`` answers fmi2OK and true.
+
+        FMI 2.0 (4.2.3): after fmi2DoStep returned fmi2Discard, a slave that wants the
+        simulation to end reports fmi2Terminated = true; any other answer (including
+        an error from a slave that does not support the inquiry) means a failed step.
+        """
+        from fmpy.fmi2 import fmi2Terminated
+
+        value = ctypes.c_int(0)
+        try:
+            st = self._getBooleanStatus(self.comp, fmi2Terminated, ctypes.byref(value))
+        except Exception:
+            return False
+        return st == 0 and bool(value.value)
 
     def last_message(self) -> str:
         bad = [m for s, m in self.messages if s >= 1 and m]
@@ -524,6 +556,8 @@ class Simulation:
         self.slaves = {}
         self.rows = 0
         self.tick = 0
+        #: ``(instance, time, message)`` when an FMU ended the run early (fmi2Terminated)
+        self.terminated = None
         self._build_bus()
 
     # -- layout --------------------------------------------------------------------
@@ -815,6 +849,8 @@ class Simulation:
             except Exception as exc:  # an FMU that raises through ctypes
                 raise self._fail(s, "fmi2DoStep", t, exc=exc) from exc
             if st > 1:
+                if st == 2 and s.asks_to_terminate():
+                    raise _TerminationRequested(s.name, t, s.last_message())
                 raise self._fail(s, "fmi2DoStep", t, st)
             read()
         return advance
@@ -919,6 +955,10 @@ class Simulation:
     def run(self, progress=None):
         """Step from start to stop, recording rows; raise SimulationError on failure.
 
+        An FMU that asks to terminate (fmi2DoStep returns Discard and
+        fmi2Terminated is true) ends the run normally at that communication point:
+        the rows up to it are kept and :attr:`terminated` names the instance.
+
         Parameters
         ----------
         progress : callable, optional
@@ -972,6 +1012,8 @@ class Simulation:
             raise
         except AlgebraicLoopError as exc:
             raise SimulationError(str(exc), None, (a + k * b) / d) from exc
+        except _TerminationRequested as req:
+            self.terminated = (req.instance, req.time, req.message)
         if progress is not None:
             progress(1.0)
 
@@ -1052,6 +1094,9 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
         ``table`` (dict of arrays keyed ``time`` and ``instance.variable``), ``metadata``
         and ``path``.  On a failure during the run, SimulationError is raised with the
         partial RunResult (already written when `out_dir` is given) as ``exc.result``.
+        An FMU that asks to terminate (fmi2Discard with fmi2Terminated true) ends the
+        run normally: status ``terminated``, the rows up to that point, and an
+        :class:`EarlyEndWarning`.
     """
     from .results import Progress, RunResult, package_versions, write_metadata, write_table
     from .scenario import load_scenario
@@ -1092,11 +1137,17 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
         sim.close()
     table = sim.table()
     meta.update(
-        status="ok" if error is None else "error",
+        status="error" if error is not None else "terminated" if sim.terminated else "ok",
         error=None if error is None else str(error),
         rows=len(table["time"]),
         wall_time_s=_time.perf_counter() - wall0,
     )
+    if error is None and sim.terminated:
+        inst, t_end, message = sim.terminated
+        meta["terminated"] = {"instance": inst, "time": t_end, "message": message}
+        warnings.warn(f"instance {inst!r} ended the run at t = {t_end!r} s (fmi2Terminated)"
+                      + (f": {' '.join(message.split())}" if message else "")
+                      + f"; {meta['rows']} rows recorded", EarlyEndWarning, stacklevel=2)
     path = None
     if out_dir is not None:
         path = Path(out_dir)

@@ -109,7 +109,7 @@ def build_all(out_dir: str | Path, models: Sequence[str] | None = None, *,
     fmus, problems = [], []
     for i, spec in enumerate(specs, start=1):
         path = build_fmu(spec, out_dir)
-        found = validate_fmu(path)
+        found = validate_fmu(path, strict=True)  # the project's conventions too
         fmus.append(path)
         problems += found
         if progress is not None:

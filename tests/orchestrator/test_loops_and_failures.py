@@ -161,7 +161,6 @@ def test_unconnected_inputs_are_listed_in_a_warning(fmu_dir):
 @pytest.mark.parametrize(
     "mode, match",
     [
-        (0, r"instance 'bad' failed in fmi2DoStep at t = 0\.02 s with status Discard"),
         (1, r"instance 'bad' failed in fmi2DoStep at t = 0\.02 s with status Fatal: .*"
             r"RuntimeError\('deliberate failure at t = 0\.02'\)"),
         (2, r"instance 'bad' produced nan for y in its step at t = 0\.02 s"),
@@ -187,3 +186,21 @@ def test_failure_mid_run_keeps_rows_so_far(fmu_dir, tmp_path, mode, match):
     np.testing.assert_allclose(table["bad.y"], 2 * (np.arange(21) // 2) / 1000,
                                rtol=0, atol=1e-17)
     assert info.value.result.table["time"][-1] == 0.02
+
+
+def test_python_slave_whose_step_returns_false_ends_the_run_normally(fmu_dir, tmp_path):
+    """pythonfmu 0.7 turns ``do_step() -> False`` into fmi2Discard with fmi2Terminated
+    true: the FMU asks to end the simulation, which FMI 2.0 makes a normal end."""
+    from orchestrator.master import EarlyEndWarning
+
+    d = base(i={"fmu": "MtIntegrator", "period": 1e-3, "parameters": {"u": 1.0}},
+             bad={"fmu": "MtFaulty", "period": 2e-3,
+                  "parameters": {"fail_time": 0.02, "mode": 0}})
+    d["experiment"]["stop"] = 0.05
+    d["record"]["variables"] = ["i.x", "bad.y"]
+    with pytest.warns(EarlyEndWarning, match=r"instance 'bad' ended the run at t = 0.02 s"):
+        result = run_scenario(d, tmp_path, fmu_dir=fmu_dir)
+    assert result.metadata["status"] == "terminated"
+    assert json.loads((tmp_path / "run.json").read_text())["terminated"]["instance"] == "bad"
+    np.testing.assert_array_equal(read_table(tmp_path / "results.parquet")["time"],
+                                  np.arange(21) / 1000)

@@ -118,7 +118,7 @@ def test_run_command_writes_results_and_metadata(fmu_dir, tmp_path, capsys):
 def test_run_command_exit_status_on_failure(fmu_dir, tmp_path, capsys):
     d = mixed(stop=0.02)
     d["fmus"]["bad"] = {"fmu": "MtFaulty", "period": 1e-3,
-                        "parameters": {"fail_time": 0.005, "mode": 0}}
+                        "parameters": {"fail_time": 0.005, "mode": 1}}
     scen = tmp_path / "bad.toml"
     scen.write_text(tomli_w.dumps(d))
     code = main(["run", str(scen), "--out", str(tmp_path / "o"), "--fmu-dir", str(fmu_dir)])

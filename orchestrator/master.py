@@ -291,24 +291,41 @@ def _var(info: FmuInfo, inst: str, var: str, what: str) -> Variable:
 _SETTABLE_START = {"parameter", "input"}
 
 
+def _short(value, limit: int = 60) -> str:
+    """``repr(value)`` cut to about ``limit`` characters for an error line."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit - 20]}...{text[-12:]} " \
+        f"({len(text)} characters)"
+
+
 def _coerce(value, v: Variable, ref: str):
     """Check a start/action value against the variable type and return it typed."""
     t = v.type
+    got = f"got {type(value).__name__} {_short(value)}"
     if t == "Real":
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ScenarioError(f"{ref} is Real; got {type(value).__name__} {value!r}")
-        return float(value)
+            raise ScenarioError(f"{ref} is Real; {got}")
+        try:
+            x = float(value)
+        except OverflowError:
+            x = math.inf
+        if not math.isfinite(x):
+            raise ScenarioError(f"{ref} is Real; got {_short(value)}, expected a finite number")
+        return x
     if t in ("Integer", "Enumeration"):
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ScenarioError(f"{ref} is {t}; got {type(value).__name__} {value!r}")
+            raise ScenarioError(f"{ref} is {t}; {got}")
+        if not -2**31 <= value < 2**31:
+            raise ScenarioError(f"{ref} is {t}; got {_short(value)}, outside the 32-bit range "
+                                "of an FMI 2.0 Integer")
         return int(value)
     if t == "Boolean":
         if not isinstance(value, bool):
-            raise ScenarioError(f"{ref} is Boolean; got {type(value).__name__} {value!r}")
+            raise ScenarioError(f"{ref} is Boolean; {got}")
         return value
     if t == "String":
         if not isinstance(value, str):
-            raise ScenarioError(f"{ref} is String; got {type(value).__name__} {value!r}")
+            raise ScenarioError(f"{ref} is String; {got}")
         return value
     raise ScenarioError(f"{ref} has unsupported type {t}")
 
@@ -695,7 +712,7 @@ class Simulation:
         self.big[:n] = self.big[n:2 * n]
         for name in order:
             self._push_inputs(name)
-        self._check_finite(t0, order)
+        self._check_finite(t0, order, "initialisation")
 
     def _read_all(self, order):
         for name in order:
@@ -707,18 +724,32 @@ class Simulation:
     def _push_inputs(self, name):
         self._writers[name]()
 
-    def _check_finite(self, t, names):
-        cur = self.big[self.n_bus:]
-        if math.isfinite(float(cur.sum())):
+    def _check_finite(self, t, names, during="its step"):
+        """Raise SimulationError naming the first instance, in ``names`` order, whose
+        outputs (or outputs read before stepping) are not finite.
+
+        ``names`` is the order in which the instances ran (sources before the sinks
+        that read them), so a NaN that spread through connections within one tick is
+        blamed on the instance that produced it, not on the first one in the table.
+        """
+        n = self.n_bus
+        watched = self.big[n:]
+        if math.isfinite(float(watched.sum())):
             return
-        bad = np.flatnonzero(~np.isfinite(cur))
-        if not len(bad):
-            return
-        inv = {v: k for k, v in self.slot.items()}
-        inst, var = inv[int(bad[0])]
-        raise SimulationError(
-            f"instance {inst!r} produced {float(cur[bad[0]])!r} for {var} in its step at "
-            f"t = {t!r} s (the step itself returned OK)", inst, t)
+        for name in names:
+            for (inst, var), i in self._slots_of(name):
+                for region in (n, 2 * n):
+                    x = float(self.big[region + i])
+                    if not math.isfinite(x):
+                        raise SimulationError(
+                            f"instance {inst!r} produced {x!r} for {var} in {during} at "
+                            f"t = {t!r} s (the FMI call itself returned OK)", inst, t)
+
+    def _slots_of(self, name):
+        cache = self.__dict__.setdefault("_slots_cache", {})
+        if name not in cache:
+            cache[name] = [(key, i) for key, i in self.slot.items() if key[0] == name]
+        return cache[name]
 
     # -- compiled per-instance programs -------------------------------------------
 
@@ -969,6 +1000,7 @@ class Simulation:
         schedule = self._schedule()
         n, big = self.n_bus, self.big
         cur = big[n:2 * n]
+        watched = big[n:]  # outputs, and outputs read before stepping
         snap = big[:n]
         rec, rec_idx = self.rec, self.record_idx
         out_ticks = tb.output_ticks
@@ -1004,7 +1036,7 @@ class Simulation:
                     break
                 for call in then:
                     call(t)
-                if not isfinite(float(cur.sum())):
+                if not isfinite(float(watched.sum())):
                     self._check_finite(t, order)
                 if progress is not None and not k & 2047:
                     progress(k / n_ticks)

@@ -36,6 +36,7 @@ from __future__ import annotations
 import difflib
 import hashlib
 import json
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field, replace
@@ -378,6 +379,13 @@ def _parse_instance(name: str, spec) -> Instance:
     return Instance(name, str(spec["fmu"]), period, _freeze(params))
 
 
+def _finite(x) -> bool:
+    try:
+        return math.isfinite(x)
+    except OverflowError:  # an int beyond the float range
+        return False
+
+
 def _parse_connection(i: int, spec, names) -> Connection:
     what = f"connection {i + 1}"
     spec = _expect_table(spec, what)
@@ -395,8 +403,8 @@ def _parse_connection(i: int, spec, names) -> Connection:
             )
     gain, offset = spec.get("gain", 1.0), spec.get("offset", 0.0)
     for key, v in (("gain", gain), ("offset", offset)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ScenarioError(f"{what} {key} is {v!r}; expected a number")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
+            raise ScenarioError(f"{what} {key} is {v!r}; expected a finite number")
     return Connection(src, svar, dst, dvar, float(gain), float(offset))
 
 

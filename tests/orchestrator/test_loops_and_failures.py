@@ -1,6 +1,7 @@
 """Algebraic loops and every failure the master reports (test FMUs from fmukit)."""
 
 import json
+import math
 import warnings
 
 import numpy as np
@@ -204,3 +205,54 @@ def test_python_slave_whose_step_returns_false_ends_the_run_normally(fmu_dir, tm
     assert json.loads((tmp_path / "run.json").read_text())["terminated"]["instance"] == "bad"
     np.testing.assert_array_equal(read_table(tmp_path / "results.parquet")["time"],
                                   np.arange(21) / 1000)
+
+
+# --- non-finite values: rejected before the run, blamed on their source ------------
+
+
+@pytest.mark.parametrize("value, match", [
+    (math.nan, r"^g.k is Real; got nan, expected a finite number$"),
+    (math.inf, r"g.k is Real; got inf, expected a finite number"),
+    (10**400, r"g.k is Real; got 1000000.*\(401 characters\), expected a finite number"),
+])
+def test_non_finite_parameters_are_rejected_before_anything_runs(fmu_dir, value, match):
+    d = base()
+    d["fmus"]["g"]["parameters"] = {"k": value}
+    with pytest.raises(ScenarioError, match=match):
+        run_scenario(d, fmu_dir=fmu_dir)
+
+
+def test_non_finite_override_and_action_values_are_rejected(fmu_dir):
+    with pytest.raises(ScenarioError, match=r"g.b is Real; got nan, expected a finite"):
+        run_scenario(base(), fmu_dir=fmu_dir, overrides=["g.b=nan"])
+    d = base()
+    d["actions"] = [{"time": 0.005, "set": {"g.k": -math.inf}}]
+    with pytest.raises(ScenarioError, match=r"g.k is Real; got -inf, expected a finite"):
+        run_scenario(d, fmu_dir=fmu_dir)
+    # issue 12: an error line echoed a 5 MB value
+    with pytest.raises(ScenarioError, match=r"^g.b is Real; got str 'x{20,40}\.\.\.x{5,12}' "
+                       r"\(1000002 characters\)$"):
+        run_scenario(base(), fmu_dir=fmu_dir, overrides={"g.b": "x" * 10**6})
+
+
+@pytest.mark.parametrize("key", ["gain", "offset"])
+@pytest.mark.parametrize("value", [math.nan, math.inf, 10**400])
+def test_non_finite_connection_gains_are_rejected(key, value):
+    d = base()
+    d["connections"] = [conn("i.x", "g.u", **{key: value})]
+    with pytest.raises(ScenarioError, match=f"connection 1 {key} is .*; expected a finite"):
+        scenario_from_dict(d)
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
+def test_a_non_finite_value_is_blamed_on_the_instance_that_produced_it(fmu_dir):
+    """g1 = 1e308 * 10 overflows to inf at initialisation and g2 = 0 * inf is NaN; g2
+    comes first in the table, g1 first in the order the instances ran."""
+    d = base(g2={"fmu": "MtGain", "period": 1e-3, "parameters": {"k": 0.0}},
+             g1={"fmu": "MtGain", "period": 1e-3, "parameters": {"k": 1e308}},
+             i={"fmu": "MtIntegrator", "period": 1e-3, "parameters": {"x0": 10.0}})
+    d["connections"] = [conn("i.x", "g1.u"), conn("g1.y", "g2.u")]
+    with pytest.raises(SimulationError, match=r"instance 'g1' produced inf for y in "
+                       r"initialisation at t = 0\.0 s") as info:
+        run_scenario(d, fmu_dir=fmu_dir)
+    assert info.value.instance == "g1"

@@ -34,6 +34,7 @@ variable's value at ``t_k`` (the latest stamped ``<= t_k``), read before that ti
 from __future__ import annotations
 
 import ctypes
+import itertools
 import gc
 import hashlib
 import math
@@ -442,6 +443,26 @@ def prepare(scenario: Scenario, fmu_dir=None) -> Plan:
 # Running
 
 
+_LOG_KEYS = itertools.count(1)
+_LOG_SINKS: dict[int, list] = {}
+_LOGGER = []
+
+
+def _shared_logger(logger_type):
+    """The one FMI logger callback of the process (created once, never freed)."""
+    if not _LOGGER:
+        def log(env, inst, status, category, message):
+            sink = _LOG_SINKS.get(env or 0)
+            if sink is None:
+                return
+            text = message.decode("utf-8", "replace") if message else ""
+            sink.append((status, text))
+            del sink[:-20]
+
+        _LOGGER.append(logger_type(log))
+    return _LOGGER[0]
+
+
 class _Slave:
     """One instantiated FMU with raw FMI function handles and precomputed arrays."""
 
@@ -458,15 +479,17 @@ class _Slave:
         self.fmu = FMU2Slave(guid=info.guid, unzipDirectory=unzipdir,
                              modelIdentifier=info.model_identifier, instanceName=name)
 
-        def log(env, inst, status, category, message):
-            text = message.decode("utf-8", "replace") if message else ""
-            self.messages.append((status, text))
-            del self.messages[:-20]
-
+        # fmpy's variadic-formatting proxy keeps one logger per process, so every
+        # instance logs through one callback that finds the instance's message list by
+        # the componentEnvironment the FMU hands back
+        self._log_key = next(_LOG_KEYS)
+        _LOG_SINKS[self._log_key] = self.messages
         cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(log)
+        cb.logger = _shared_logger(fmi2CallbackLoggerTYPE)
         cb.allocateMemory = f2.defaultCallbacks.allocateMemory
         cb.freeMemory = f2.defaultCallbacks.freeMemory
+        cb.componentEnvironment = ctypes.c_void_p(self._log_key)
+        log = None
         try:
             from fmpy.logging import addLoggerProxy
 
@@ -654,6 +677,8 @@ class Simulation:
 
     def _fail(self, slave, what, t, status=None, exc=None):
         msg = f"instance {slave.name!r} failed in {what} at t = {t!r} s"
+        if status is None and isinstance(getattr(exc, "status", None), int):
+            status = exc.status  # fmpy's FMICallException carries the FMI status
         if status == 4 or any(st == 4 for st, _ in slave.messages):
             slave.fatal = True  # FMI 2.0: after fmi2Fatal no further call is allowed
         if status is not None:

@@ -143,3 +143,73 @@ def test_library_validation_is_strict_by_default_as_for_the_build(stair):
     assert errors == () and len(conventions) == 2
     assert validate_fmu(stair) == list(conventions)
     assert validate_fmu(stair, strict=False) == []
+
+
+# ------------------------------------------------------------ failed initialisation
+@pytest.fixture(scope="module")
+def init_fails(tmp_path_factory, fmu_dir):
+    """InitFails.fmu next to the master's test FMUs (a copy of that folder)."""
+    import shutil
+    import sys
+
+    from fmukit.build import FmuSpec, build_fmu
+
+    out = tmp_path_factory.mktemp("init_fails")
+    for f in fmu_dir.glob("*.fmu"):
+        shutil.copy(f, out)
+    sys.path.insert(0, str(HERE / "fmus"))
+    try:
+        build_fmu(FmuSpec("MtInitFails", "hardtest_slaves:InitFails"), out)
+    finally:
+        sys.modules.pop("hardtest_slaves", None)
+    return out
+
+
+def test_fmu_that_fails_to_initialise_gives_its_reason_and_no_crash(init_fails, tmp_path):
+    """Issue 12: exit 139 after the error line, and no reason given.  The failing FMU
+    comes first so that it is not the last one instantiated (whose logger fmpy's
+    proxy used to receive every instance's messages)."""
+    scen = tmp_path / "s.toml"
+    scen.write_text(tomli_w.dumps({
+        "experiment": {"stop": 0.01, "output_interval": 1e-3},
+        "fmus": {"f": {"fmu": "MtInitFails", "period": 1e-3, "parameters": {"bad": True}},
+                 "i": {"fmu": "MtIntegrator", "period": 1e-3},
+                 "g": {"fmu": "MtGain", "period": 1e-3}},
+        "connections": [{"from": "i.x", "to": "f.u"}, {"from": "f.y", "to": "g.u"}],
+        "record": {"variables": ["i.x"]},
+    }))
+    import sys
+
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; from orchestrator.cli import main; "
+         "sys.exit(main(sys.argv[1:]))", "run", str(scen), "--out", str(tmp_path / "o"),
+         "--fmu-dir", str(init_fails), "--quiet"],
+        capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1, (proc.returncode, proc.stderr)
+    assert ("instance 'f' failed in initialisation at t = 0.0 s with status Fatal: "
+            in proc.stderr)
+    assert "ValueError('parameter bad is true: refusing to initialise')" in proc.stderr
+    assert json.loads((tmp_path / "o/run.json").read_text())["status"] == "error"
+
+
+def test_ten_bay_run_with_a_piezo_that_cannot_initialise_exits_cleanly(tmp_path):
+    """Issue 12: ``--set piezo_diag.internal_step=0`` on the ten-bay scenario printed
+    the error line, then died with a segfault (exit 139) without saying why."""
+    import sys
+    import tomllib
+
+    from orchestrator.fmucache import ensure_fmus
+
+    root = HERE.parents[1]
+    scen = root / "scenarios/truss10_closed_loop.toml"
+    names = [spec["fmu"] for spec in tomllib.loads(scen.read_text())["fmus"].values()]
+    ensure_fmus(names, tmp_path / "fmus")
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; from orchestrator.cli import main; "
+         "sys.exit(main(sys.argv[1:]))", "run", str(scen), "--set", "piezo_diag.internal_step=0",
+         "--out", str(tmp_path / "o"), "--fmu-dir", str(tmp_path / "fmus"), "--quiet",
+         "--stop-time", "0.1"],
+        capture_output=True, text=True, timeout=600, cwd=root)
+    assert proc.returncode == 1, (proc.returncode, proc.stderr)
+    assert "instance 'piezo_diag' failed in initialisation" in proc.stderr
+    assert "internal_step must be a positive finite number, got 0.0" in proc.stderr

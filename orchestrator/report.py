@@ -4,9 +4,13 @@
 writes either one self-contained HTML file (figures embedded as base64 PNG) or a Markdown
 file with PNG figures next to it.  Contents:
 
-1. Budget chart per configuration (Fig. 8 style): for each instrument, the jitter of every
-   event and their RSS total per axis, with the requirement as a dashed line.  The
-   budget metric is the metric and window of the first requirement (or the first metric).
+1. Budget chart (Fig. 8 style), one figure for all configurations so that they compare
+   at a glance: the RSS total of every instrument and axis with one bar per
+   configuration side by side on a log axis and the requirement across each group;
+   below, a heat map of every event x instrument-axis in the first configuration (log
+   colours, values in the cells) and one of each further configuration's change against
+   it (%).  The budget metric is the metric and window of the first requirement (or the
+   first metric).
 2. Time histories of the dominant case of every instrument (the event with the largest
    share of the RSS), all configurations overlaid.
 3. Boresight image-plane scatter (Fig. 16 style) of the dominant case of every instrument
@@ -14,8 +18,9 @@ file with PNG figures next to it.  Contents:
 4. Frequency responses / transmissibilities found in ``DIR/frf/*.parquet`` or ``*.csv``:
    a ``frequency`` column (Hz) and magnitude columns, or complex ones as ``NAME.re`` and
    ``NAME.im`` pairs; plotted as magnitudes on log-log axes.
-5. The budget table (RSS rows with requirement, margin, margin %, pass and dominant
-   event), the failed cases, and every summary row.
+5. The budget table (RSS rows with their change against the first configuration,
+   requirement, margin, margin %, pass and dominant event), the failed cases, and every
+   summary row.
 
 Figures are drawn with matplotlib's Agg canvas (no display needed, the global backend is
 left alone).
@@ -28,8 +33,10 @@ import html
 import io
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
@@ -38,7 +45,7 @@ from matplotlib.figure import Figure
 
 from .campaign import ANGLE_UNITS, RSS_EVENT, slug
 
-__all__ = ["ReportError", "write_report"]
+__all__ = ["BudgetGrid", "ReportError", "budget_grid", "write_report"]
 
 FORMATS = ("html", "md")
 _MAX_GROUPS = 8  # configuration x sweep groups drawn in one figure
@@ -103,41 +110,194 @@ def _png(fig: Figure) -> bytes:
     return buf.getvalue()
 
 
+@dataclass(frozen=True)
+class BudgetGrid:
+    """The budget as arrays: events x (instrument, axis) per configuration group.
+
+    Parameters
+    ----------
+    groups : tuple of tuple
+        ``(configuration, sweep)`` of each group, first = the baseline (e.g. isolation
+        off).
+    columns : tuple of (str, str)
+        ``(instrument, axis)`` of each column, in campaign order.
+    events : tuple of str
+        Event names, then ``RSS``.
+    values : ndarray, shape (n_groups, n_events + 1, n_columns)
+        Metric values (report unit); NaN where a case failed or is missing.
+    requirement : ndarray, shape (n_columns,)
+        Requirement of each column (NaN where none).
+    """
+
+    groups: tuple
+    columns: tuple
+    events: tuple
+    values: np.ndarray
+    requirement: np.ndarray
+
+    def change_pct(self, gi: int) -> np.ndarray:
+        """Change of group ``gi`` against the baseline, 100 (g - base) / base (%)."""
+        base = self.values[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(base > 0, 100.0 * (self.values[gi] - base) / base, np.nan)
+
+
+def budget_grid(rows, instruments) -> BudgetGrid:
+    """Arrange summary rows of one metric and window as a :class:`BudgetGrid`.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Summary rows (one metric and window), events and ``RSS``.
+    instruments : dict
+        Instrument -> {axis: variable}, in campaign order.
+    """
+    groups = tuple(_groups(rows)[:_MAX_GROUPS])
+    # campaign order: the summary keeps it, campaign.json sorts its keys
+    columns = tuple(dict.fromkeys((r["instrument"], r["axis"]) for r in rows
+                                  if r["instrument"] in instruments))
+    events = tuple(e for e in dict.fromkeys(r["event"] for r in rows) if e != RSS_EVENT)
+    events += (RSS_EVENT,)
+    gi = {g: i for i, g in enumerate(groups)}
+    ei = {e: i for i, e in enumerate(events)}
+    ci = {c: i for i, c in enumerate(columns)}
+    values = np.full((len(groups), len(events), len(columns)), np.nan)
+    requirement = np.full(len(columns), np.nan)
+    for r in rows:
+        g, c = (r["configuration"], r["sweep"]), (r["instrument"], r["axis"])
+        if g not in gi or c not in ci or r["event"] not in ei:
+            continue
+        v = r["value"]
+        values[gi[g], ei[r["event"]], ci[c]] = np.nan if v is None else v
+        req = r.get("requirement")
+        if r["event"] == RSS_EVENT and req is not None and not math.isnan(req):
+            requirement[ci[c]] = req
+    return BudgetGrid(groups, columns, events, values, requirement)
+
+
+_GROUP_COLORS = ("#8c8c8c", "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
+                 "#8c564b", "#e377c2")
+
+
+def _column_axis_labels(ax, columns):
+    """Axis names as tick labels, instrument names centred under their axes."""
+    ax.set_xticks(np.arange(len(columns)), [a for _, a in columns], fontsize=8)
+    start = 0
+    for k in range(1, len(columns) + 1):
+        if k == len(columns) or columns[k][0] != columns[start][0]:
+            ax.annotate(columns[start][0], xy=((start + k - 1) / 2, 0), xycoords=("data", "axes fraction"),
+                        xytext=(0, -22), textcoords="offset points", ha="center", va="top",
+                        fontsize=9, fontweight="bold")
+            if k < len(columns):
+                ax.axvline(k - 0.5, color="#444", lw=0.8)
+            start = k
+
+
+def _heatmap(ax, grid, data, cmap, norm, fmt, title):
+    masked = np.ma.masked_invalid(data)
+    cm = matplotlib.colormaps[cmap].with_extremes(bad="#e8e8e8")
+    im = ax.imshow(masked, cmap=cm, norm=norm, aspect="auto", interpolation="nearest")
+    ax.set_yticks(np.arange(len(grid.events)), grid.events, fontsize=8)
+    ax.get_yticklabels()[-1].set_fontweight("bold")
+    ax.axhline(len(grid.events) - 1.5, color="k", lw=1.2)  # events above, RSS below
+    for (i, j), v in np.ndenumerate(data):
+        text = "–" if not np.isfinite(v) else fmt(v)
+        rgba = im.cmap(im.norm(v)) if np.isfinite(v) else (1, 1, 1, 1)
+        dark = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2] < 0.5
+        ax.text(j, i, text, ha="center", va="center", fontsize=6.5,
+                color="white" if dark else "black")
+    _column_axis_labels(ax, grid.columns)
+    ax.set_title(title, fontsize=10, loc="left")
+    return im
+
+
+def _sig(v):
+    return f"{v:.2g}" if abs(v) < 10 else f"{v:.0f}"
+
+
 def _budget_figure(rows, instruments, unit, metric, window):
-    """Fig. 8 style: bars per event and RSS, per axis, requirement line; one row per group."""
-    groups = _groups(rows)[:_MAX_GROUPS]
-    insts = list(instruments)
-    fig = Figure(figsize=(4.2 * len(insts) + 1, 3.2 * len(groups) + 0.6))
-    axs = fig.subplots(len(groups), len(insts), squeeze=False)
-    for gi, g in enumerate(groups):
-        for ii, inst in enumerate(insts):
-            ax = axs[gi][ii]
-            sel = [r for r in rows if (r["configuration"], r["sweep"]) == g
-                   and r["instrument"] == inst]
-            events = [e for e in dict.fromkeys(r["event"] for r in sel) if e != RSS_EVENT]
-            events.append(RSS_EVENT)
-            axes = list(instruments[inst])
-            width = 0.8 / max(len(axes), 1)
-            x = np.arange(len(events))
-            for ai, axis in enumerate(axes):
-                vals = []
-                for e in events:
-                    v = [r["value"] for r in sel if r["event"] == e and r["axis"] == axis]
-                    vals.append(v[0] if v else 0.0)
-                bars = ax.bar(x + (ai - (len(axes) - 1) / 2) * width, vals, width, label=axis)
-                bars[-1].set_hatch("//")
-                req = [r["requirement"] for r in sel if r["event"] == RSS_EVENT
-                       and r["axis"] == axis and not math.isnan(r["requirement"])]
-                if req:
-                    ax.axhline(req[0], color=bars[0].get_facecolor(), ls="--", lw=1.2)
-            ax.set_xticks(x, events, rotation=40, ha="right", fontsize=8)
-            ax.set_ylabel(f"{metric} ({unit})")
-            title = f"{inst}" + (f" — {_group_label(g)}" if _group_label(g) else "")
-            ax.set_title(title, fontsize=9)
-            ax.legend(fontsize=7, title="axis (dashed: requirement)", title_fontsize=7)
-            ax.grid(axis="y", alpha=0.3)
-    win = "" if window is None else f", window {window:g} s"
-    fig.suptitle(f"Jitter per event and RSS total ({metric}{win})", fontsize=11)
+    """Budget chart: RSS per instrument and axis per group, and event x axis heat maps.
+
+    Top: the RSS total of every instrument and axis, one bar per configuration (the first
+    one, e.g. isolation off, grey) side by side on a log axis, the requirement as a black
+    bar across each pair and the change against the first configuration written above.
+    Below: a heat map of every event's value in the first configuration (log colour
+    scale, values written in the cells), and one heat map per further configuration of
+    its change against the first (%, blue = less jitter, red = more; cells written).
+    """
+    from matplotlib.colors import LogNorm, Normalize
+
+    grid = budget_grid(rows, instruments)
+    ng, ne, nc = grid.values.shape
+    n_change = min(ng - 1, 3)
+    width = max(8.0, 0.62 * nc + 3.5)
+    hmap_h = 0.26 * ne + 1.3
+    heights = [3.6] + [hmap_h] * (1 + n_change)
+    fig = Figure(figsize=(width, sum(heights) + 0.9))
+    axs = fig.subplots(len(heights), 1, squeeze=False,
+                       gridspec_kw={"height_ratios": heights})[:, 0]
+    win = "" if window is None else f" over {window:g} s"
+    labels = [_group_label(g) or "all cases" for g in grid.groups]
+
+    # RSS totals, grouped bars on a log axis
+    ax = axs[0]
+    ax.set_label("rss")
+    rss = grid.values[:, -1, :]
+    x = np.arange(nc)
+    w = 0.8 / ng
+    for gi in range(ng):
+        h = np.where(np.isfinite(rss[gi]) & (rss[gi] > 0), rss[gi], np.nan)
+        ax.bar(x + (gi - (ng - 1) / 2) * w, h, w, color=_GROUP_COLORS[gi % len(_GROUP_COLORS)],
+               label=labels[gi], edgecolor="white", linewidth=0.5)
+    have_req = np.isfinite(grid.requirement)
+    if have_req.any():
+        ax.hlines(grid.requirement[have_req], x[have_req] - 0.45, x[have_req] + 0.45,
+                  colors="k", lw=2.2, label="requirement")
+    if ng > 1:
+        change = 100.0 * (rss[-1] - rss[0]) / rss[0]
+        top = np.nanmax(np.vstack([rss, grid.requirement[None, :]]), axis=0)
+        for j in range(nc):
+            if np.isfinite(change[j]):
+                ax.annotate(f"{change[j]:+.0f} %" if abs(change[j]) >= 0.5 else "0 %",
+                            (x[j], top[j]), xytext=(0, 3), textcoords="offset points",
+                            ha="center", va="bottom", fontsize=7,
+                            color="#1f4e9c" if change[j] <= -0.5 else "#444")
+    shown = np.concatenate([rss.ravel(), grid.requirement])
+    shown = shown[np.isfinite(shown) & (shown > 0)]
+    if shown.size:
+        ax.set_yscale("log")
+        ax.set_ylim(10 ** np.floor(np.log10(shown.min() / 2)), shown.max() * 4)
+    ax.set_xlim(-0.5, nc - 0.5)
+    ax.set_ylabel(f"RSS ({unit})")
+    ax.grid(axis="y", which="both", alpha=0.25)
+    _column_axis_labels(ax, grid.columns)
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=ng + 1, fontsize=8,
+              frameon=False)
+    change_note = f"; above the bars: {labels[-1]} vs {labels[0]}" if ng > 1 else ""
+    ax.set_title(f"RSS total per instrument and axis{change_note}", fontsize=10, loc="right")
+
+    # every event in the baseline group
+    base = grid.values[0]
+    finite = base[np.isfinite(base) & (base > 0)]
+    norm = (LogNorm(vmin=finite.min(), vmax=finite.max()) if finite.size
+            and finite.min() < finite.max() else Normalize())
+    axs[1].set_label("events")
+    im = _heatmap(axs[1], grid, np.where(base > 0, base, np.nan), "viridis", norm, _sig,
+                  f"{metric} ({unit}), {labels[0]}")
+    fig.colorbar(im, ax=axs[1], pad=0.01, fraction=0.03).set_label(unit, fontsize=8)
+
+    # change of each further group against the baseline
+    for k in range(n_change):
+        gi = k + 1
+        a = axs[2 + k]
+        a.set_label(f"change:{labels[gi]}")
+        chg = grid.change_pct(gi)
+        im = _heatmap(a, grid, chg, "RdBu_r", Normalize(-100.0, 100.0),
+                      lambda v: f"{v:+.0f}" if abs(v) >= 0.5 else "0",
+                      f"change with {labels[gi]} vs {labels[0]} (%; blue: less jitter)")
+        fig.colorbar(im, ax=a, pad=0.01, fraction=0.03).set_label("%", fontsize=8)
+
+    fig.suptitle(f"Jitter budget: {metric}{win}, {unit}", fontsize=12, x=0.01, ha="left")
     fig.tight_layout()
     return fig
 
@@ -262,20 +422,30 @@ def _fmt(v, digits=4):
 
 
 def _budget_rows(rows, metric, window):
+    rss = [r for r in rows if r["event"] == RSS_EVENT and r["metric"] == metric
+           and _same_window(r["window"], window)]
+    groups = _groups(rss)
+    base = {(r["instrument"], r["axis"]): r["value"] for r in rss
+            if groups and (r["configuration"], r["sweep"]) == groups[0]}
+    # instrument and axis in campaign order, its configurations next to each other
+    cols = list(dict.fromkeys((r["instrument"], r["axis"]) for r in rss))
+    rss.sort(key=lambda r: (cols.index((r["instrument"], r["axis"])),
+                            groups.index((r["configuration"], r["sweep"]))))
     out = []
-    for r in rows:
-        if r["event"] != RSS_EVENT or r["metric"] != metric or not _same_window(r["window"],
-                                                                                window):
-            continue
+    for r in rss:
         contrib = [c for c in rows if c["event"] != RSS_EVENT and c["metric"] == metric
                    and _same_window(c["window"], window) and c["instrument"] == r["instrument"]
                    and c["axis"] == r["axis"] and c["configuration"] == r["configuration"]
                    and c["sweep"] == r["sweep"]]
         dom = max(contrib, key=lambda c: c.get("share") or 0.0) if contrib else None
         ratio = r["margin_ratio"]
+        b = base.get((r["instrument"], r["axis"]))
+        first = (r["configuration"], r["sweep"]) == groups[0]
+        change = ("" if first or b is None or r["value"] is None or not b > 0
+                  or math.isnan(r["value"]) else f"{100 * (r['value'] - b) / b:+.1f} %")
         out.append([
             r["instrument"], r["axis"], _group_label((r["configuration"], r["sweep"])),
-            _fmt(r["value"]), _fmt(r["requirement"]), _fmt(r["margin"]),
+            _fmt(r["value"]), change, _fmt(r["requirement"]), _fmt(r["margin"]),
             "" if ratio is None or math.isnan(ratio) else f"{100 * ratio:.1f} %",
             _fmt(r["pass"]) if r["pass"] is not None else ("n/a" if not r["note"] else "incomplete"),
             "" if dom is None else f"{dom['event']} ({100 * (dom.get('share') or 0):.0f} %)",
@@ -283,8 +453,8 @@ def _budget_rows(rows, metric, window):
     return out
 
 
-BUDGET_HEAD = ["instrument", "axis", "configuration", "RSS", "requirement", "margin",
-               "margin %", "pass", "dominant event (share)"]
+BUDGET_HEAD = ["instrument", "axis", "configuration", "RSS", "change vs first configuration",
+               "requirement", "margin", "margin %", "pass", "dominant event (share)"]
 SUMMARY_HEAD = ["case", "instrument", "axis", "metric", "window (s)", "value", "requirement",
                 "margin", "pass", "share", "note"]
 
@@ -387,7 +557,9 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
     win = "" if window is None else f" over {window:g} s"
     intro = (f"{len(cases)} cases ({n_ok} finished, {len(failed)} failed). Values in {unit}; "
              f"budget metric: {metric}{win}. RSS = root-sum-square over the events of a "
-             "configuration; margin = requirement − value; margin % = margin / requirement.")
+             "configuration; change = (value − first configuration's) / first "
+             "configuration's; requirements are the campaign file's inputs; margin = "
+             "requirement − value; margin % = margin / requirement.")
 
     if fmt == "html":
         parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
+import matplotlib.colorbar
 import numpy as np
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
@@ -230,7 +231,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
     grid = budget_grid(rows, instruments)
     ng, ne, nc = grid.values.shape
     n_change = min(ng - 1, 3)
-    width = max(8.0, 0.62 * nc + 3.5)
+    width = max(10.0, 0.62 * nc + 3.5)
     hmap_h = 0.26 * ne + 1.3
     heights = [3.6] + [hmap_h] * (1 + n_change)
     fig = Figure(figsize=(width, sum(heights) + 0.9))
@@ -271,10 +272,13 @@ def _budget_figure(rows, instruments, unit, metric, window):
     ax.set_ylabel(f"RSS ({unit})")
     ax.grid(axis="y", which="both", alpha=0.25)
     _column_axis_labels(ax, grid.columns)
-    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=ng + 1, fontsize=8,
+    ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=ng + 1, fontsize=8,
               frameon=False)
-    change_note = f"; above the bars: {labels[-1]} vs {labels[0]}" if ng > 1 else ""
-    ax.set_title(f"RSS total per instrument and axis{change_note}", fontsize=10, loc="right")
+    change_note = f"; % = {labels[-1]} vs {labels[0]}" if ng > 1 else ""
+    ax.set_title(f"RSS total{change_note}", fontsize=10, loc="left")
+    # the same right margin as the heat maps' colour bars, so the columns line up
+    spare, _ = matplotlib.colorbar.make_axes_gridspec(ax, fraction=0.03, pad=0.01)
+    spare.set_axis_off()
 
     # every event in the baseline group
     base = grid.values[0]

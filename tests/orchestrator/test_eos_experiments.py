@@ -6,10 +6,16 @@ against the physics that must hold where it does not (each JSON says which in
 from __future__ import annotations
 
 import math
+import tomllib
+from pathlib import Path
 
+import numpy as np
+import pyarrow.parquet as pq
 import pytest
 
+from orchestrator.experiments import eos_budget
 from orchestrator.experiments import run as run_experiment
+from orchestrator.report import budget_grid, write_report
 
 pytestmark = pytest.mark.slow
 
@@ -19,7 +25,18 @@ def out(tmp_path_factory):
     return tmp_path_factory.mktemp("eos")
 
 
-def test_eos_budget(out):
+def _requirements_by_instrument(path):
+    """The campaign file's requirements, read with tomllib (independently of the code)."""
+    data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    reqs = {}
+    for r in data["requirements"]:
+        assert "axis" not in r  # the shipped file sets one value per instrument
+        assert (r["metric"], r["window"]) == ("peak_to_peak", 1.8)
+        reqs[r["instrument"]] = r["value"]
+    return reqs
+
+
+def test_eos_budget(out, tmp_path):
     res = run_experiment("eos-budget", out, quick=True)
     assert res["n_failed"] == 0
     table = res["budget"]
@@ -27,16 +44,62 @@ def test_eos_budget(out):
     assert {(r["instrument"], r["axis"]) for r in table} == {
         (i, a) for i in ("CERES", "TIR", "MISR", "SWIR", "VNIR")
         for a in ("roll", "pitch", "yaw")}
+    # requirements are the campaign file's values, unchanged (no run sets them)
+    shipped = _requirements_by_instrument(eos_budget.CAMPAIGN)
+    assert shipped == {"CERES": 720.0, "TIR": 6.6, "MISR": 20.0, "SWIR": 2.2, "VNIR": 1.1}
     for r in table:
+        assert r["requirement"] == shipped[r["instrument"]]
         assert math.isfinite(r["rss_off"]) and r["rss_off"] > 0
         assert math.isfinite(r["rss_on"]) and r["rss_on"] > 0
-        assert r["requirement"] > 0
-        # RSS over events is at least the largest single event (definition of RSS)
-        assert r["rss_off"] >= max(r["events_off"].values()) - 1e-12
-        # margin = requirement - RSS
+        # RSS over events: the root of the sum of squares of the events' values
+        assert r["rss_off"] == pytest.approx(
+            math.sqrt(sum(v * v for v in r["events_off"].values())), rel=1e-9)
+        # margin = requirement - RSS; change = 100 (off - on) / off
         assert r["margin_off"] == pytest.approx(r["requirement"] - r["rss_off"])
+        assert r["margin_on"] == pytest.approx(r["requirement"] - r["rss_on"])
+        assert r["reduction_pct"] == pytest.approx(
+            100 * (r["rss_off"] - r["rss_on"]) / r["rss_off"])
+        # the paper's isolation result is shown where the paper gives one, and only there
+        assert bool(r["paper"]) == (r["instrument"] in ("SWIR", "MISR"))
         # isolation must not make any axis materially worse (stable, small-gain loops)
         assert r["rss_on"] <= 1.05 * r["rss_off"]
+    text = (out / "eos-budget-table.txt").read_text()
+    assert "inputs, not derived from this run" in text and "large cut" in text
+
+    # The report's budget chart has isolation off and on for every instrument and axis.
+    camp_dir = Path(res["campaign_dir"])
+    write_report(camp_dir, "html")
+    summary = pq.read_table(camp_dir / "summary.parquet").to_pylist()
+    rows = [r for r in summary if r["metric"] == "peak_to_peak"]
+    grid = budget_grid(rows, {i: {"roll": 0, "pitch": 0, "yaw": 0} for i in shipped})
+    assert [g[0] for g in grid.groups] == ["isolation off", "isolation on"]
+    assert len(grid.columns) == 15 and grid.events[-1] == "RSS"
+    assert np.isfinite(grid.values[:, -1, :]).all()
+
+    # Another requirement in the campaign file changes the margins and nothing else:
+    # the cases are reused (their keys do not contain requirements), so the new margin
+    # can only come from the file.
+    src = eos_budget.CAMPAIGN.read_text(encoding="utf-8")
+    changed = src.replace('scenario = "../scenarios/eos_budget.toml"',
+                          f'scenario = "{eos_budget.SCENARIO.as_posix()}"')
+    i = changed.index('instrument = "SWIR"')
+    changed = changed[:i] + changed[i:].replace("value = 2.2", "value = 5.0", 1)
+    assert changed.count("value = 5.0") == 1
+    mine = tmp_path / "my_budget.toml"
+    mine.write_text(changed, encoding="utf-8")
+    res2 = eos_budget.run(out, quick=True, campaign=mine)
+    assert res2["n_run"] == 0 and res2["n_skipped"] == res["n_cases"]
+    before = {(r["instrument"], r["axis"]): r for r in table}
+    for r in res2["budget"]:
+        b = before[(r["instrument"], r["axis"])]
+        assert r["rss_off"] == b["rss_off"] and r["rss_on"] == b["rss_on"]
+        if r["instrument"] == "SWIR":
+            assert r["requirement"] == 5.0
+            assert r["margin_off"] == pytest.approx(5.0 - r["rss_off"])
+            assert r["margin_off"] == pytest.approx(b["margin_off"] + 2.8)
+        else:
+            assert r["requirement"] == b["requirement"]
+            assert r["margin_off"] == b["margin_off"]
 
 
 def test_testbed_isolation(out):

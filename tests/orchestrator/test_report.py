@@ -13,7 +13,7 @@ import pytest
 
 from orchestrator.campaign import ANGLE_UNITS, campaign_from_dict, run_campaign
 from orchestrator.cli import main as cli_main
-from orchestrator.report import ReportError, write_report
+from orchestrator.report import ReportError, _budget_figure, budget_grid, write_report
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -77,12 +77,76 @@ def test_html_report_is_self_contained_with_table_and_images(campaign_dir):
     assert f"<td>{rss:.4g}</td>" in text and "<td>1.2</td>" in text
     assert f"{100 * (1.2 - rss) / 1.2:.1f} %" in text
     assert "FAIL" in text and "VNIR pointing (94 %)" in text  # 16/17 of the square
+    # isolation on divides the amplitude by 5: the change column says -80 %
+    assert "<td>-80.0 %</td>" in text and "change vs first configuration" in text
     assert "RuntimeError: cryocooler model has no data" in text
     images = re.findall(r"src='data:image/png;base64,([A-Za-z0-9+/=]+)'", text)
     # budget chart, time history, boresight scatter, transmissibility
     assert len(images) == 4
     assert all(base64.b64decode(b)[:8] == PNG_MAGIC for b in images)
     assert not re.search(r"src=['\"](?!data:)", text)  # nothing loaded from elsewhere
+
+
+def _budget_rows(campaign_dir):
+    rows = pq.read_table(campaign_dir / "summary.parquet").to_pylist()
+    return [r for r in rows if r["metric"] == "peak_to_peak"]
+
+
+def test_budget_grid_holds_every_group_event_and_axis(campaign_dir):
+    grid = budget_grid(_budget_rows(campaign_dir), {"SWIR": {"pitch": "", "yaw": ""}})
+    assert grid.groups == (("isolation off", ""), ("isolation on", ""))
+    assert grid.columns == (("SWIR", "pitch"), ("SWIR", "yaw"))
+    # the failed SWIR cryocooler case has no rows: no row in the grid either
+    assert grid.events == ("VNIR pointing", "SAD", "RSS")
+    # a circle of radius a: pitch and yaw peak-to-peak 2a; isolation on divides a by 5
+    arcsec = ANGLE_UNITS["arcsec"]
+    off = np.array([8e-6, 2e-6, 2e-6 * np.sqrt(17)]) * arcsec
+    np.testing.assert_allclose(grid.values[0], np.c_[off, off], rtol=1e-3)
+    np.testing.assert_allclose(grid.values[1], np.c_[off, off] / 5, rtol=1e-3)
+    np.testing.assert_array_equal(grid.requirement, [1.2, 1.2])
+    np.testing.assert_allclose(grid.change_pct(1), -80.0, rtol=1e-6)  # (1/5 - 1) * 100
+
+
+def test_budget_grid_leaves_a_missing_case_empty(campaign_dir):
+    rows = [r for r in _budget_rows(campaign_dir)
+            if not (r["event"] == "SAD" and r["configuration"] == "isolation on")]
+    grid = budget_grid(rows, {"SWIR": {"pitch": "", "yaw": ""}})
+    assert np.isnan(grid.values[1, 1]).all() and np.isnan(grid.change_pct(1)[1]).all()
+    assert np.isfinite(grid.values[0, 1]).all()
+
+
+def test_budget_chart_draws_off_and_on_for_every_instrument_and_axis(campaign_dir):
+    rows = _budget_rows(campaign_dir)
+    grid = budget_grid(rows, {"SWIR": {"pitch": "", "yaw": ""}})
+    fig = _budget_figure(rows, {"SWIR": {"pitch": "", "yaw": ""}}, "arcsec",
+                         "peak_to_peak", 0.2)
+    axes = {ax.get_label(): ax for ax in fig.axes if ax.get_label()}
+    assert {"rss", "events", "change:isolation on"} <= set(axes)
+    assert "change:isolation off" not in axes  # the baseline is not compared with itself
+    rss = axes["rss"]
+    # one bar per configuration for every instrument and axis, side by side
+    assert [c.get_label() for c in rss.containers] == ["isolation off", "isolation on"]
+    for gi, bars in enumerate(rss.containers):
+        assert len(bars) == len(grid.columns)
+        np.testing.assert_allclose([b.get_height() for b in bars], grid.values[gi, -1])
+    xs = np.array([[b.get_x() + b.get_width() / 2 for b in c] for c in rss.containers])
+    assert np.all(np.abs(xs[1] - xs[0]) < 0.5)  # each pair shares its column
+    assert rss.get_yscale() == "log"
+    assert [t.get_text() for t in rss.get_xticklabels()] == ["pitch", "yaw"]
+    lo, hi = rss.get_ylim()
+    assert lo <= grid.values[1, -1].min() and hi >= grid.requirement.max()
+    # the legend sits above the plotting area, not over the bars
+    legend = rss.get_legend()
+    assert legend is not None and {t.get_text() for t in legend.get_texts()} == {
+        "isolation off", "isolation on", "requirement"}
+    # heat maps: every event and the RSS of "isolation off", and the change of "on"
+    ev = axes["events"].images[0].get_array()
+    np.testing.assert_allclose(ev, grid.values[0])
+    assert [t.get_text() for t in axes["events"].get_yticklabels()] == list(grid.events)
+    ch = axes["change:isolation on"].images[0].get_array()
+    np.testing.assert_allclose(ch, -80.0, rtol=1e-6)
+    # cell texts, then the instrument name under its axes
+    assert [t.get_text() for t in axes["change:isolation on"].texts] == ["-80"] * 6 + ["SWIR"]
 
 
 def test_markdown_report_links_existing_pngs(campaign_dir, tmp_path):

@@ -495,14 +495,13 @@ class _Slave:
         cb.allocateMemory = f2.defaultCallbacks.allocateMemory
         cb.freeMemory = f2.defaultCallbacks.freeMemory
         cb.componentEnvironment = ctypes.c_void_p(self._log_key)
-        log = None
         try:
             from fmpy.logging import addLoggerProxy
 
             addLoggerProxy(ctypes.byref(cb))
         except Exception:  # pragma: no cover - formatting proxy is optional
             pass
-        self._log = log
+        self._log = None  # the shared logger lives in _LOGGER
         self._cb = cb
         self.instantiated = False
         self.fatal = False

@@ -286,8 +286,10 @@ def extract_cached(archive, sha256: str | None = None, *, kind: str = "fmu",
         members = _members(data)
         if members is not None and _entry_is_intact(dest, actual, members):
             _VERIFIED.add(dest)
+            _touch(dest / MANIFEST)
             return dest
         _discard(dest, root)
+    _prune(root)
     tmp = Path(tempfile.mkdtemp(prefix=f".{kind}-partial-", dir=root))
     try:
         files = _unpack(data, archive, tmp, kind)
@@ -304,6 +306,36 @@ def extract_cached(archive, sha256: str | None = None, *, kind: str = "fmu",
         shutil.rmtree(tmp, ignore_errors=True)
     _VERIFIED.add(dest)
     return dest
+
+
+#: Entries unused for this long (s) are removed when a new one is unpacked.
+MAX_AGE = 30 * 86400
+#: Leftovers of an interrupted unpack older than this (s) are removed.
+_PARTIAL_AGE = 86400
+
+
+def _touch(path: Path) -> None:
+    try:
+        os.utime(path)
+    except OSError:
+        pass
+
+
+def _prune(root: Path) -> None:
+    """Remove entries not used for MAX_AGE and old leftovers of killed extractions."""
+    import time
+
+    now = time.time()
+    for entry in root.iterdir():
+        try:
+            if entry.name.startswith((".fmu-partial-", ".ssp-partial-", ".discarded-")):
+                if now - entry.lstat().st_mtime > _PARTIAL_AGE:
+                    shutil.rmtree(entry, ignore_errors=True)
+            elif entry.name.startswith(("fmu-", "ssp-")) and entry not in _VERIFIED:
+                if now - (entry / MANIFEST).stat().st_mtime > MAX_AGE:
+                    _discard(entry, root)
+        except OSError:
+            continue
 
 
 def _discard(dest: Path, root: Path) -> None:

@@ -206,3 +206,19 @@ def test_run_never_executes_code_planted_in_the_cache(fmu_dir, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert not marker.exists()
     assert "pwned" not in slave.read_text()
+
+
+def test_unused_entries_and_old_leftovers_are_pruned_when_a_new_one_is_unpacked(cache, tmp_path):
+    old = make_archive(tmp_path / "old.fmu", FILES)
+    recent = make_archive(tmp_path / "recent.fmu", {**FILES, "resources/x.py": "X = 2\n"})
+    old_dest, recent_dest = extract_cached(old), extract_cached(recent)
+    leftover = cache / ".fmu-partial-killed"
+    leftover.mkdir()
+    month_ago = os.stat(old_dest / MANIFEST).st_mtime - fmucache.MAX_AGE - 60
+    os.utime(old_dest / MANIFEST, (month_ago, month_ago))
+    os.utime(leftover, (month_ago, month_ago))
+    fmucache._VERIFIED.clear()
+    extract_cached(make_archive(tmp_path / "new.fmu", {**FILES, "resources/x.py": "X = 3\n"}))
+    assert not old_dest.exists() and not leftover.exists()
+    assert recent_dest.is_dir()
+    assert leftovers(cache) == []

@@ -106,6 +106,7 @@ class Block:
     outputs: tuple
     feedthrough: np.ndarray
     rebuild: Callable | None = field(default=None, repr=False)
+    active: bool = True
 
     @property
     def n(self) -> int:
@@ -192,7 +193,8 @@ def _law_block(law, name, period, h, ft, factor=1.0):
     B = np.hstack([Bs, np.zeros((As.shape[0], n_out))])
     D = np.hstack([Ds, np.eye(n_out)])   # r is added after the law
     return Block(name, "controller", period, As, B, Cs, D, ins, outs, ft,
-                 rebuild=lambda f: _law_block(law, name, period, h, ft, factor * f))
+                 rebuild=lambda f: _law_block(law, name, period, h, ft, factor * f),
+                 active=bool(factor != 0 and (np.any(law.C) or np.any(law.D))))
 
 
 def _controller_block(slave, name, period, h, ft):
@@ -353,6 +355,8 @@ class Ceiling:
     performance : tuple of str
     method : str
         ``"cancel"`` or ``"optimal"``.
+    sensors : tuple of str
+        Signals cancelled (``"cancel"``).
     freqs_hz : ndarray, shape (n_f,)
     open_loop : ndarray, shape (n_f,)
         RMS over the performance outputs of the response without control, per frequency.
@@ -365,6 +369,7 @@ class Ceiling:
 
     performance: tuple
     method: str
+    sensors: tuple
     freqs_hz: np.ndarray
     open_loop: np.ndarray
     ideal: np.ndarray
@@ -444,17 +449,27 @@ class LinearScenario:
         return LinearScenario(self.plan, blocks, self.order)
 
     def opened(self, instances) -> "LinearScenario":
-        """Copy with the named controllers removed: their outputs become free inputs."""
+        """Copy with the named instances removed: their outputs become free inputs.
+
+        Used for the ceiling (controllers), and to take a slow loop out of the analysis
+        of fast ones: with a 10 Hz ACS the hyperperiod is 0.1 s and its poles resolve
+        frequencies up to 5 Hz only.
+        """
         blocks = dict(self.blocks)
         for name in instances:
+            if name not in blocks:
+                raise AnalysisError(f"no instance {name!r} in the scenario; instances: "
+                                    f"{', '.join(blocks)}")
             b = blocks[name]
             blocks[name] = Block(name, "source", b.period, np.zeros((0, 0)), np.zeros((0, 0)),
                                  np.zeros((len(b.outputs), 0)), np.zeros((len(b.outputs), 0)),
                                  (), b.outputs, np.zeros(len(b.outputs), bool))
         return LinearScenario(self.plan, blocks, self.order)
 
-    def controllers(self) -> list:
-        return [n for n, b in self.blocks.items() if b.kind == "controller"]
+    def controllers(self, active_only: bool = False) -> list:
+        """Controller instances (those whose gain is not zero with ``active_only``)."""
+        return [n for n, b in self.blocks.items()
+                if b.kind == "controller" and (b.active or not active_only)]
 
     # ------------------------------------------------------------------ stepping
     def _tick(self, X, k, w_next):
@@ -476,6 +491,7 @@ class LinearScenario:
             if b.kind == "source":
                 continue
             sx, su, sy = self.slots[name]
+            X[su] = 0.0      # unconnected inputs keep their start values: no perturbation
             for tgt, j, src, i, gain in self._conns:
                 if tgt == name:
                     X[su.start + j] = gain * X[self.slots[src][2].start + i]
@@ -577,8 +593,8 @@ class LinearScenario:
             return self.with_gain(instance, f).is_stable()
 
         ok = stable(1.0)
-        up = _boundary(stable, 1.0, np.geomspace(1.0, limit, 41)[1:], rtol)
-        downs = np.r_[np.geomspace(1.0, 1e-3, 31)[1:], 0.0, -np.geomspace(1e-3, limit, 41)]
+        up = _boundary(stable, 1.0, np.geomspace(1.0, limit, 19)[1:], rtol)
+        downs = np.r_[np.geomspace(1.0, 1e-2, 7)[1:], 0.0, -np.geomspace(1e-2, limit, 16)]
         lo = _boundary(stable, 1.0, downs, rtol)
         return Margins(instance, up, lo, ok)
 
@@ -799,8 +815,12 @@ def ceiling(lin: LinearScenario, performance, disturbance: str, freqs_hz, *,
             vopt = -np.linalg.lstsq(zv, zd, rcond=None)[0]
         ol[i] = np.linalg.norm(zd) * amps[i]
         ideal[i] = np.linalg.norm(zd + zv @ vopt) * amps[i]
+    if not np.any(ol > 0):
+        raise AnalysisError(f"{disturbance} does not reach {', '.join(performance)} once "
+                            f"{', '.join(actuators)} are removed (it may enter through "
+                            "them); choose a disturbance that acts on the structure")
     red = 100.0 * (1.0 - math.sqrt(np.sum(ideal**2)) / math.sqrt(np.sum(ol**2)))
-    return Ceiling(tuple(performance), method, freqs, ol, ideal, float(red))
+    return Ceiling(tuple(performance), method, tuple(sensors), freqs, ol, ideal, float(red))
 
 
 def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
@@ -808,7 +828,11 @@ def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
     lines = [f"linear closed loop: {len(lin.blocks)} instances, {lin.n} lifted states, "
              f"hyperperiod {lin.T * 1e3:g} ms"]
     poles = lin.poles()
-    lo, hi = band if band else (0.0, 0.5 / lin.T)
+    nyq = 0.5 / lin.T
+    lo, hi = band if band else (0.0, nyq)
+    if hi > nyq:
+        lines.append(f"warning: the hyperperiod resolves pole frequencies up to {nyq:g} Hz "
+                     "only; take slow instances out (--open) to resolve faster ones")
     sel = [p for p in poles if lo <= p.freq_hz <= hi and p.z.imag >= 0]
     lines.append("")
     lines.append(f"closed-loop poles {lo:g}-{hi:g} Hz")
@@ -822,9 +846,13 @@ def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
                      f"{100 * d.pole.zeta:.2f} %, {d.cycles_to_90pct:.2f} cycles to 90 % decay")
     if margins:
         lines.append("")
-        lines.append("gain margins (factor on each controller's gain, other loops closed)")
+        lines.append("gain margins (factor on each active controller's gain, other loops "
+                     "closed)")
         lines.append(f"  {'controller':<24} {'upper':>9} {'(dB)':>7} {'lower':>9}")
-        for c in lin.controllers():
+        off = [c for c in lin.controllers() if c not in lin.controllers(active_only=True)]
+        if off:
+            lines.append(f"  (gain 0, not analysed: {', '.join(off)})")
+        for c in lin.controllers(active_only=True):
             g = lin.gain_margins(c)
             lines.append(f"  {c:<24} {g.upper:9.3g} {g.upper_db:7.2f} {g.lower:9.3g}")
     return "\n".join(lines)

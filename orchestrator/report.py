@@ -216,6 +216,19 @@ def _sig(v):
     return f"{v:.2g}" if abs(v) < 10 else f"{v:.0f}"
 
 
+def _plain_log_labels(axis, lo, hi, minor_decades=2.0):
+    """Tick labels 0.1, 2, 50 instead of 10^-1, 2x10^0, 5x10^1 on a log axis.
+
+    Minor ticks are labelled only when the axis spans fewer than ``minor_decades``.
+    """
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    few_decades = np.log10(hi / lo) < minor_decades if lo > 0 else False
+    axis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}") if few_decades
+                             else NullFormatter())
+
+
 def _budget_figure(rows, instruments, unit, metric, window):
     """Budget chart: RSS per instrument and axis per group, and event x axis heat maps.
 
@@ -268,6 +281,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
     if shown.size:
         ax.set_yscale("log")
         ax.set_ylim(10 ** np.floor(np.log10(shown.min() / 2)), shown.max() * 4)
+        _plain_log_labels(ax.yaxis, *ax.get_ylim())
     ax.set_xlim(-0.5, nc - 0.5)
     ax.set_ylabel(f"RSS ({unit})")
     ax.grid(axis="y", which="both", alpha=0.25)
@@ -288,7 +302,10 @@ def _budget_figure(rows, instruments, unit, metric, window):
     axs[1].set_label("events")
     im = _heatmap(axs[1], grid, np.where(base > 0, base, np.nan), "viridis", norm, _sig,
                   f"{metric} ({unit}), {labels[0]}")
-    fig.colorbar(im, ax=axs[1], pad=0.01, fraction=0.03).set_label(unit, fontsize=8)
+    cbar = fig.colorbar(im, ax=axs[1], pad=0.01, fraction=0.03)
+    cbar.set_label(unit, fontsize=8)
+    if isinstance(norm, LogNorm):
+        _plain_log_labels(cbar.ax.yaxis, norm.vmin, norm.vmax, minor_decades=1.0)
 
     # change of each further group against the baseline
     for k in range(n_change):

@@ -99,9 +99,9 @@ def test_angle_outputs_read_a_rigid_rotation(truss):
 
 
 def test_los_output_follows_its_own_payload_only(truss):
-    # rotate only the MISR payload nodes: MISR reads it, the other instruments read 0
+    # rotate only the MISR gimballed body: MISR reads it, the other instruments read 0
     u = np.zeros(truss.n_dof)
-    idx = [truss.node(n) for n in ["misr_cg", "misr_p0", "misr_p1", "misr_p2", "misr_p3"]]
+    idx = [truss.node(n) for n in eos.payload_nodes("misr")]
     r = truss.nodes[idx] - truss.nodes[idx].mean(axis=0)
     theta = np.array([0.0, 4e-6, 0.0])
     for i, ri in zip(idx, r):
@@ -184,6 +184,36 @@ def test_all_legs_active_variant_keeps_six_rigid_modes():
     assert np.all(f[:6] == 0.0) and f[6] > 0.3
 
 
+def test_misr_gimbal_modes_near_8_hz(truss):
+    # paper: the payloads point with about 8 Hz bandwidth; the gimbal servo is the
+    # spring J (2 pi 8 Hz)^2 on roll and pitch of the body relative to the plate
+    g = eos.gimbal_modes(truss)
+    f, _ = eos.modes(truss, 20)
+    assert g.size == 2
+    np.testing.assert_allclose(f[g], eos.GIMBAL_HZ, rtol=0.03)
+    # a rigid rotation of the body with its plate strains no gimbal spring
+    u = _rigid_field(truss, theta=(1e-6, 2e-6, 3e-6))
+    body = {truss.node(f"misr_g{c}") for c in range(6)}
+    for s in truss.springs:
+        if {int(d) // 3 for d in s.dofs} & body:
+            assert abs(np.asarray(s.weights) @ u[np.asarray(s.dofs)]) < 1e-18
+
+
+def test_misr_layout_puts_mount3_in_the_dominant_22_hz_path(red):
+    # holding the payload accelerometer of iso3 at zero at 22 Hz removes most of the
+    # SWIR cryocooler's MISR boresight (roll, pitch); iso1 alone removes little
+    outs = ["los_misr_roll", "los_misr_pitch", "acc_pay_iso1", "acc_pay_iso3"]
+    H = frf(red, [22.0], outs, ["swir_fz", "fc_iso1", "fc_iso3"])[0]
+    b = H[:2, 0]
+
+    def null(row, col):
+        return np.linalg.norm(b - H[:2, col] * H[row, 0] / H[row, col]) / np.linalg.norm(b)
+
+    assert null(3, 2) < 0.25          # mount #3: >= 75 % removable
+    assert null(2, 1) > 0.8           # mount #1: < 20 %
+    assert abs(b[1]) > 4 * abs(b[0])  # pitch dominates (first bus mode: x-z bending)
+
+
 # -- reduction ---------------------------------------------------------------------------------
 def test_reduced_defaults(red):
     assert red.n_modes == eos.N_MODES
@@ -191,7 +221,9 @@ def test_reduced_defaults(red):
     assert red.accel_lowpass == eos.ACCEL_LOWPASS and eos.ACCEL_LOWPASS.cutoff_hz == 150.0
     assert red.n_ritz == 5 + 54
     assert np.all(red.modal_damping[:6] == 0.0)       # rigid modes undamped
-    np.testing.assert_allclose(red.modal_damping[6:], 2 * eos.ZETA * red.omega[6:])
+    zeta = np.full(red.n_modes, eos.ZETA)
+    zeta[eos.gimbal_modes(eos.build())] = eos.ZETA_GIMBAL
+    np.testing.assert_allclose(red.modal_damping[6:], 2 * zeta[6:] * red.omega[6:])
     assert red.output_names[0] == "los_ceres_roll" and "rate_yaw" in red.output_names
 
 

@@ -27,7 +27,7 @@ bus lattice            16 x 2 x 2 bays (4.06 x 0.51 x 0.51 m), every cube edge +
                        diagonal per cube face (alternating), 153 nodes, 608 struts
 bus strut              aluminium tube OD 0.75 in, wall 0.049 in (A = 6.96e-5 m^2),        A
                        E = 70 GPa, rho = 2700 kg/m^3
-bus joint efficiency   ``ETA_BUS`` = 0.776 (EA knock-down of erectable joints) so that    C
+bus joint efficiency   ``ETA_BUS`` = 0.772 (EA knock-down of erectable joints) so that    C
                        the first bus mode is 23 Hz
 node ball + rods       0.15 kg per bus node                                               A
 subsystem masses       propulsion 60, power 70, C&DH 25, comms 20, RWA/ACS 25, harness/   A
@@ -51,6 +51,19 @@ MISR mount             isolator: 3 vertical legs, each a P-845.37 stack (ActiveM
                        lateral flexure stiffness of each leg end 2e5 N/m (stack legs) and
                        12 EI/L^3 = 5.2e5 N/m (rod), rotation-invariant (held on the line
                        of the bus post below the foot)
+MISR layout            ``MISR_FEET``: iso1, tube, iso2 on the bus line x = 3 a (j = 0, 1,   C
+                       2), iso3 alone at (1 a, 1 a), two bays behind: a triangular plate
+                       whose pitch only iso3 can change.  Fitted to "mount #3 in the
+                       dominant 22 Hz path": the 22 Hz bus bending has its node line at
+                       x ~ 3 a, so the SWIR cryocooler pitches MISR through iso3's foot
+                       (holding its payload accelerometer at zero removes 81 % of the
+                       boresight jitter; on the old square cell with iso3 on the quiet
+                       corner, 1.8 %)
+MISR gimbal            two-axis gimballed payload (paper: 2 arcsec, about 8 Hz): 60 % of  P/A
+                       the mass on a rigid octahedron (r 0.12 m) around a pivot
+                       ``misr_cg`` 0.15 m above the plate; roll and pitch springs to the
+                       plate J (2 pi 8 Hz)^2 (servo, modes 7.9 Hz, damping 5 %), yaw
+                       1000 x stiffer; ``los_misr_*`` read the gimballed body
 SWIR, VNIR mounts      kinematic as TIR; the inclined leg of bipod 1 carries a P-845.37   P/A
                        stack in series (``swir_mount``, ``vnir_mount``); with
                        ``active_legs="all"`` every leg does (``swir_mount1..6`` ...);
@@ -61,7 +74,7 @@ solar array            boom 9 bays x 0.508 m (4.57 m) along -y, section 0.508 m 
                        -y face (4 root nodes, 3 stiff struts each); panels 30 kg on the
                        36 boom nodes; struts 0.10 kg/m; battens/diagonals EA 2.31e6 N
                        (tube 0.5 x 0.035 in)
-array longeron EA      ``EA_ARRAY`` = 2.34e5 N (equivalent) so that the first array      C
+array longeron EA      ``EA_ARRAY`` = 2.35e5 N (equivalent) so that the first array      C
                        mode is 0.5 Hz
 high-gain antenna      boom 5 bays x 0.254 m along -z from the zenith face (cell 14, 0),  A
                        section 0.254 m, longeron EA 2.0e5 N (equivalent), braces as the
@@ -156,16 +169,24 @@ TARGET_BUS_HZ = 23.0
 TARGET_ARRAY_HZ = 0.5
 SHIFT = -100.0
 # calibrated by calibrate(): first bus mode 23 Hz, first array mode 0.5 Hz
-ETA_BUS = 0.7755223
-EA_ARRAY = 2.344169e5
+ETA_BUS = 0.7720308
+EA_ARRAY = 2.349375e5
 N_MODES = 70
 
 INSTRUMENTS = ("ceres", "tir", "misr", "swir", "vnir")
 LOCATIONS = ("ceres", "misr", "modis", "mopitt", "swir", "tir", "vnir", "rwa", "sad")
 WRENCH = ("fx", "fy", "fz", "mx", "my", "mz")
 
+# MISR isolator feet: nadir-face bus nodes (i, j) of the four legs (a diamond; see
+# _misr_station and docs/eos_testbed.md for why this layout and why iso3 is there)
+MISR_FEET = {"iso1": (3, 0), "iso2": (3, 2), "iso3": (1, 1), "tube": (3, 1)}
+GIMBAL_HZ = 8.0         # paper: the payloads point with about 8 Hz bandwidth
+GIMBAL_RADIUS = 0.12    # gimballed-body node radius about the pivot (m)
+GIMBAL_YAW_FACTOR = 1000.0  # no yaw axis: yaw mode near 250 Hz
+ZETA_GIMBAL = 0.05      # servo damping of the two gimbal modes (see gimbal_modes)
 # nadir-face cell (i, j) of each station: the plate sits over bus nodes (i..i+1, j..j+1)
-STATIONS = {"misr": (2, 0), "ceres": (5, 1), "tir": (8, 0), "swir": (11, 0), "vnir": (13, 1)}
+# (MISR: lower corner of the 2 x 2 cells its diamond spans)
+STATIONS = {"misr": (1, 0), "ceres": (5, 1), "tir": (8, 0), "swir": (11, 0), "vnir": (13, 1)}
 INSTRUMENT_MASS = {"ceres": 9.0, "misr": 15.0, "tir": 14.0, "swir": 11.0, "vnir": 8.0}
 MOUNTS = {"ceres": "rigid", "tir": "kinematic", "misr": "isolator", "swir": "kinematic",
           "vnir": "kinematic"}
@@ -292,6 +313,9 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
     legs: dict = {}  # name -> (bus node, payload node)
     zn = NZ * a
     for inst in INSTRUMENTS:
+        if MOUNTS[inst] == "isolator":
+            _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs)
+            continue
         i, j = STATIONS[inst]
         m = INSTRUMENT_MASS[inst]
         bus4 = cell_nodes(i, j)
@@ -323,23 +347,8 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
                                                rod, springs, xyz, node_mass, inst))
                 else:
                     rod(bus4[f], plate[c], E_AL * TUBE_AREA, rho_tube)
-        else:  # isolator: three stack legs and one solid rod, vertical, lateral flexures
-            for c in range(4):
-                if c < 3:
-                    name = f"iso{c + 1}"
-                    active.append(_stacked_leg(name, bus4[c], plate[c], stack, add_node, rod,
-                                               springs, xyz, node_mass, inst))
-                    k_lat = K_LAT_STACK_LEG
-                else:
-                    name = "tube"
-                    rod(bus4[c], plate[c], E_AL * ROD_AREA, RHO_AL * ROD_AREA)
-                    k_lat = 12 * E_AL * ROD_I / MOUNT_HEIGHT**3
-                legs[name] = (bus4[c], plate[c])
-                # lateral flexure stiffness: the payload end held on the line of the bus
-                # post below the foot (a rigid rotation of the whole model is free)
-                below = B(i + (c in (1, 2)), j + (c in (2, 3)), NZ - 1)
-                springs.extend(transverse_link(np.array(xyz), below, bus4[c], plate[c],
-                                               k_lat))
+        else:  # isolator: the MISR station, built by _misr_station
+            raise ModelError(f"station {inst!r}: mount {kind!r} is built by _misr_station")
 
     # -- solar array -------------------------------------------------------------------
     # yoke: four root nodes off the bus -y face, each pinned to three bus nodes
@@ -391,7 +400,7 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
     # -- channels ------------------------------------------------------------------------------
     loads = []
     for loc in LOCATIONS:
-        if loc in STATIONS:
+        if loc in STATIONS:  # through the mount: CG (MISR: gimbal pivot) + plate nodes
             set_ = [f"{loc}_cg"] + [f"{loc}_p{c}" for c in range(4)]
         elif loc in BUS_INSTRUMENTS:
             set_ = cell_nodes(*BUS_INSTRUMENTS[loc][0])
@@ -405,8 +414,7 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
                                  components=(3, 4, 5)))
     outputs = []
     for inst in INSTRUMENTS:
-        outputs.extend(truss.angle_channels(f"los_{inst}", [f"{inst}_cg"]
-                                            + [f"{inst}_p{c}" for c in range(4)]))
+        outputs.extend(truss.angle_channels(f"los_{inst}", payload_nodes(inst)))
     for leg, (b, p) in legs.items():
         d = nodes[p] - nodes[b]
         outputs.append(truss.accel_channel(f"acc_pay_{leg}", p, d))
@@ -420,6 +428,101 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
     outputs.extend(Channel(c.name.replace("att_", "rate_"), "rate", c.dofs, c.weights)
                    for c in att)
     return truss.replace(loads=tuple(loads), outputs=tuple(outputs))
+
+
+def payload_nodes(inst: str) -> list:
+    """Nodes whose rigid rotation is the boresight of ``inst`` (``los_<inst>_*``).
+
+    The MISR payload is gimballed: its boresight is the gimballed body (pivot ``misr_cg``
+    and the six body nodes ``misr_g0..g5``), not the interface plate.  The other
+    payloads are locked to their plate: CG node and plate nodes ``<inst>_p0..p3``.
+    """
+    if MOUNTS[inst] == "isolator":
+        return [f"{inst}_cg"] + [f"{inst}_g{c}" for c in range(6)]
+    return [f"{inst}_cg"] + [f"{inst}_p{c}" for c in range(4)]
+
+
+def _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs):
+    """The MISR isolator station: diamond of four vertical legs, gimballed payload.
+
+    Legs (``MISR_FEET``): three P-845.37 stack legs ``iso1..3`` and one solid aluminium
+    rod ``tube``, each from a nadir-face bus node to a plate node ``MOUNT_HEIGHT`` above
+    it (``misr_p0..p3`` over iso1, iso2, iso3, tube).  iso1/iso2 sit on the roll axis
+    of the plate (+-y), iso3 and the tube on its pitch axis (+-x), so one strut tilts the
+    plate about one axis only.  Each leg end is held laterally (flexure) on the line of
+    the bus post below its foot.  The plate (edges + the x diagonal) carries a pivot
+    ``misr_cg`` ``CG_HEIGHT`` above its centre on four rods; the gimballed body is a rigid
+    octahedron ``misr_g0..g5`` (+-x, +-y, +-z at ``GIMBAL_RADIUS``) around the pivot, free to
+    rotate about it but for three springs: roll and pitch at ``gimbal_stiffness()`` (the
+    8 Hz servo) and yaw at ``GIMBAL_YAW_FACTOR`` times that (no yaw axis).
+    """
+    m = INSTRUMENT_MASS[inst]
+    order = ("iso1", "iso2", "iso3", "tube")
+    feet = [B(*MISR_FEET[leg], NZ) for leg in order]
+    plate = [add_node(f"{inst}_p{c}", xyz[f] + (0, 0, MOUNT_HEIGHT),
+                      PLATE_NODE_MASS + (1 - CG_FRACTION) * m / 4)
+             for c, f in enumerate(feet)]
+    centre = np.mean([xyz[p] for p in plate], axis=0)
+    ea_plate = PLATE_EA_FACTOR * E_AL * TUBE_AREA
+    rho_tube = RHO_AL * TUBE_AREA
+    pivot = add_node(f"{inst}_cg", centre + (0, 0, CG_HEIGHT), 0.0)
+    for a_, b_ in ((0, 2), (2, 1), (1, 3), (3, 0), (2, 3)):
+        rod(plate[a_], plate[b_], ea_plate, rho_tube)
+    for p in plate:
+        rod(p, pivot, ea_plate, rho_tube)
+    # gimballed body: octahedron around the pivot, 60 % of the instrument mass
+    r = GIMBAL_RADIUS
+    offs = [(r, 0, 0), (-r, 0, 0), (0, r, 0), (0, -r, 0), (0, 0, r), (0, 0, -r)]
+    body = [add_node(f"{inst}_g{c}", xyz[pivot] + np.array(o), CG_FRACTION * m / 6)
+            for c, o in enumerate(offs)]
+    for g in body:
+        rod(pivot, g, ea_plate, rho_tube)
+    for a_ in (0, 1):
+        for b_ in (2, 3, 4, 5):
+            rod(body[a_], body[b_], ea_plate, rho_tube)
+    for a_ in (2, 3):
+        for b_ in (4, 5):
+            rod(body[a_], body[b_], ea_plate, rho_tube)
+    # gimbal springs on (body rotation - plate rotation); u_z = th_x y - th_y x,
+    # u_y = th_z x.  Plate: p0/p1 at -y/+y, p2/p3 at -x/+x, half-span a_p
+    a_p = float(np.linalg.norm(xyz[plate[1]] - xyz[plate[0]])) / 2
+    k_g = gimbal_stiffness(m)
+
+    def dof(n, d):
+        return 3 * n + d
+
+    for name, k, (bp, bm, pp, pm, d, sgn) in (
+            ("roll", k_g, (2, 3, 1, 0, 2, 1.0)),
+            ("pitch", k_g, (0, 1, 3, 2, 2, -1.0)),
+            ("yaw", GIMBAL_YAW_FACTOR * k_g, (0, 1, 3, 2, 1, 1.0))):
+        dofs = np.array([dof(body[bp], d), dof(body[bm], d), dof(plate[pp], d),
+                         dof(plate[pm], d)])
+        w = sgn * np.array([1 / (2 * r), -1 / (2 * r), -1 / (2 * a_p), 1 / (2 * a_p)])
+        springs.append(Spring(dofs, w, k))
+    for c, leg in enumerate(order):
+        fi, fj = MISR_FEET[leg]
+        if leg == "tube":
+            rod(feet[c], plate[c], E_AL * ROD_AREA, RHO_AL * ROD_AREA)
+            k_lat = 12 * E_AL * ROD_I / MOUNT_HEIGHT**3
+        else:
+            active.append(_stacked_leg(leg, feet[c], plate[c], stack, add_node, rod,
+                                       springs, xyz, None, inst))
+            k_lat = K_LAT_STACK_LEG
+        legs[leg] = (feet[c], plate[c])
+        springs.extend(transverse_link(np.array(xyz), B(fi, fj, NZ - 1), feet[c], plate[c],
+                                       k_lat))
+
+
+def gimbal_stiffness(mass: float | None = None) -> float:
+    """Roll/pitch stiffness of the MISR gimbal servo (N m/rad): ``J (2 pi f_g)^2``.
+
+    ``J`` is the gimballed body's inertia about the pivot (``CG_FRACTION`` of the
+    instrument mass on six nodes at ``GIMBAL_RADIUS``: ``J = 4 (m / 6) r^2``) and
+    ``f_g`` = ``GIMBAL_HZ`` (the paper's payloads point with about 8 Hz bandwidth).
+    """
+    m = INSTRUMENT_MASS["misr"] if mass is None else mass
+    J = 4 * (CG_FRACTION * m / 6) * GIMBAL_RADIUS**2
+    return J * (2 * np.pi * GIMBAL_HZ) ** 2
 
 
 def _stacked_leg(name, n_bus, n_pay, stack, add_node, rod, springs, xyz, node_mass, inst):
@@ -648,9 +751,37 @@ def describe_modes(truss: Truss | None = None, n: int = 12) -> list:
     return lines
 
 
-def damping(n_modes: int) -> Damping:
-    """Modal 0.5 % on every mode (0 on rigid ones since ``c = 2 zeta omega``), Ritz 2 %."""
-    return Damping(zeta=np.full(n_modes, ZETA), zeta_ritz=ZETA_RITZ)
+def damping(n_modes: int, truss: Truss | None = None) -> Damping:
+    """Modal 0.5 % (0 on rigid modes since ``c = 2 zeta omega``), Ritz 2 %; with
+    ``truss``, ``ZETA_GIMBAL`` on its MISR gimbal modes (:func:`gimbal_modes`)."""
+    zeta = np.full(n_modes, ZETA)
+    if truss is not None:
+        zeta[gimbal_modes(truss, n_modes)] = ZETA_GIMBAL
+    return Damping(zeta=zeta, zeta_ritz=ZETA_RITZ)
+
+
+def gimbal_modes(truss: Truss, n_modes: int = N_MODES, threshold: float = 0.5) -> np.ndarray:
+    """Indices of the modes with >= ``threshold`` of their strain energy in the MISR gimbal.
+
+    The gimbal servo is modelled as springs between the gimballed body and its plate
+    (:func:`_misr_station`); its two modes (roll, pitch, near ``GIMBAL_HZ``) get the
+    servo's damping ``ZETA_GIMBAL`` instead of the structural 0.5 %.
+    """
+    f, phi = modes(truss, n_modes)
+    body = {truss.node(f"misr_g{c}") for c in range(6)}
+    u_gim = np.zeros(n_modes)
+    u_all = 0.5 * np.einsum("im,im->m", phi, _stiffness(truss) @ phi)
+    for s in truss.springs:
+        if {int(d) // 3 for d in s.dofs} & body:
+            u_gim += 0.5 * s.k * (np.asarray(s.weights) @ phi[np.asarray(s.dofs)]) ** 2
+    servo = (f > 1e-3) & (f < 2 * GIMBAL_HZ)  # the stiff yaw spring is not the servo
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(servo, u_gim / u_all, 0.0)
+    return np.flatnonzero(frac >= threshold)
+
+
+def _stiffness(truss: Truss):
+    return assemble(truss)[0]
 
 
 def load_inputs() -> tuple:
@@ -689,7 +820,7 @@ def reduced(n_modes: int = N_MODES, ritz: bool = True, truss: Truss | None = Non
     loads = load_inputs() if ritz_loads is None else tuple(ritz_loads)
     sel = [c.name for c in truss.input_channels if c.name.startswith("fc_")] + list(loads)
     model = reduce(truss, n_modes, ritz=ritz, ritz_inputs=sel if ritz else None,
-                   shift=shift, damping=damping(n_modes))
+                   shift=shift, damping=damping(n_modes, truss))
     return replace(model, accel_lowpass=ACCEL_LOWPASS)
 
 

@@ -389,7 +389,9 @@ class LinearScenario:
         self.blocks = blocks
         self.order = order                      # Gauss-Seidel step order
         self.base = float(plan.timebase.base)
-        periods = [b.period for b in blocks.values()]
+        # sources (and instances taken out of the loop) carry no state: the hyperperiod
+        # is that of the dynamic instances
+        periods = [b.period for b in blocks.values() if b.kind != "source"]
         self.hyper = int(np.lcm.reduce(periods)) if periods else 1
         self.T = self.hyper * self.base
         self._layout()
@@ -506,34 +508,41 @@ class LinearScenario:
             X[sx] = b.A @ X[sx] + b.B @ X[su]
         return X
 
-    def exogenous(self) -> list:
-        """Exogenous channels ``(source instance, output, tick)`` over one hyperperiod."""
-        out = []
-        for k in range(self.hyper):
-            for name in self.order:
-                b = self.blocks[name]
-                if b.kind == "source" and k % b.period == 0:
-                    out += [(name, o, k) for o in b.outputs]
-        return out
-
-    def lifted(self):
-        """``Phi`` (n, n) and ``Gamma`` (n, n_w) over one hyperperiod from tick 0."""
-        chans = self.exogenous()
-        nw = len(chans)
-        X = np.hstack([np.eye(self.n), np.zeros((self.n, nw))])
-        pos = 0
+    def lifted(self) -> np.ndarray:
+        """``Phi`` (n, n): the map of ``X`` over one hyperperiod from tick 0, ``w = 0``."""
+        X = np.eye(self.n)
 
         def w_next(name):
-            nonlocal pos
-            m = len(self.blocks[name].outputs)
-            rows = np.zeros((m, self.n + nw))
-            rows[np.arange(m), self.n + pos + np.arange(m)] = 1.0
-            pos += m
-            return rows
+            return np.zeros((len(self.blocks[name].outputs), self.n))
 
         for k in range(self.hyper):
             X = self._tick(X, k, w_next)
-        return X[:, :self.n], X[:, self.n:]
+        return X
+
+    def _harmonic(self, X, inputs, w_rad, out_rows=None):
+        """Run one hyperperiod from ``X`` (n, n_in) with ``exp(j w t)`` on ``inputs``.
+
+        Returns the final ``X`` and, with ``out_rows``, the fundamental of those rows.
+        """
+        cols = len(inputs)
+        acc = None if out_rows is None else np.zeros((len(out_rows), cols), complex)
+        k_now = [0]
+
+        def w_next(name):
+            b = self.blocks[name]
+            rows = np.zeros((len(b.outputs), cols), complex)
+            for j, ref in enumerate(inputs):
+                inst, var = ref.split(".", 1)
+                if inst == name:
+                    rows[b.outputs.index(var), j] = np.exp(1j * w_rad * k_now[0] * self.base)
+            return rows
+
+        for k in range(self.hyper):
+            k_now[0] = k
+            X = self._tick(X, k, w_next)
+            if acc is not None:
+                acc += X[out_rows] * np.exp(-1j * w_rad * k * self.base)
+        return X, (None if acc is None else acc / self.hyper)
 
     def simulate(self, n_ticks: int, w: Callable | None = None, x0=None, record=()):
         """Tick-by-tick linear simulation.
@@ -574,13 +583,11 @@ class LinearScenario:
     # ------------------------------------------------------------------ analysis
     def poles(self) -> list[Pole]:
         """Closed-loop poles (z over one hyperperiod), origin poles left out."""
-        Phi, _ = self.lifted()
-        return _poles(np.linalg.eigvals(Phi), self.T)
+        return _poles(np.linalg.eigvals(self.lifted()), self.T)
 
     def is_stable(self, tol: float = 1e-9) -> bool:
         """All poles inside the unit circle; rigid-body poles at exactly 1 allowed."""
-        Phi, _ = self.lifted()
-        return _stable(np.linalg.eigvals(Phi), tol)
+        return _stable(np.linalg.eigvals(self.lifted()), tol)
 
     def gain_margins(self, instance: str, limit: float = 1e3, rtol: float = 1e-3) -> Margins:
         """Gain margins of controller ``instance``, the other loops closed.
@@ -608,9 +615,7 @@ class LinearScenario:
         if not ps:
             raise AnalysisError("the closed loop has no oscillatory pole")
         p = min(ps, key=lambda q: abs(q.freq_hz - mode_hz))
-        cyc = math.inf if p.zeta <= 0 else _LN10 * math.sqrt(max(0.0, 1 - p.zeta**2)) / (
-            2 * math.pi * p.zeta)
-        return Decay(mode_hz, p, cyc)
+        return Decay(mode_hz, p, _cycles(p.zeta))
 
     def frequency_response(self, inputs, outputs, freqs_hz) -> np.ndarray:
         """Steady-state response to harmonic exogenous inputs.
@@ -631,46 +636,39 @@ class LinearScenario:
             of the periodic steady state).
         """
         freqs = np.atleast_1d(np.asarray(freqs_hz, float))
-        chans = self.exogenous()
+        inputs = list(inputs)
         for ref in inputs:
             inst, var = ref.split(".", 1)
             if inst not in self.sources or var not in self.blocks[inst].outputs:
                 raise AnalysisError(f"{ref} is not an output of a source instance; sources: "
                                     f"{', '.join(self.sources)}")
-        Phi, Gam = self.lifted()
+            if self.hyper % self.blocks[inst].period:
+                raise AnalysisError(f"source {inst!r} steps every {self.blocks[inst].period} "
+                                    f"ticks, which does not divide the hyperperiod "
+                                    f"({self.hyper} ticks)")
+        Phi = self.lifted()
         rows = [self.index(r) for r in outputs]
         H = np.zeros((len(rows), len(inputs), freqs.size), complex)
-        tk = np.arange(self.hyper) * self.base
+        eye = np.eye(self.n)
         for fi, f in enumerate(freqs):
             w = 2 * np.pi * f
-            zT = np.exp(1j * w * self.T)
-            W = np.zeros((len(chans), len(inputs)), complex)
-            for c, (inst, var, k) in enumerate(chans):
-                ref = f"{inst}.{var}"
-                if ref in inputs:
-                    W[c, inputs.index(ref)] = np.exp(1j * w * k * self.base)
-            rhs = Gam @ W
+            # periodic steady state: X(T) = exp(j w T) X(0)
+            forced, _ = self._harmonic(np.zeros((self.n, len(inputs)), complex), inputs, w)
             try:
-                X0 = np.linalg.solve(zT * np.eye(self.n) - Phi, rhs)
+                X0 = np.linalg.solve(np.exp(1j * w * self.T) * eye - Phi, forced)
             except np.linalg.LinAlgError:
                 raise AnalysisError(f"the loop has a pole at {f} Hz (a multiple of the "
                                     "hyperperiod rate on a neutral mode); choose another "
                                     "frequency") from None
-            X = X0.copy()
-            acc = np.zeros((len(rows), len(inputs)), complex)
-            pos = [0]
-
-            def w_next(name, W=W):
-                m = len(self.blocks[name].outputs)
-                r = W[pos[0]:pos[0] + m]
-                pos[0] += m
-                return r
-
-            for k in range(self.hyper):
-                X = self._tick(X, k, w_next)
-                acc += X[rows] * np.exp(-1j * w * tk[k])
-            H[:, :, fi] = acc / self.hyper
+            _, H[:, :, fi] = self._harmonic(X0, inputs, w, rows)
         return H
+
+
+def _cycles(zeta: float) -> float:
+    """Damped cycles for a pole's envelope to fall to 10 %."""
+    if zeta >= 1:
+        return 0.0
+    return math.inf if zeta <= 0 else _LN10 * math.sqrt(1 - zeta**2) / (2 * math.pi * zeta)
 
 
 def _poles(ev, T) -> list[Pole]:
@@ -841,9 +839,13 @@ def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
         lines.append(f"  {p.freq_hz:10.3f}  {100 * p.zeta:11.3f}  {abs(p.z):8.5f}")
     lines.append(f"  stable: {'yes' if lin.is_stable() else 'NO'}")
     for m in modes:
-        d = lin.decay(m)
-        lines.append(f"mode {m:g} Hz: nearest pole {d.pole.freq_hz:.3f} Hz, damping "
-                     f"{100 * d.pole.zeta:.2f} %, {d.cycles_to_90pct:.2f} cycles to 90 % decay")
+        near = [p for p in poles if 0.75 * m <= p.freq_hz <= 1.25 * m and p.z.imag >= 0]
+        if not near:
+            lines.append(f"mode {m:g} Hz: no closed-loop pole within 0.75-1.25x")
+        for p in near:
+            cyc = _cycles(p.zeta)
+            lines.append(f"mode {m:g} Hz: pole {p.freq_hz:.3f} Hz, damping {100 * p.zeta:.2f} %, "
+                         f"{cyc:.2f} cycles to 90 % decay of its own response")
     if margins:
         lines.append("")
         lines.append("gain margins (factor on each active controller's gain, other loops "

@@ -188,52 +188,125 @@ def reduce(truss: Truss, n_modes: int, *, ritz: bool = True, ritz_inputs=None,
     -------
     ReducedModel, or (ReducedModel, ndarray of shape (n_free, n_modes + n_ritz))
     """
-    damping = damping or Damping()
-    shift = 0.0 if shift is None else float(shift)
     K, M = assemble(truss)
-    lam, phi, fac = eigenpairs(K, M, n_modes, shift, truss)
-    E = input_matrix(truss)
-    H = output_matrix(truss)
     names = [c.name for c in truss.input_channels]
+    sel = []
     if ritz:
         sel = ritz_inputs if ritz_inputs is not None else [f"fc_{a.name}" for a in truss.active]
-        for s in sel:
-            if s not in names:
-                raise ReductionError(f"no input channel {s!r} for a Ritz vector; inputs: "
-                                     f"{', '.join(names)}")
-        cols = [names.index(s) for s in sel]
-        To = ritz_vectors(K, M, phi, E[:, cols], fac) if cols else np.zeros((K.shape[0], 0))
-    else:
-        To = np.zeros((K.shape[0], 0))
+    meta = {"model": truss.name, "n_dof": int(truss.n_dof),
+            "input_units": [c.unit for c in truss.input_channels],
+            "actuators": {a.name: {"stack": getattr(a.stack, "name", ""),
+                                   "ch": float(getattr(a.stack, "ch", 0.0))}
+                          for a in truss.active}}
+    return reduce_matrices(K, M, input_matrix(truss), output_matrix(truss), n_modes,
+                           input_names=names,
+                           output_names=[c.name for c in truss.outputs],
+                           output_kinds=[c.kind for c in truss.outputs],
+                           ritz_inputs=sel, shift=shift, damping=damping, name=truss.name,
+                           meta=meta, return_basis=return_basis, truss=truss)
 
+
+def reduce_matrices(K, M, E, H, n_modes: int, *, input_names, output_names, output_kinds,
+                    ritz_inputs=(), shift: float | None = None,
+                    damping: Damping | None = None, name: str = "reduced",
+                    meta: dict | None = None, return_basis: bool = False, truss=None):
+    """Reduce sparse ``K``, ``M`` with influence and sensor matrices (Eq. 3-8).
+
+    The matrix form of :func:`reduce`, for models that come as matrices (a NASTRAN
+    OUTPUT4 file, :mod:`structfmu.nastran`) rather than as a :class:`Truss`.
+
+    Parameters
+    ----------
+    K, M : scipy.sparse matrix, shape (n, n)
+        Stiffness (N/m, N m/rad) and mass (kg, kg m^2) on the free DOFs.
+    E : scipy.sparse matrix, shape (n, n_in)
+        Influence matrix: one column per input channel.
+    H : scipy.sparse matrix, shape (n_out, n)
+        Sensor matrix: one row per output channel.
+    n_modes : int
+        Number of eigenvectors (rigid-body modes included).
+    input_names, output_names, output_kinds : sequence of str
+        Channel names (``n_in``, ``n_out``) and output kinds (:data:`fem.OUTPUT_KINDS`).
+    ritz_inputs : sequence of str
+        Input channels that get a static Ritz vector (empty: eigenvectors only).
+    shift : float, optional
+        Shift for shift-invert Lanczos ((rad/s)^2); default 0 (constrained model).
+    damping : Damping, optional
+        Damping specification (default undamped).
+    name : str
+        Model name.
+    meta : dict, optional
+        Metadata merged into the model's (``n_free``, ``n_modes``, ``n_ritz``, ``shift``
+        and ``damping`` are filled in here).
+    return_basis : bool
+        Also return the basis ``T = [T_e, T_o]``, shape (n, n_modes + n_ritz).
+    truss : Truss, optional
+        Only to name a massless DOF in an error message.
+
+    Returns
+    -------
+    ReducedModel, or (ReducedModel, ndarray)
+    """
+    shift = 0.0 if shift is None else float(shift)
+    lam, phi, fac = eigenpairs(K, M, n_modes, shift, truss)
+    names = list(input_names)
+    for s in ritz_inputs:
+        if s not in names:
+            raise ReductionError(f"no input channel {s!r} for a Ritz vector; inputs: "
+                                 f"{', '.join(names)}")
+    cols = [names.index(s) for s in ritz_inputs]
+    To = ritz_vectors(K, M, phi, E[:, cols], fac) if cols else np.zeros((K.shape[0], 0))
+    model = reduced_from_basis(lam, phi, To, K, E, H, input_names=names,
+                               output_names=output_names, output_kinds=output_kinds,
+                               damping=damping, name=name,
+                               meta={**(meta or {}), "n_free": int(K.shape[0]),
+                                     "n_modes": int(n_modes), "shift": shift})
+    if return_basis:
+        return model, np.hstack([phi, To])
+    return model
+
+
+def reduced_from_basis(lam, phi, To, K, E, H, *, input_names, output_names, output_kinds,
+                       damping: Damping | None = None, name: str = "reduced",
+                       meta: dict | None = None) -> ReducedModel:
+    """The reduced matrices of Eq. (7)-(8) from a basis ``[T_e, T_o]``.
+
+    Parameters
+    ----------
+    lam : ndarray, shape (n_m,)
+        Eigenvalues ``omega^2`` of the mass-normalised eigenvectors ((rad/s)^2).
+    phi : ndarray, shape (n, n_m)
+        Mass-normalised eigenvectors ``T_e``.
+    To : ndarray, shape (n, n_r)
+        Gram-Schmidt Ritz vectors, ``T_o^T M T_o = I`` (``n_r`` may be 0).
+    K : scipy.sparse matrix, shape (n, n), or None
+        Stiffness; needed only when ``n_r > 0``.
+    E, H : scipy.sparse matrix or ndarray, shapes (n, n_in) and (n_out, n)
+        Influence and sensor matrices.
+    input_names, output_names, output_kinds, damping, name, meta
+        As in :func:`reduce_matrices`.
+    """
+    damping = damping or Damping()
     omega = np.sqrt(lam)
     zeta = np.broadcast_to(np.asarray(damping.zeta, float), omega.shape)
     c_e = 2 * zeta * omega + damping.alpha + damping.beta * lam
-    Koo = To.T @ (K @ To)
-    Koo = 0.5 * (Koo + Koo.T)
     n_r = To.shape[1]
+    Koo = To.T @ (K @ To) if n_r else np.zeros((0, 0))
+    Koo = 0.5 * (Koo + Koo.T)
     Doo = damping.alpha * np.eye(n_r) + damping.beta * Koo
     if damping.zeta_ritz and n_r:
         w, V = la.eigh(Koo)
         Doo = Doo + (V * (2 * damping.zeta_ritz * np.sqrt(np.maximum(w, 0)))) @ V.T
-    Ed = E.toarray()
-    model = ReducedModel(
+    Ed = E.toarray() if sp.issparse(E) else np.asarray(E, float)
+    return ReducedModel(
         omega=omega, modal_damping=c_e, B_e=phi.T @ Ed, C_e=(H @ phi),
         K_oo=Koo, D_oo=Doo, B_o=To.T @ Ed, C_o=(H @ To),
-        input_names=tuple(names), output_names=tuple(c.name for c in truss.outputs),
-        output_kinds=tuple(c.kind for c in truss.outputs), name=truss.name,
-        meta={"model": truss.name, "n_dof": int(truss.n_dof), "n_free": int(K.shape[0]),
-              "input_units": [c.unit for c in truss.input_channels],
-              "n_modes": int(n_modes), "n_ritz": int(n_r), "shift": shift,
+        input_names=tuple(input_names), output_names=tuple(output_names),
+        output_kinds=tuple(output_kinds), name=name,
+        meta={**(meta or {}), "n_ritz": int(n_r),
               "damping": {"zeta": np.asarray(damping.zeta).tolist(), "alpha": damping.alpha,
-                          "beta": damping.beta, "zeta_ritz": damping.zeta_ritz},
-              "actuators": {a.name: {"stack": getattr(a.stack, "name", ""),
-                                     "ch": float(getattr(a.stack, "ch", 0.0))}
-                            for a in truss.active}},
+                          "beta": damping.beta, "zeta_ritz": damping.zeta_ritz}},
     )
-    if return_basis:
-        return model, np.hstack([phi, To])
-    return model
 
 
 def static_compliance(truss: Truss, inputs, outputs=None):

@@ -272,7 +272,14 @@ def _slave_class(resources: Path, fmu_name: str):
     return base, type(attrs.get("model_identifier", cls), (klass,), attrs)
 
 
-def _instance_block(plan, inst, tmp: Path, base_step: float) -> Block:
+def _source_block(name, period, outputs) -> Block:
+    """An instance whose outputs are exogenous (a source, or one taken out of the loop)."""
+    m = len(outputs)
+    return Block(name, "source", period, np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((m, 0)),
+                 np.zeros((m, 0)), (), tuple(outputs), np.zeros(m, bool))
+
+
+def _instance_block(plan, inst, tmp: Path) -> Block:
     info = plan.fmus[inst.name]
     res = tmp / inst.name
     with zipfile.ZipFile(info.path) as z:
@@ -288,10 +295,7 @@ def _instance_block(plan, inst, tmp: Path, base_step: float) -> Block:
     h = float(inst.period)
     outs = [n for n, v in info.variables.items() if v.causality == "output"]
     if klass is None:
-        ft = np.zeros(len(outs), bool)
-        z0 = np.zeros((0, 0))
-        return Block(inst.name, "source", period, z0, np.zeros((0, 0)), np.zeros((len(outs), 0)),
-                     np.zeros((len(outs), 0)), (), tuple(outs), ft)
+        return _source_block(inst.name, period, outs)
     slave = klass(instance_name=inst.name, resources=str(res))
     for pname, value in inst.parameters.items():
         setattr(slave, pname, value)
@@ -462,10 +466,7 @@ class LinearScenario:
             if name not in blocks:
                 raise AnalysisError(f"no instance {name!r} in the scenario; instances: "
                                     f"{', '.join(blocks)}")
-            b = blocks[name]
-            blocks[name] = Block(name, "source", b.period, np.zeros((0, 0)), np.zeros((0, 0)),
-                                 np.zeros((len(b.outputs), 0)), np.zeros((len(b.outputs), 0)),
-                                 (), b.outputs, np.zeros(len(b.outputs), bool))
+            blocks[name] = _source_block(name, blocks[name].period, blocks[name].outputs)
         return LinearScenario(self.plan, blocks, self.order)
 
     def controllers(self, active_only: bool = False) -> list:
@@ -746,10 +747,8 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
             raise AnalysisError(f"the scenario has an algebraic loop {group}; the linear "
                                 "analysis needs a loop with a delay")
         order.append(group[0])
-    base = float(plan.timebase.base)
     with tempfile.TemporaryDirectory(prefix="jitterfmu-analyze-") as tmp:
-        blocks = {i.name: _instance_block(plan, i, Path(tmp), base)
-                  for i in sc.instances}
+        blocks = {i.name: _instance_block(plan, i, Path(tmp)) for i in sc.instances}
     return LinearScenario(plan, blocks, order)
 
 

@@ -11,7 +11,8 @@ setup: $(STAMP)
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test]'
+	$(PY) -m pip install -q -e '.[test,nastran]'
+	$(PY) -m pip install -q --no-deps 'pyNastran==1.4.1'  # declares numpy<2; see pyproject
 	touch $(STAMP)
 
 demo: setup

@@ -30,6 +30,37 @@ def spec_from_npz(path, model_identifier: str) -> FmuSpec:
     return spec_from_model(ReducedModel.load(path), model_identifier)
 
 
+def build_structure_fmu(npz, out_dir, model_identifier: str | None = None):
+    """Build and validate a structure FMU from a reduced model file.
+
+    Parameters
+    ----------
+    npz : path-like
+        A file written by :meth:`ReducedModel.save` (e.g. by ``jitterfmu import-nastran``).
+    out_dir : path-like
+        Destination folder.
+    model_identifier : str, optional
+        FMI modelIdentifier and file stem; default ``<npz stem>_structure``.
+
+    Returns
+    -------
+    fmukit.registry.BuildReport
+        The FMU path and its validation problems (one line each).
+    """
+    import re
+
+    from fmukit.build import build_fmu
+    from fmukit.registry import BuildReport
+    from fmukit.validate import validate_fmu
+
+    npz = Path(npz)
+    ident = model_identifier or re.sub(r"\W", "_", npz.stem) + "_structure"
+    if ident[0].isdigit():
+        ident = "m" + ident
+    path = build_fmu(spec_from_npz(npz, ident), out_dir)
+    return BuildReport((path,), tuple(validate_fmu(path, strict=True)))
+
+
 def specs(models=None) -> list[FmuSpec]:
     """Specs of the structure FMUs of the built-in models (``<model>_structure``)."""
     from structfmu.models import get_model, _registry

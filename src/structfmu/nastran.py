@@ -374,11 +374,12 @@ class Deck:
         return self.grids[grid]
 
     def check_grid(self, grid: int, what: str = "") -> None:
+        """Raise NastranError naming ``what`` when ``grid`` is not a GRID or SPOINT."""
         if grid not in self.grids and grid not in self.spoints:
             import difflib
             close = difflib.get_close_matches(str(grid), [str(g) for g in self.grids], 3)
             hint = f"; close ids: {', '.join(close)}" if close else ""
-            raise NastranError(f"{what or 'grid'} {grid} is not in {self.path}{hint}")
+            raise NastranError(f"{what}grid {grid} is not in {self.path}{hint}")
 
     def element(self, eid: int, what: str = "element"):
         if eid not in self.element_types:
@@ -606,31 +607,33 @@ def _member(deck: Deck, eid: int, what: str):
 
 
 def _actuator_update(deck: Deck, act: Actuator, index: dict, n: int):
-    """Stiffness and mass changes that make the member the stack (sparse, SI)."""
-    terms, length, k_el, m_el, (n1, n2), e = _member(deck, act.element,
-                                                     f"actuator element")
-    rows = _Rows(index)
+    """Stiffness and mass changes that make the member the stack (sparse, SI).
+
+    DOFs constrained by SPCs may be absent from the DOF map (an a-set): they do not move,
+    so their share of the change is dropped.
+    """
+    terms, length, k_el, m_el, (n1, n2), e = _member(deck, act.element, "actuator element")
+    rows = _Rows(index, deck.constrained)
     rows.add(terms, f"actuator element {act.element}")
     w = rows.matrix()
     dK = (act.stack.k_e - k_el) * (w.T @ w)
     dm = act.stack.mass - m_el
-    blocks = []  # (grid_a, grid_b, 3x3 basic mass block)
     if deck.coupled_mass:
-        third, sixth = dm / 3.0, dm / 6.0
-        blocks = [(n1, n1, third), (n2, n2, third), (n1, n2, sixth), (n2, n1, sixth)]
+        blocks = [(n1, n1, dm / 3.0), (n2, n2, dm / 3.0), (n1, n2, dm / 6.0),
+                  (n2, n1, dm / 6.0)]
     else:
         blocks = [(n1, n1, dm / 2.0), (n2, n2, dm / 2.0)]
     r, c, v = [], [], []
     for ga, gb, m in blocks:
-        Ta = deck.cd.get(ga, np.eye(3))
-        Tb = deck.cd.get(gb, np.eye(3))
-        B = m * (Ta.T @ Tb)
+        B = m * (deck.cd.get(ga, np.eye(3)).T @ deck.cd.get(gb, np.eye(3)))
         for i in range(3):
             for j in range(3):
-                if B[i, j] != 0.0:
-                    r.append(index[(ga, i + 1)])
-                    c.append(index[(gb, j + 1)])
-                    v.append(B[i, j])
+                a, b = (ga, i + 1), (gb, j + 1)
+                if B[i, j] == 0.0 or a not in index or b not in index:
+                    continue  # constrained (checked by rows.add above)
+                r.append(index[a])
+                c.append(index[b])
+                v.append(B[i, j])
     dM = sp.csc_matrix((v, (r, c)), shape=(n, n))
     return dK.tocsc(), dM
 
@@ -665,9 +668,10 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
         Outputs ``<name>_roll/_pitch/_yaw`` (rad).
     inputs, outputs : sequence of Channel
         General channels (weights on DOFs), appended after the above.
-    ritz : {"all", "actuators", "none"}, optional
+    ritz : {"all", "actuators", "none"} or sequence of str, optional
         Static Ritz vectors for actuators and loads (``"all"``, the default with an OP4),
-        for actuators only, or none (the only choice, and the default, with an OP2).
+        for actuators only, none (the only choice, and the default, with an OP2), or for
+        the named inputs.
     shift : float, optional
         Shift-invert shift ((rad/s)^2); negative for a free-free model (rigid-body modes).
     damping : Damping, optional
@@ -687,11 +691,15 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
     ReducedModel
     """
     u = unit_system(units)
+    if ritz is not None and not isinstance(ritz, str) and op2 is not None and list(ritz):
+        raise NastranError("static Ritz vectors need the stiffness matrix; the OP2 gives "
+                           "modes only: give --op4 with K and M")
     if (op4 is None) == (op2 is None):
         raise NastranError("give the matrices (op4, --op4) or the SOL 103 modes (op2, --op2), "
                            "exactly one of them")
-    if ritz not in (None, "all", "actuators", "none"):
-        raise NastranError(f"ritz={ritz!r}; expected 'all', 'actuators' or 'none'")
+    if isinstance(ritz, str) and ritz not in ("all", "actuators", "none"):
+        raise NastranError(f"ritz={ritz!r}; expected 'all', 'actuators', 'none' or a list "
+                           "of input names")
     deck = read_deck(bdf, u)
     name = name or Path(bdf).stem
     acts = list(actuators)
@@ -703,10 +711,10 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
         if a.gauge is not None:
             deck.element(a.gauge, f"gauge element of actuator {a.label!r}:")
     for p in (*sensors, *loads):
-        deck.check_grid(p.grid, f"grid of {p.name!r}:")
+        deck.check_grid(p.grid, f"{p.name!r}: ")
     for line in los:
         for g in line.grids:
-            deck.check_grid(g, f"grid of line of sight {line.name!r}:")
+            deck.check_grid(g, f"line of sight {line.name!r}: ")
 
     if op4 is not None:
         dofs = _dof_list(dof_map, deck)
@@ -716,7 +724,7 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
             dK, dM = _actuator_update(deck, a, index, len(dofs))
             K, M = K + dK, M + dM
         keep = _kept(K, M, dofs, deck)
-        removed = frozenset(dofs) - frozenset(dofs[i] for i in keep)
+        removed = (frozenset(dofs) - frozenset(dofs[i] for i in keep)) | deck.constrained
         dofs = [dofs[i] for i in keep]
         K, M = K[keep][:, keep].tocsc(), M[keep][:, keep].tocsc()
         _check_massless(K, M, dofs)
@@ -786,10 +794,13 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
                                     "element": int(a.element)} for a in acts}}
     damping = damping or Damping()
     if op4 is not None:
-        ritz = ritz or "all"
-        sel = [] if ritz == "none" else [f"fc_{a.label}" for a in acts]
-        if ritz == "all":
-            sel = [n for n in in_names if n not in sel] + sel
+        ritz = "all" if ritz is None else ritz
+        if not isinstance(ritz, str):
+            sel = list(ritz)
+        else:
+            sel = [] if ritz == "none" else [f"fc_{a.label}" for a in acts]
+            if ritz == "all":
+                sel = [n for n in in_names if n not in sel] + sel
         try:
             model = reduce_matrices(K, M, E, H, n_modes, input_names=in_names,
                                     output_names=out_names, output_kinds=out_kinds,
@@ -846,7 +857,7 @@ def _dof_list(dof_map, deck: Deck) -> list:
     dofs = read_dof_map(dof_map) if isinstance(dof_map, (str, Path)) else \
         [(int(i), int(c)) for i, c in dof_map]
     for g, c in dofs:
-        deck.check_grid(g, "DOF map: grid")
+        deck.check_grid(g, "DOF map: ")
         if not 0 <= c <= 6:
             raise NastranError(f"DOF map: grid {g} component {c}; expected 1-6 (0: SPOINT)")
     if len(set(dofs)) != len(dofs):

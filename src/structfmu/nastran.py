@@ -922,7 +922,9 @@ def read_modes(op2_path, units, n_modes: int):
         raise NastranError(f"OP2 file {str(path)!r} does not exist")
     op2 = OP2(debug=None)
     try:
-        op2.read_op2(str(path))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # np.chararray in pyNastran
+            op2.read_op2(str(path))
     except Exception as exc:
         raise NastranError(f"cannot read OP2 {str(path)!r}: {exc}") from None
     if not op2.eigenvectors:
@@ -942,8 +944,8 @@ def read_modes(op2_path, units, n_modes: int):
         eig = op2.eigenvalues[sorted(op2.eigenvalues)[0]]
         lam = np.asarray(eig.eigenvalues[:n_modes], float)
         gm = np.asarray(eig.generalized_mass[:n_modes], float)
-    else:
-        lam = np.asarray(vec._times[:n_modes], float)
+    else:  # no LAMA table: the eigenvalues the eigenvector table carries
+        lam = np.asarray(vec.eigns[:n_modes], float)
         gm = np.ones(n_modes)
     phi = phi / np.sqrt(np.where(gm > 0, gm, 1.0))
     phi = phi * _dof_scale(dofs, u)[:, None] / np.sqrt(u.energy)
@@ -954,6 +956,50 @@ def read_modes(op2_path, units, n_modes: int):
 
 
 # -- writing a deck (test data, benchmarks, exporting built-in models) -------------------
+
+def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
+    """Write eigenvalues and mass-normalised eigenvectors as a SOL 103-style OP2.
+
+    pyNastran 1.4.1 writes the eigenvector table (single precision) but skips the LAMA
+    eigenvalue table; the eigenvalues travel in the eigenvector table's header (single
+    precision too), which :func:`read_modes` reads when LAMA is absent.
+
+    Parameters
+    ----------
+    op2_path : path-like
+        File to write.
+    lam : ndarray, shape (n_modes,)
+        Eigenvalues ((rad/s)^2).
+    phi : ndarray, shape (6 * n_grids, n_modes)
+        SI eigenvectors on the grids' 6 DOFs (m, rad), mass-normalised in SI.
+    grids : sequence of int
+        Grid ids, in the order of ``phi``'s row blocks.
+    units : str or UnitSystem
+        Unit system of the file.
+    """
+    from pyNastran.op2.tables.oug.oug_eigenvectors import RealEigenvectorArray
+
+    u = unit_system(units)
+    _, OP2, _ = _pynastran()
+    grids = np.asarray(grids, int)
+    dofs = [(int(g), c) for g in grids for c in range(1, 7)]
+    native = phi / _dof_scale(dofs, u)[:, None] * np.sqrt(u.energy)
+    data = native.T.reshape(len(lam), len(grids), 6).astype(np.float32)
+    node_gridtype = np.column_stack([grids, np.ones(len(grids), int)]).astype(np.int32)
+    modes = np.arange(1, len(lam) + 1)
+    vec = RealEigenvectorArray.add_modal_case("OUGV1", node_gridtype, data, 1, modes,
+                                              np.asarray(lam, float),
+                                              np.sqrt(np.abs(lam)) / (2 * np.pi))
+    vec.table_code = 7  # eigenvector (add_modal_case leaves the displacement code 1)
+    vec.data_code["table_code"] = 7
+    op2 = OP2(debug=None)
+    op2.set_mode("msc")
+    op2.eigenvectors[1] = vec
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # pyNastran's "downcasting" notice
+        op2.write_op2(str(op2_path), nastran_format="msc")
+    return Path(op2_path)
+
 
 def write_truss_deck(truss, bdf_path, op4_path, *, units="SI", rotated=(), e_ref=70e9):
     """Write a :class:`structfmu.fem.Truss` as a BDF plus its K and M as an OP4.

@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test reproduce build bench clean
+.PHONY: setup demo test reproduce build bench clean native-deps
 
 setup: $(STAMP)
 
@@ -14,6 +14,11 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q -e '.[test,nastran]'
 	$(PY) -m pip install -q --no-deps 'pyNastran==1.4.1'  # declares numpy<2; see pyproject
 	touch $(STAMP)
+
+# The win64 binaries of the native FMUs need the mingw-w64 cross compiler (Debian package,
+# root needed); without it the native FMUs carry linux64 binaries and sources only.
+native-deps:
+	apt-get install -y gcc-mingw-w64-x86-64
 
 demo: setup
 	$(VENV)/bin/jitterfmu reproduce truss-frf --out out/demo

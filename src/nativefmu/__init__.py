@@ -1,0 +1,20 @@
+"""Native FMUs: the project's FMUs as self-contained C99 FMI 2.0 co-simulation FMUs.
+
+A native FMU swaps in place for its Python twin (same file name, modelIdentifier,
+variables, value references, units and ModelStructure) and runs without Python:
+``sources/`` (libc and libm only), ``binaries/linux64`` (and ``win64`` when a
+mingw-w64 cross compiler is installed), model data in ``resources/``.
+
+- :mod:`nativefmu.build`: :func:`~nativefmu.build.build_native` (one spec) and
+  :func:`~nativefmu.build.build_all_native` (every model with a C kernel).
+- :mod:`nativefmu.data`: the plain-text model data the C kernels read.
+- ``csrc/``: the FMI 2.0 layer (``fmi2.c``, state layout documented there) and one C
+  kernel per slave: ``structure.c``, ``piezo.c``, ``controller.c``, ``excitation.c``.
+
+This package is build tooling: it is never bundled into an FMU.
+"""
+
+from nativefmu.build import NativeBuildError, build_all_native, build_native
+from nativefmu.data import NativeUnsupportedError
+
+__all__ = ["NativeBuildError", "NativeUnsupportedError", "build_all_native", "build_native"]

@@ -1,0 +1,318 @@
+"""Build native (C99) FMUs that swap in place for the project's Python FMUs.
+
+:func:`build_native` builds the Python FMU of a spec (with :func:`fmukit.build.build_fmu`)
+only to read its ``modelDescription.xml``, then writes an FMU with the same file name,
+modelIdentifier, variables, value references, units, causality, variability and
+ModelStructure, whose model code is the C of ``nativefmu/csrc`` plus a generated
+``model_config.h`` (the variable table):
+
+- ``sources/``: every ``.c`` and ``.h`` needed, listed in ``<SourceFiles>``; compiles
+  with libc and libm only, ``-std=c99 -Wall -Wextra -Werror -pedantic``;
+- ``binaries/linux64/<id>.so`` built here with gcc, and ``binaries/win64/<id>.dll``
+  when ``x86_64-w64-mingw32-gcc`` is on the PATH;
+- ``resources/<kernel>.dat``: the model data (:mod:`nativefmu.data`).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import tempfile
+import uuid
+import zipfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from importlib import resources as _res
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from fmukit.build import FmuSpec
+
+from nativefmu.data import kernel_of, model_data
+
+__all__ = ["CFLAGS", "NativeBuildError", "NativeReport", "build_native", "build_all_native",
+           "compile_sources", "mingw_compiler", "native_model_description", "source_files"]
+
+#: Flags the sources must compile with (libc and libm only).
+CFLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
+#: The FMI 2.0 headers shipped with fmpy (Modelica Association, BSD licence).
+_FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+_COMMON = ("fmi2.c", "data.c", "linalg.c")
+_GENERATION_TOOL = "jitterfmu nativefmu 1"
+_TYPES = {"Real": "JF_REAL", "Integer": "JF_INTEGER", "Boolean": "JF_BOOLEAN",
+          "String": "JF_STRING"}
+_CAUSALITIES = {"parameter": "JF_PARAMETER", "input": "JF_INPUT", "output": "JF_OUTPUT",
+                "local": "JF_LOCAL"}
+
+
+class NativeBuildError(RuntimeError):
+    """A native FMU could not be built."""
+
+
+def mingw_compiler() -> str | None:
+    """Path of ``x86_64-w64-mingw32-gcc``, or None when it is not installed."""
+    return shutil.which("x86_64-w64-mingw32-gcc")
+
+
+def _fmi_header_dir() -> Path:
+    import fmpy
+
+    return Path(fmpy.__file__).parent / "c-code"
+
+
+def _c_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+
+
+def _model_config(root: ET.Element) -> str:
+    """``model_config.h``: identifier, GUID and the variable table of ``root``."""
+    model_id = root.find("CoSimulation").get("modelIdentifier")
+    rows, max_vr = [], -1
+    for sv in root.iterfind("ModelVariables/ScalarVariable"):
+        typed = next(child for child in sv if child.tag in _TYPES)
+        vr = int(sv.get("valueReference"))
+        max_vr = max(max_vr, vr)
+        start = typed.get("start")
+        number, text = "0.0", "NULL"
+        if typed.tag == "Real" and start is not None:
+            number = float(start).hex()
+        elif typed.tag == "Integer" and start is not None:
+            number = f"{int(start)}.0"
+        elif typed.tag == "Boolean" and start is not None:
+            number = "1.0" if start in ("true", "1") else "0.0"
+        elif typed.tag == "String":
+            text = _c_string(start or "")
+        tunable = int(sv.get("variability", "continuous") != "fixed"
+                      and sv.get("variability") != "constant")
+        causality = _CAUSALITIES.get(sv.get("causality", "local"), "JF_OTHER")
+        rows.append(f"    {{{_c_string(sv.get('name'))}, {vr}u, {_TYPES[typed.tag]}, "
+                    f"{causality}, {tunable}, {number}, {text}}},")
+    return "\n".join([
+        f"/* Generated from the model description of {model_id} (do not edit). */",
+        "#ifndef MODEL_CONFIG_H",
+        "#define MODEL_CONFIG_H",
+        f"#define JF_MODEL_IDENTIFIER {_c_string(model_id)}",
+        f"#define JF_GUID {_c_string(root.get('guid'))}",
+        f"#define JF_N_VARS {len(rows)}u",
+        f"#define JF_N_VR {max_vr + 1}u",
+        "static const JfVar JF_VARS[JF_N_VARS] = {",
+        *rows,
+        "};",
+        "#endif",
+        "",
+    ])
+
+
+def source_files(kernel: str) -> tuple[str, ...]:
+    """The ``.c`` files of a native FMU with C kernel ``kernel``, in compile order."""
+    return (*_COMMON, f"{kernel}.c")
+
+
+def native_model_description(python_xml: bytes, kernel: str) -> ET.Element:
+    """The native FMU's model description made from the Python FMU's.
+
+    Variables, units, ModelStructure and the DefaultExperiment are kept as they are;
+    the GUID is a new one derived from the Python FMU's (the binaries differ), the
+    generation tool is this package, ``needsExecutionTool`` is false and
+    ``<SourceFiles>`` lists the C sources.
+
+    Parameters
+    ----------
+    python_xml : bytes
+        ``modelDescription.xml`` of the Python FMU.
+    kernel : str
+        C kernel name (``structure``, ``piezo``, ``controller``, ``excitation``).
+    """
+    root = ET.fromstring(python_xml)
+    if root.get("fmiVersion") != "2.0" or root.find("CoSimulation") is None:
+        raise NativeBuildError("the Python FMU's model description is not FMI 2.0 "
+                               "co-simulation")
+    root.set("guid", "{" + str(uuid.uuid5(uuid.NAMESPACE_URL,
+                                          "jitterfmu-native:" + root.get("guid", ""))) + "}")
+    root.set("generationTool", _GENERATION_TOOL)
+    cs = root.find("CoSimulation")
+    cs.set("needsExecutionTool", "false")
+    for old in cs.findall("SourceFiles"):
+        cs.remove(old)
+    files = ET.SubElement(cs, "SourceFiles")
+    for name in source_files(kernel):
+        ET.SubElement(files, "File", {"name": name})
+    return root
+
+
+def _sources(root: ET.Element, kernel: str) -> dict[str, bytes]:
+    csrc = _res.files("nativefmu") / "csrc"
+    out = {name: (_fmi_header_dir() / name).read_bytes() for name in _FMI_HEADERS}
+    for name in (*source_files(kernel), "jfmu.h"):
+        out[name] = (csrc / name).read_bytes()
+    out["model_config.h"] = _model_config(root).encode()
+    return out
+
+
+def compile_sources(sources: Path, out: Path, *, compiler: str = "gcc",
+                    windows: bool = False) -> Path:
+    """Compile a native FMU's ``sources/`` folder into a shared library.
+
+    Parameters
+    ----------
+    sources : Path
+        Folder with the ``.c`` and ``.h`` files (the ``.c`` files are all compiled).
+    out : Path
+        Library to write (``.so`` or ``.dll``).
+    compiler : str
+        C compiler command.
+    windows : bool
+        Cross-compile a DLL (no ``-fPIC``, libgcc linked statically).
+
+    Raises
+    ------
+    NativeBuildError
+        With the compiler's messages, if it fails.
+    """
+    c_files = sorted(p.name for p in Path(sources).glob("*.c"))
+    pic = [] if windows else ["-fPIC"]
+    extra = ["-static-libgcc"] if windows else []
+    # relative file names and a neutral cwd: no path of this machine in the binary
+    cmd = [compiler, *CFLAGS, "-O2", "-shared", *pic, *extra, "-o", str(Path(out).resolve()),
+           *c_files, "-lm"]
+    proc = subprocess.run(cmd, cwd=sources, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise NativeBuildError(f"{compiler} failed on {Path(out).name}: "
+                               f"{proc.stderr.strip()[-3000:]}")
+    return Path(out)
+
+
+def _python_model_description(spec: FmuSpec, python_fmu: Path | None) -> bytes:
+    if python_fmu is not None:
+        with zipfile.ZipFile(python_fmu) as z:
+            return z.read("modelDescription.xml")
+    from fmukit.build import build_fmu
+
+    with tempfile.TemporaryDirectory(prefix="nativefmu_py_") as tmp:
+        built = build_fmu(spec, tmp, c_loader=False)
+        with zipfile.ZipFile(built) as z:
+            return z.read("modelDescription.xml")
+
+
+def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path | None = None,
+                 windows: bool | None = None) -> Path:
+    """Build the native FMU of ``spec`` into ``out_dir``.
+
+    Parameters
+    ----------
+    spec : FmuSpec
+        The Python FMU's spec (from a package's ``fmuspec``).
+    out_dir : str or Path
+        Destination folder (created if missing).
+    python_fmu : str or Path, optional
+        An already built Python FMU of ``spec`` to take the model description from;
+        built in a temporary folder when omitted.
+    windows : bool, optional
+        Also build ``binaries/win64``; None: when the mingw-w64 compiler is installed.
+
+    Returns
+    -------
+    Path
+        ``out_dir / f"{spec.model_identifier}.fmu"``.
+
+    Raises
+    ------
+    nativefmu.data.NativeUnsupportedError
+        If the spec's slave has no C kernel.
+    NativeBuildError
+        If compiling fails, or ``windows=True`` without the cross compiler.
+    """
+    kernel = kernel_of(spec)
+    mingw = mingw_compiler()
+    if windows and mingw is None:
+        raise NativeBuildError("windows=True needs x86_64-w64-mingw32-gcc (Debian package "
+                               "gcc-mingw-w64-x86-64); install it or pass windows=None")
+    windows = mingw is not None if windows is None else windows
+    root = native_model_description(_python_model_description(
+        spec, Path(python_fmu) if python_fmu else None), kernel)
+    vrs = {sv.get("name"): int(sv.get("valueReference"))
+           for sv in root.iterfind("ModelVariables/ScalarVariable")}
+    model_id = spec.model_identifier
+    if root.find("CoSimulation").get("modelIdentifier") != model_id:
+        raise NativeBuildError(f"Python FMU has modelIdentifier "
+                               f"{root.find('CoSimulation').get('modelIdentifier')!r}; "
+                               f"expected {model_id!r}")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    target = out_dir / f"{model_id}.fmu"
+    with tempfile.TemporaryDirectory(prefix="nativefmu_") as tmp:
+        src = Path(tmp) / "sources"
+        src.mkdir()
+        for name, content in _sources(root, kernel).items():
+            (src / name).write_bytes(content)
+        binaries = {f"binaries/linux64/{model_id}.so":
+                    compile_sources(src, Path(tmp) / f"{model_id}.so")}
+        if windows:
+            binaries[f"binaries/win64/{model_id}.dll"] = compile_sources(
+                src, Path(tmp) / f"{model_id}.dll", compiler=mingw, windows=True)
+        xml = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+        part = target.with_name(target.name + ".part")
+        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr("modelDescription.xml", xml)
+            for name in sorted(p.name for p in src.iterdir()):
+                z.write(src / name, f"sources/{name}")
+            for arcname, path in binaries.items():
+                z.write(path, arcname)
+            for name, content in model_data(spec, vrs).items():
+                z.writestr(f"resources/{name}", content)
+        part.replace(target)
+    return target
+
+
+@dataclass(frozen=True)
+class NativeReport:
+    """Result of :func:`build_all_native`: built FMUs, skipped models, problems."""
+
+    fmus: tuple[Path, ...]
+    skipped: tuple[str, ...]
+    problems: tuple[str, ...]
+
+    def __iter__(self):
+        return iter((self.fmus, self.skipped, self.problems))
+
+
+def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *,
+                     progress: Callable[[str], None] | None = None) -> NativeReport:
+    """Build and validate the native FMU of every model that has a C kernel.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Destination folder.
+    models : sequence of str, optional
+        modelIdentifiers; None for all of the project's FMUs.
+    progress : callable, optional
+        Called with one line per FMU.
+
+    Returns
+    -------
+    NativeReport
+        Built FMUs, models without a C kernel (skipped, named) and validation problems.
+    """
+    from fmukit.registry import collect_specs
+    from fmukit.validate import validate_fmu
+
+    from nativefmu.data import KERNELS
+
+    specs = collect_specs(models)
+    fmus, skipped, problems = [], [], []
+    for i, spec in enumerate(specs, start=1):
+        if spec.slave_class not in KERNELS:
+            skipped.append(spec.model_identifier)
+            if progress is not None:
+                progress(f"[{i}/{len(specs)}] {spec.model_identifier}: no native kernel yet, "
+                         "skipped")
+            continue
+        path = build_native(spec, out_dir)
+        found = validate_fmu(path, strict=True)
+        fmus.append(path)
+        problems += found
+        if progress is not None:
+            status = "ok" if not found else f"{len(found)} problem(s)"
+            progress(f"[{i}/{len(specs)}] {spec.model_identifier}: {path} (native) {status}")
+    return NativeReport(tuple(fmus), tuple(skipped), tuple(problems))

@@ -1,0 +1,63 @@
+/* Excitation kernel: two sine-burst channels (distfmu.excitation).
+ *
+ *   v_i(t) = amp_i sin(2 pi freq_i (t - t_start))  for t_start <= t < t_stop, else 0
+ *
+ * written at the start time on initialisation and at t + h after each step.
+ * No internal state.
+ */
+#include <math.h>
+
+#include "jfmu.h"
+
+#define PI 3.141592653589793
+
+static long vr_amp[2], vr_freq[2], vr_out[2], vr_start, vr_stop;
+
+int model_instantiate(JfInstance *inst) {
+    static const char *amp[2] = {"amp1", "amp2"}, *freq[2] = {"freq1", "freq2"},
+                      *out[2] = {"v1", "v2"};
+    int i;
+    for (i = 0; i < 2; i++) {
+        if ((vr_amp[i] = jf_vr(inst, amp[i], JF_REAL)) < 0 ||
+            (vr_freq[i] = jf_vr(inst, freq[i], JF_REAL)) < 0 ||
+            (vr_out[i] = jf_vr(inst, out[i], JF_REAL)) < 0)
+            return JF_ERROR;
+    }
+    if ((vr_start = jf_vr(inst, "t_start", JF_REAL)) < 0 ||
+        (vr_stop = jf_vr(inst, "t_stop", JF_REAL)) < 0)
+        return JF_ERROR;
+    inst->n_state = 0;
+    return JF_OK;
+}
+
+void model_free(JfInstance *inst) { (void)inst; }
+
+static void write_outputs(JfInstance *inst, double t) {
+    const double *r = inst->r;
+    double t0 = r[vr_start], t1 = r[vr_stop];
+    int i;
+    for (i = 0; i < 2; i++) {
+        double a = r[vr_amp[i]], f = r[vr_freq[i]];
+        inst->r[vr_out[i]] = (t >= t0 && t < t1) ? a * sin(2 * PI * f * (t - t0)) : 0.0;
+    }
+}
+
+int model_exit_initialization(JfInstance *inst) {
+    write_outputs(inst, inst->start_time);
+    return JF_OK;
+}
+
+int model_inputs_changed(JfInstance *inst) {
+    (void)inst;
+    return JF_OK;
+}
+
+int model_state_restored(JfInstance *inst) {
+    (void)inst;
+    return JF_OK;
+}
+
+int model_do_step(JfInstance *inst, double t, double h) {
+    write_outputs(inst, t + h);
+    return JF_OK;
+}

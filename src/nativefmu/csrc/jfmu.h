@@ -1,0 +1,82 @@
+/* Shared interface of the native FMUs of jitterfmu (C99, libc and libm only).
+ *
+ * fmi2.c implements the FMI 2.0 co-simulation API once for every model: variable
+ * storage by value reference, phases, logging, and the FMU state as one versioned,
+ * checksummed byte layout.  A model kernel (structure.c, piezo.c, controller.c,
+ * excitation.c) implements the model_* functions below and reads its data from a
+ * file in resources/ with jf_data_*.
+ */
+#ifndef JFMU_H
+#define JFMU_H
+
+#include <stddef.h>
+
+enum { JF_REAL = 0, JF_INTEGER = 1, JF_BOOLEAN = 2, JF_STRING = 3 };
+enum { JF_PARAMETER = 0, JF_INPUT = 1, JF_OUTPUT = 2, JF_LOCAL = 3, JF_OTHER = 4 };
+
+/* One variable of the model description (model_config.h holds the table). */
+typedef struct {
+    const char *name;
+    unsigned int vr;
+    int type;
+    int causality;
+    int tunable;      /* variability tunable, discrete or continuous */
+    double start;     /* Real, Integer and Boolean start values */
+    const char *sstart;
+} JfVar;
+
+typedef struct JfInstance JfInstance;
+
+struct JfInstance {
+    char *instance_name;
+    char *resource_dir;   /* local path of resources/, with a trailing separator */
+    const void *callbacks; /* const fmi2CallbackFunctions * */
+    int logging_on;
+    int phase;
+    double *r;            /* Real values, indexed by value reference */
+    int *iv;              /* Integer values */
+    int *bv;              /* Boolean values (0 or 1) */
+    char **sv;            /* String values */
+    double start_time;
+    size_t n_state;       /* internal state (beyond the variables), saved with the FMU state */
+    double *state;
+    void *model;          /* kernel data that is not state (matrices, caches) */
+};
+
+/* Phases of an instance (FMI 2.0 co-simulation state machine). */
+enum { JF_INSTANTIATED = 0, JF_INITIALIZATION = 1, JF_STEPPING = 2, JF_TERMINATED = 3,
+       JF_FAILED = 4 };
+
+/* Status values of the kernel functions. */
+enum { JF_OK = 0, JF_ERROR = 1 };
+
+/* Value reference of variable `name` of `type`, or -1 (logged as an error). */
+long jf_vr(JfInstance *inst, const char *name, int type);
+/* Log a message: status 0 ok, 1 warning, 3 error. */
+void jf_log(JfInstance *inst, int status, const char *fmt, ...);
+/* calloc that logs on failure. */
+void *jf_alloc(JfInstance *inst, size_t n, size_t size);
+
+/* Model data file: named real arrays, values as C99 hexadecimal floats. */
+typedef struct JfData JfData;
+JfData *jf_data_open(JfInstance *inst, const char *file_name);
+/* Array `name` of shape (rows, cols), copied into a new allocation; NULL if missing or
+ * of another shape (logged).  A 0-element array gives a valid 1-element allocation. */
+double *jf_data_array(JfData *data, const char *name, size_t rows, size_t cols);
+/* Scalar `name`; returns JF_ERROR (logged) if missing. */
+int jf_data_scalar(JfData *data, const char *name, double *value);
+void jf_data_close(JfData *data);
+
+/* Dense linear algebra on row-major matrices. */
+/* out = expm(a), a of shape (n, n); returns JF_ERROR if out of memory. */
+int jf_expm(const double *a, size_t n, double *out);
+
+/* Kernel interface. */
+int model_instantiate(JfInstance *inst);           /* read data, allocate, set n_state */
+int model_exit_initialization(JfInstance *inst);   /* parameters final: initial outputs */
+int model_do_step(JfInstance *inst, double t, double h);
+int model_inputs_changed(JfInstance *inst);        /* after fmi2Set* (direct feedthrough) */
+int model_state_restored(JfInstance *inst);        /* after fmi2SetFMUstate: check, refresh */
+void model_free(JfInstance *inst);
+
+#endif

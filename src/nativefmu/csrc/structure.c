@@ -1,0 +1,409 @@
+/* Structure kernel: a reduced model stepped with its exact ZOH discretisation.
+ *
+ * Same equations and state layout as structfmu.discrete.Stepper:
+ *   x = [q_e (n_m), v_e (n_m), q_o (n_r), v_o (n_r), x_f (n_f)]
+ * Each mode q'' + c q' + w^2 q = B_e u is advanced with closed-form 2x2 blocks
+ * (underdamped with w h >= 1e-2, or rigid), otherwise with the exponential of its 3x3
+ * augmented matrix; the Ritz block with the exponential of its augmented matrix; the
+ * accelerometer low-pass rows x_f+ = F_x x + F_u u with one exponential of the whole
+ * first-order model (given in this layout in the data file as A_full, B_full).
+ * Discretisations for the declared step sizes (data arrays steps, a11_<j>, ...) are
+ * computed by structfmu.discrete.discretize at build time and used when the step
+ * matches one exactly; any other step size is discretised here, at its first step, with
+ * the same formulas (the last one is kept).  The Ritz block is stiff (kHz stack modes):
+ * its exponential carries round-off of ~1e-10 relative in any implementation, so a step
+ * discretised here agrees with the Python FMU to that level rather than to 1e-15.
+ * Outputs: y = C_x x + D u (D non-zero only for unfiltered accelerations).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "jfmu.h"
+
+typedef struct {
+    double *a11, *G1, *G2, *Phi_o, *G_o, *F_x, *F_u; /* a11 holds a11, a12, a21, a22 */
+} Zoh;
+
+typedef struct {
+    size_t n_steps;
+    double *steps;
+    Zoh *pre;
+    size_t n_m, n_r, n_in, n_out, n_f, ns, n;
+    double *omega, *cdamp, *B_e, *K_oo, *D_oo, *B_o, *C_x, *D, *A_full, *B_full;
+    size_t *u_vr, *y_vr;
+    int has_ft;
+    /* discretisation for step h */
+    double h;
+    double *a11, *a12, *a21, *a22, *G1, *G2, *Phi_o, *G_o, *F_x, *F_u;
+    /* work */
+    double *u, *y_state, *tq, *tv, *to, *tf;
+} Structure;
+
+#define M ((Structure *)inst->model)
+
+static double *load(JfData *d, const char *name, size_t rows, size_t cols, int *ok) {
+    double *p = jf_data_array(d, name, rows, cols);
+    if (p == NULL) *ok = 0;
+    return p;
+}
+
+static size_t *load_vrs(JfInstance *inst, JfData *d, const char *name, size_t n, int *ok) {
+    double *v = load(d, name, 1, n, ok);
+    size_t *out = (size_t *)jf_alloc(inst, n, sizeof(size_t)), i;
+    if (v == NULL || out == NULL) {
+        free(v);
+        free(out);
+        *ok = 0;
+        return NULL;
+    }
+    for (i = 0; i < n; i++) out[i] = (size_t)v[i];
+    free(v);
+    return out;
+}
+
+int model_instantiate(JfInstance *inst) {
+    Structure *m;
+    JfData *d = jf_data_open(inst, "structure.dat");
+    double v[5];
+    int ok = 1;
+    size_t i;
+    if (d == NULL) return JF_ERROR;
+    m = (Structure *)jf_alloc(inst, 1, sizeof(Structure));
+    inst->model = m;
+    if (m == NULL || jf_data_scalar(d, "n_m", &v[0]) || jf_data_scalar(d, "n_r", &v[1]) ||
+        jf_data_scalar(d, "n_in", &v[2]) || jf_data_scalar(d, "n_out", &v[3]) ||
+        jf_data_scalar(d, "n_f", &v[4])) {
+        jf_data_close(d);
+        return JF_ERROR;
+    }
+    m->n_m = (size_t)v[0];
+    m->n_r = (size_t)v[1];
+    m->n_in = (size_t)v[2];
+    m->n_out = (size_t)v[3];
+    m->n_f = (size_t)v[4];
+    m->ns = 2 * (m->n_m + m->n_r);
+    m->n = m->ns + m->n_f;
+    m->omega = load(d, "omega", 1, m->n_m, &ok);
+    m->cdamp = load(d, "modal_damping", 1, m->n_m, &ok);
+    m->B_e = load(d, "B_e", m->n_m, m->n_in, &ok);
+    m->K_oo = load(d, "K_oo", m->n_r, m->n_r, &ok);
+    m->D_oo = load(d, "D_oo", m->n_r, m->n_r, &ok);
+    m->B_o = load(d, "B_o", m->n_r, m->n_in, &ok);
+    m->C_x = load(d, "C_x", m->n_out, m->n, &ok);
+    m->D = load(d, "D", m->n_out, m->n_in, &ok);
+    if (m->n_f) {
+        m->A_full = load(d, "A_full", m->n, m->n, &ok);
+        m->B_full = load(d, "B_full", m->n, m->n_in, &ok);
+    }
+    if (jf_data_scalar(d, "n_steps", &v[0]) == JF_OK) {
+        size_t j;
+        m->n_steps = (size_t)v[0];
+        m->steps = load(d, "steps", 1, m->n_steps, &ok);
+        m->pre = (Zoh *)jf_alloc(inst, m->n_steps, sizeof(Zoh));
+        if (m->pre == NULL) ok = 0;
+        for (j = 0; ok && j < m->n_steps; j++) {
+            char name[32];
+            Zoh *z = &m->pre[j];
+            double *a[4];
+            const char *abcd[4] = {"a11", "a12", "a21", "a22"};
+            for (i = 0; i < 4; i++) {
+                sprintf(name, "%s_%lu", abcd[i], (unsigned long)j);
+                a[i] = load(d, name, 1, m->n_m, &ok);
+            }
+            z->a11 = (double *)jf_alloc(inst, 4 * m->n_m, sizeof(double));
+            if (ok && z->a11 != NULL)
+                for (i = 0; i < 4; i++) memcpy(z->a11 + i * m->n_m, a[i], m->n_m * sizeof(double));
+            else
+                ok = 0;
+            for (i = 0; i < 4; i++) free(a[i]);
+#define PRE(field, rows, cols)                                     \
+    sprintf(name, #field "_%lu", (unsigned long)j);                \
+    z->field = load(d, name, rows, cols, &ok);
+            PRE(G1, m->n_m, m->n_in)
+            PRE(G2, m->n_m, m->n_in)
+            PRE(Phi_o, 2 * m->n_r, 2 * m->n_r)
+            PRE(G_o, 2 * m->n_r, m->n_in)
+            if (m->n_f) {
+                PRE(F_x, m->n_f, m->n)
+                PRE(F_u, m->n_f, m->n_in)
+            }
+#undef PRE
+        }
+    }
+    m->u_vr = load_vrs(inst, d, "u_vr", m->n_in, &ok);
+    m->y_vr = load_vrs(inst, d, "y_vr", m->n_out, &ok);
+    jf_data_close(d);
+    if (!ok) return JF_ERROR;
+    for (i = 0; i < m->n_out * m->n_in; i++)
+        if (m->D[i] != 0.0) m->has_ft = 1;
+    m->a11 = (double *)jf_alloc(inst, 6 * m->n_m, sizeof(double));
+    m->G1 = (double *)jf_alloc(inst, m->n_m * m->n_in, sizeof(double));
+    m->G2 = (double *)jf_alloc(inst, m->n_m * m->n_in, sizeof(double));
+    m->Phi_o = (double *)jf_alloc(inst, 4 * m->n_r * m->n_r, sizeof(double));
+    m->G_o = (double *)jf_alloc(inst, 2 * m->n_r * m->n_in, sizeof(double));
+    m->F_x = (double *)jf_alloc(inst, m->n_f * m->n, sizeof(double));
+    m->F_u = (double *)jf_alloc(inst, m->n_f * m->n_in, sizeof(double));
+    m->u = (double *)jf_alloc(inst, m->n_in, sizeof(double));
+    m->y_state = (double *)jf_alloc(inst, m->n_out, sizeof(double));
+    m->tq = (double *)jf_alloc(inst, 2 * m->n_m, sizeof(double));
+    m->to = (double *)jf_alloc(inst, 2 * m->n_r, sizeof(double));
+    m->tf = (double *)jf_alloc(inst, m->n_f, sizeof(double));
+    inst->n_state = m->n;
+    inst->state = (double *)jf_alloc(inst, m->n, sizeof(double));
+    if (!m->a11 || !m->G1 || !m->G2 || !m->Phi_o || !m->G_o || !m->F_x || !m->F_u || !m->u ||
+        !m->y_state || !m->tq || !m->to || !m->tf || !inst->state)
+        return JF_ERROR;
+    m->a12 = m->a11 + m->n_m;
+    m->a21 = m->a11 + 2 * m->n_m;
+    m->a22 = m->a11 + 3 * m->n_m;
+    m->tv = m->tq + m->n_m;
+    m->h = 0.0;
+    return JF_OK;
+}
+
+void model_free(JfInstance *inst) {
+    Structure *m = M;
+    size_t j;
+    if (m == NULL) return;
+    for (j = 0; m->pre != NULL && j < m->n_steps; j++) {
+        free(m->pre[j].a11);
+        free(m->pre[j].G1);
+        free(m->pre[j].G2);
+        free(m->pre[j].Phi_o);
+        free(m->pre[j].G_o);
+        free(m->pre[j].F_x);
+        free(m->pre[j].F_u);
+    }
+    free(m->pre);
+    free(m->steps);
+    free(m->omega);
+    free(m->cdamp);
+    free(m->B_e);
+    free(m->K_oo);
+    free(m->D_oo);
+    free(m->B_o);
+    free(m->C_x);
+    free(m->D);
+    free(m->A_full);
+    free(m->B_full);
+    free(m->u_vr);
+    free(m->y_vr);
+    free(m->a11);
+    free(m->G1);
+    free(m->G2);
+    free(m->Phi_o);
+    free(m->G_o);
+    free(m->F_x);
+    free(m->F_u);
+    free(m->u);
+    free(m->y_state);
+    free(m->tq);
+    free(m->to);
+    free(m->tf);
+    free(m);
+    inst->model = NULL;
+}
+
+/* Exact ZOH of every mode, of the Ritz block and of the filter rows for step h. */
+static int discretize(JfInstance *inst, double h) {
+    Structure *m = M;
+    size_t i, j, k, nr = m->n_r, n3 = 3 * nr, nin = m->n_in;
+    double g1, g2, E[9], Aug[9];
+    for (j = 0; j < m->n_steps; j++)
+        if (m->steps[j] == h) { /* declared step: discretised at build time */
+            const Zoh *z = &m->pre[j];
+            memcpy(m->a11, z->a11, 4 * m->n_m * sizeof(double));
+            memcpy(m->G1, z->G1, m->n_m * nin * sizeof(double));
+            memcpy(m->G2, z->G2, m->n_m * nin * sizeof(double));
+            memcpy(m->Phi_o, z->Phi_o, 4 * nr * nr * sizeof(double));
+            memcpy(m->G_o, z->G_o, 2 * nr * nin * sizeof(double));
+            if (m->n_f) {
+                memcpy(m->F_x, z->F_x, m->n_f * m->n * sizeof(double));
+                memcpy(m->F_u, z->F_u, m->n_f * nin * sizeof(double));
+            }
+            m->h = h;
+            return JF_OK;
+        }
+    for (i = 0; i < m->n_m; i++) {
+        double w = m->omega[i], cc = m->cdamp[i];
+        if (w == 0.0) {
+            double x = cc * h, em, gg;
+            em = cc > 0 ? -expm1(-x) / cc : h;
+            gg = cc > 0 ? (h - em) / cc : h * h / 2;
+            m->a11[i] = 1.0;
+            m->a12[i] = em;
+            m->a21[i] = 0.0;
+            m->a22[i] = exp(-x);
+            g1 = gg;
+            g2 = em;
+        } else if (cc < 2 * w && w * h >= 1e-2) {
+            double s = cc / 2, wd = sqrt(w * w - s * s), e = exp(-s * h);
+            double co = cos(wd * h), si = sin(wd * h);
+            m->a11[i] = e * (co + s / wd * si);
+            m->a12[i] = e * si / wd;
+            m->a21[i] = -(w * w) * e * si / wd;
+            m->a22[i] = e * (co - s / wd * si);
+            g1 = (1.0 - m->a11[i]) / (w * w);
+            g2 = m->a12[i];
+        } else {
+            memset(Aug, 0, sizeof Aug);
+            Aug[1] = h;
+            Aug[3] = -(w * w) * h;
+            Aug[4] = -cc * h;
+            Aug[5] = h;
+            if (jf_expm(Aug, 3, E) != JF_OK) return JF_ERROR;
+            m->a11[i] = E[0];
+            m->a12[i] = E[1];
+            m->a21[i] = E[3];
+            m->a22[i] = E[4];
+            g1 = E[2];
+            g2 = E[5];
+        }
+        for (j = 0; j < nin; j++) {
+            m->G1[i * nin + j] = g1 * m->B_e[i * nin + j];
+            m->G2[i * nin + j] = g2 * m->B_e[i * nin + j];
+        }
+    }
+    if (nr) {
+        double *A = (double *)calloc(2 * n3 * n3, sizeof(double)), *X;
+        if (A == NULL) return JF_ERROR;
+        X = A + n3 * n3;
+        for (i = 0; i < nr; i++) {
+            A[i * n3 + nr + i] = h;
+            A[(nr + i) * n3 + 2 * nr + i] = h;
+            for (j = 0; j < nr; j++) {
+                A[(nr + i) * n3 + j] = -m->K_oo[i * nr + j] * h;
+                A[(nr + i) * n3 + nr + j] = -m->D_oo[i * nr + j] * h;
+            }
+        }
+        if (jf_expm(A, n3, X) != JF_OK) {
+            free(A);
+            return JF_ERROR;
+        }
+        for (i = 0; i < 2 * nr; i++) {
+            for (j = 0; j < 2 * nr; j++) m->Phi_o[i * 2 * nr + j] = X[i * n3 + j];
+            for (j = 0; j < nin; j++) {
+                double s = 0.0;
+                for (k = 0; k < nr; k++) s += X[i * n3 + 2 * nr + k] * m->B_o[k * nin + j];
+                m->G_o[i * nin + j] = s;
+            }
+        }
+        free(A);
+    }
+    if (m->n_f) {
+        size_t n = m->n, na = n + nin;
+        double *A = (double *)calloc(2 * na * na, sizeof(double)), *X;
+        if (A == NULL) return JF_ERROR;
+        X = A + na * na;
+        for (i = 0; i < n; i++) {
+            for (j = 0; j < n; j++) A[i * na + j] = m->A_full[i * n + j] * h;
+            for (j = 0; j < nin; j++) A[i * na + n + j] = m->B_full[i * nin + j] * h;
+        }
+        if (jf_expm(A, na, X) != JF_OK) {
+            free(A);
+            return JF_ERROR;
+        }
+        for (i = 0; i < m->n_f; i++) {
+            for (j = 0; j < n; j++) m->F_x[i * n + j] = X[(m->ns + i) * na + j];
+            for (j = 0; j < nin; j++) m->F_u[i * nin + j] = X[(m->ns + i) * na + n + j];
+        }
+        free(A);
+    }
+    m->h = h;
+    return JF_OK;
+}
+
+static void read_inputs(JfInstance *inst) {
+    Structure *m = M;
+    size_t j;
+    for (j = 0; j < m->n_in; j++) m->u[j] = inst->r[m->u_vr[j]];
+}
+
+static void update_state_outputs(JfInstance *inst) {
+    Structure *m = M;
+    size_t i, j;
+    for (i = 0; i < m->n_out; i++) {
+        double s = 0.0;
+        for (j = 0; j < m->n; j++) s += m->C_x[i * m->n + j] * inst->state[j];
+        m->y_state[i] = s;
+    }
+}
+
+static void write_outputs(JfInstance *inst) {
+    Structure *m = M;
+    size_t i, j;
+    read_inputs(inst);
+    for (i = 0; i < m->n_out; i++) {
+        double s = m->y_state[i];
+        if (m->has_ft) {
+            double f = 0.0;
+            for (j = 0; j < m->n_in; j++) f += m->D[i * m->n_in + j] * m->u[j];
+            s = f + s;
+        }
+        inst->r[m->y_vr[i]] = s;
+    }
+}
+
+int model_exit_initialization(JfInstance *inst) {
+    update_state_outputs(inst);
+    write_outputs(inst);
+    return JF_OK;
+}
+
+int model_inputs_changed(JfInstance *inst) {
+    if (M->has_ft) write_outputs(inst);
+    return JF_OK;
+}
+
+int model_state_restored(JfInstance *inst) {
+    size_t i;
+    for (i = 0; i < inst->n_state; i++)
+        if (!isfinite(inst->state[i])) {
+            jf_log(inst, 3, "FMU state rejected: structural state %lu is not finite",
+                   (unsigned long)i);
+            return JF_ERROR;
+        }
+    update_state_outputs(inst);
+    return JF_OK;
+}
+
+int model_do_step(JfInstance *inst, double t, double h) {
+    Structure *m = M;
+    size_t i, j, nm = m->n_m, nr = m->n_r, nin = m->n_in;
+    double *x = inst->state, *q = x, *v = x + nm, *xo = x + 2 * nm;
+    (void)t;
+    if (h != m->h && discretize(inst, h) != JF_OK) {
+        jf_log(inst, 3, "cannot discretise the structure for step %g s", h);
+        return JF_ERROR;
+    }
+    read_inputs(inst);
+    for (i = 0; i < m->n_f; i++) { /* the filter reads the state before the step */
+        double s = 0.0, f = 0.0;
+        for (j = 0; j < m->n; j++) s += m->F_x[i * m->n + j] * x[j];
+        for (j = 0; j < nin; j++) f += m->F_u[i * nin + j] * m->u[j];
+        m->tf[i] = s + f;
+    }
+    for (i = 0; i < nm; i++) {
+        double gq = 0.0, gv = 0.0;
+        for (j = 0; j < nin; j++) {
+            gq += m->G1[i * nin + j] * m->u[j];
+            gv += m->G2[i * nin + j] * m->u[j];
+        }
+        m->tq[i] = gq + m->a11[i] * q[i] + m->a12[i] * v[i];
+        m->tv[i] = gv + m->a21[i] * q[i] + m->a22[i] * v[i];
+    }
+    for (i = 0; i < 2 * nr; i++) {
+        double s = 0.0, f = 0.0;
+        for (j = 0; j < 2 * nr; j++) s += m->Phi_o[i * 2 * nr + j] * xo[j];
+        for (j = 0; j < nin; j++) f += m->G_o[i * nin + j] * m->u[j];
+        m->to[i] = s + f;
+    }
+    memcpy(q, m->tq, 2 * nm * sizeof(double)); /* q and v are contiguous */
+    memcpy(xo, m->to, 2 * nr * sizeof(double));
+    memcpy(x + m->ns, m->tf, m->n_f * sizeof(double));
+    update_state_outputs(inst);
+    write_outputs(inst);
+    return JF_OK;
+}

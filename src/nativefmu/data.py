@@ -1,0 +1,180 @@
+"""Model data of the native FMUs: one plain text file per FMU in ``resources/``.
+
+The C kernels read it with ``jf_data_*`` (``csrc/data.c``)::
+
+    jitterfmu-native-data 1
+    <name> <rows> <cols>
+    <rows * cols values, row-major, as C99 hexadecimal floats>
+
+Hexadecimal floats (``float.hex``) round-trip every double exactly through ``strtod``,
+so the C code sees the same bits as the Python slave.  One function per kernel turns the
+Python FMU's model (reduced model, stack preset, control law) into the arrays its
+kernel reads; the step-independent products (output matrices, feedthrough) are
+computed here with the Python package's own code, the step-dependent discretisation in
+C.
+"""
+
+from __future__ import annotations
+
+import io
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from fmukit.build import FmuSpec
+
+__all__ = ["KERNELS", "NativeUnsupportedError", "encode", "kernel_of", "model_data"]
+
+#: slave class -> C kernel (``csrc/<kernel>.c``, data file ``<kernel>.dat``).
+KERNELS: dict[str, str] = {
+    "structfmu.slave:StructureSlave": "structure",
+    "piezofmu.slave:PiezoSlave": "piezo",
+    "ctrlfmu.slave:ControllerSlave": "controller",
+    "distfmu.excitation:ExcitationSlave": "excitation",
+}
+
+
+class NativeUnsupportedError(ValueError):
+    """An FMU whose slave has no C kernel yet."""
+
+
+def kernel_of(spec: FmuSpec) -> str:
+    """Name of the C kernel of ``spec``, or :class:`NativeUnsupportedError`."""
+    try:
+        return KERNELS[spec.slave_class]
+    except KeyError:
+        raise NativeUnsupportedError(
+            f"FMU {spec.model_identifier!r} (slave {spec.slave_class}) has no native kernel; "
+            f"native kernels exist for {sorted(KERNELS)}") from None
+
+
+def encode(arrays: Mapping[str, object]) -> bytes:
+    """The data file holding ``arrays`` (scalars, vectors as one row, or matrices).
+
+    Parameters
+    ----------
+    arrays : mapping of str to array_like
+        Name (no spaces, < 64 characters) -> values; 0-d and 1-d arrays are written as
+        one row.
+
+    Returns
+    -------
+    bytes
+        ASCII content of the file.
+    """
+    lines = ["jitterfmu-native-data 1"]
+    for name, value in arrays.items():
+        if not name or len(name) >= 64 or any(c.isspace() for c in name):
+            raise ValueError(f"data array name {name!r} must be 1-63 characters, no spaces")
+        arr = np.asarray(value, dtype=float)
+        if arr.ndim > 2:
+            raise ValueError(f"data array {name!r} has {arr.ndim} dimensions; expected <= 2")
+        arr = arr.reshape(1, -1) if arr.ndim < 2 else arr
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"data array {name!r} has non-finite values")
+        lines.append(f"{name} {arr.shape[0]} {arr.shape[1]}")
+        flat = [float(v).hex() for v in arr.ravel()]
+        for i in range(0, len(flat), 4):
+            lines.append(" ".join(flat[i:i + 4]))
+    return ("\n".join(lines) + "\n").encode("ascii")
+
+
+def _resource_bytes(spec: FmuSpec, name: str) -> bytes:
+    src = spec.resources[name]
+    return src if isinstance(src, bytes) else Path(src).read_bytes()
+
+
+#: Communication steps (s) whose structure discretisation is shipped precomputed: those of
+#: the shipped scenarios and experiments.  Other steps are discretised in C at the first
+#: step of that size (see csrc/structure.c).
+STRUCTURE_STEPS = (1e-3, 4e-3)
+
+
+def _structure(spec: FmuSpec, vrs: Mapping[str, int],
+               steps: tuple[float, ...] = STRUCTURE_STEPS) -> dict:
+    from structfmu.discrete import Stepper, discretize
+    from structfmu.reduced import ReducedModel
+    from structfmu.statespace import first_order
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "model.npz"
+        path.write_bytes(_resource_bytes(spec, "model.npz"))
+        model = ReducedModel.load(path)
+    stepper = Stepper(model)
+    n_m, n_r, ns = model.n_modes, model.n_ritz, model.n_struct_states
+    out = {
+        "n_m": n_m, "n_r": n_r, "n_in": model.n_inputs, "n_out": model.n_outputs,
+        "n_f": model.n_filter_states,
+        "omega": model.omega, "modal_damping": np.broadcast_to(model.modal_damping, (n_m,)),
+        "B_e": model.B_e, "K_oo": model.K_oo, "D_oo": model.D_oo,
+        "B_o": model.B_o if n_r else np.zeros((0, model.n_inputs)),
+        "C_x": stepper.C_x, "D": stepper.D,
+        "u_vr": [vrs[name] for name in model.input_names],
+        "y_vr": [vrs[name] for name in model.output_names],
+    }
+    if model.n_filter_states:
+        A, B, _, _ = first_order(model)
+        n = A.shape[0]
+        # first_order's layout [q_e, q_o, v_e, v_o, x_f] -> the stepper's [q_e, v_e, q_o, v_o, x_f]
+        perm = np.r_[0:n_m, n_m + n_r:2 * n_m + n_r, n_m:n_m + n_r, 2 * n_m + n_r:ns, ns:n]
+        out["A_full"] = A[np.ix_(perm, perm)]
+        out["B_full"] = B[perm]
+    # the Ritz block is stiff (kHz stack modes): its exponential has round-off of ~1e-10
+    # relative, different in every implementation; shipping scipy's keeps both FMUs equal
+    steps = tuple(sorted({float(h) for h in (*steps, spec.step_size or steps[0])}))
+    out["n_steps"] = len(steps)
+    out["steps"] = steps
+    for j, h in enumerate(steps):
+        dm = discretize(model, h)
+        zoh = {"a11": dm.a11, "a12": dm.a12, "a21": dm.a21, "a22": dm.a22, "G1": dm.G1,
+               "G2": dm.G2, "Phi_o": dm.Phi_o,
+               "G_o": dm.G_o if n_r else np.zeros((0, model.n_inputs))}
+        if model.n_filter_states:
+            zoh["F_x"], zoh["F_u"] = dm.F_x, dm.F_u
+        out.update({f"{name}_{j}": value for name, value in zoh.items()})
+    return out
+
+
+def _piezo(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
+    from piezofmu.actuator import actuator_preset
+
+    act = actuator_preset(str(spec.init_kwargs.get("preset_name", "P-243.30")))
+    stack = act.stack
+    return {"ch": stack.ch, "capacitance": stack.capacitance,
+            "stroke_per_volt": act.stroke_per_volt, "rated_voltage": stack.rated_voltage}
+
+
+def _controller(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
+    from ctrlfmu.law import load_law
+
+    law = load_law(io.BytesIO(_resource_bytes(spec, "law.npz")))
+    return {"n": law.n_states, "n_in": law.n_inputs, "n_out": law.n_outputs, "dt": law.dt,
+            "delayed": float(law.delayed), "A": law.A, "B": law.B, "C": law.C, "D": law.D,
+            "aw_gain": law.aw_gain}
+
+
+_WRITERS = {"structure": _structure, "piezo": _piezo, "controller": _controller}
+
+
+def model_data(spec: FmuSpec, vrs: Mapping[str, int]) -> dict[str, bytes]:
+    """Resource files of the native FMU of ``spec``.
+
+    Parameters
+    ----------
+    spec : FmuSpec
+        The Python FMU's spec (its resources hold the model).
+    vrs : mapping of str to int
+        Value reference of every variable name, from the model description.
+
+    Returns
+    -------
+    dict of str to bytes
+        ``{"<kernel>.dat": content}``, empty for a kernel without data.
+    """
+    kernel = kernel_of(spec)
+    writer = _WRITERS.get(kernel)
+    if writer is None:
+        return {}
+    return {f"{kernel}.dat": encode(writer(spec, vrs))}

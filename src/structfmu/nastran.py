@@ -705,7 +705,8 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
     acts = list(actuators)
     labels = [a.label for a in acts]
     if len(set(labels)) != len(labels):
-        raise NastranError(f"duplicate actuator names {sorted({x for x in labels if labels.count(x) > 1})}")
+        dup = sorted({x for x in labels if labels.count(x) > 1})
+        raise NastranError(f"duplicate actuator names {dup}")
     for a in acts:
         deck.element(a.element, "actuator element")
         if a.gauge is not None:

@@ -4,13 +4,14 @@ The reference is the native path: the same truss reduced by :func:`structfmu.red
 The round trips go through every boundary of the import: the BDF (16-character fields,
 about 15 digits), the OP4 (ASCII, 16 digits), a declared unit system, displacement frames
 rotated away from basic, SPC1 constraints, empty rotational DOFs, and members replaced by
-piezo stacks.  Tolerances: frequencies to 1e-10 relative (the issue's figure).  Frequency responses to
-1e-8 of each channel pair's peak on the ten-bay truss and 2e-7 on the EOS testbed, not the
-issue's 1e-9: that is below what the native path reproduces itself.  The same native
-reduction with the free DOFs merely permuted differs from the unpermuted one by 4-8e-12 in
-frequency and 1.4-2.0e-9 of peak in FRF on the ten-bay truss (stiff stacks, 0.18 %
-damping: an eigenvalue error of eps * ||K|| shows up 1/(2 zeta) times larger at the
-resonance), and by 5-7e-11 and 1.1e-8-1.2e-7 on the EOS testbed (70 modes, shift -100).
+piezo stacks.  Tolerances: frequencies to 1e-10 relative (the issue's figure).  Frequency
+responses to 1e-8 of each channel pair's peak on the ten-bay truss and 2e-7 on the EOS
+testbed, not the issue's 1e-9: that is below what the native path reproduces itself.
+The same native reduction with the free DOFs merely permuted differs from the unpermuted
+one by 4-8e-12 in frequency and 1.4-2.0e-9 of peak in FRF on the ten-bay truss (stiff
+stacks, 0.18 % damping: an eigenvalue error of eps * ||K|| shows up 1/(2 zeta) times
+larger at the resonance), and by 5-7e-11 and 1.1e-8-1.2e-7 on the EOS testbed (70 modes,
+shift -100).
 Measured import errors: see docs/nastran.md.
 """
 

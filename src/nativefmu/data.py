@@ -33,6 +33,7 @@ KERNELS: dict[str, str] = {
     "piezofmu.slave:PiezoSlave": "piezo",
     "ctrlfmu.slave:ControllerSlave": "controller",
     "distfmu.excitation:ExcitationSlave": "excitation",
+    "acsfmu.slave:AcsSlave": "acs",
 }
 
 

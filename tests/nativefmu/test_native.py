@@ -22,7 +22,7 @@ from nativefmu.build import CFLAGS, compile_sources, mingw_compiler
 pytestmark = pytest.mark.slow
 
 MODELS = ("truss10_structure", "piezo_p243_30", "piezo_p243_40",
-          "controller_truss10_strain_diag", "controller_truss10_strain_long", "excitation")
+          "controller_truss10_strain_diag", "controller_truss10_strain_long", "excitation", "acs")
 REPO = Path(__file__).resolve().parents[2]
 RTOL = 1e-12
 
@@ -243,6 +243,41 @@ def test_excitation_equals_python(fmus):
     native, python = _pair(fmus, "excitation", **kw)
     assert_close(native, python)
     assert native[-1, 0] == 0.0 and np.max(np.abs(native)) > 9.0
+
+
+ACS_OUTPUTS = ["Tx", "Ty", "Tz", "wheel_speed_x", "wheel_speed_y", "wheel_speed_z"]
+
+
+@pytest.mark.parametrize("step,params", [
+    (0.05, {}),
+    (0.1, {"momentum0_x": 70.0, "torque_limit": 0.01}),  # momentum and torque limits
+    (0.03, {"anti_windup": False, "torque_limit": 0.005}),
+    (0.25, {"bandwidth": 0.05, "inertia_y": 9000.0}),  # steps longer than the sample time
+])
+def test_acs_equals_python(fmus, step, params):
+    t = np.arange(600) * 0.05
+    inputs = {"roll": 1e-3 * np.sin(0.3 * t), "pitch": 2e-3 * np.cos(0.2 * t),
+              "yaw": 1e-4 * RNG.standard_normal(600), "rate_x": 1e-4 * np.cos(0.3 * t),
+              "rate_y": 0.0, "rate_z": 1e-5 * RNG.standard_normal(600)}
+    native, python = _pair(fmus, "acs", outputs=ACS_OUTPUTS, step_size=step, n_steps=600,
+                           inputs=inputs, parameters=params)
+    assert_close(native, python)
+    assert np.max(np.abs(python[:, :3])) > 0
+
+
+@pytest.mark.parametrize("model,params", [
+    ("acs", {"sample_time": 0.1, "bandwidth": 5.0}),  # w_c T > 0.5
+    ("piezo_p243_30", {"amp_order": 3}),
+    ("controller_truss10_strain_diag", {"u_min": 10.0, "u_max": -10.0}),
+])
+def test_invalid_parameters_fail_initialisation(fmus, model, params):
+    """The Python slaves raise on the same values (their own tests); here the native
+    FMU must refuse them too, not run with them."""
+    from fmpy.fmi1 import FMICallException
+
+    with pytest.raises(FMICallException):
+        run(fmus["native"] / f"{model}.fmu", outputs=[], step_size=1e-3, n_steps=1,
+            parameters=params)
 
 
 @pytest.mark.filterwarnings("ignore:.*not connected and keep their start values")

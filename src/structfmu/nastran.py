@@ -51,6 +51,7 @@ __all__ = ["UNIT_SYSTEMS", "UnitSystem", "Stack", "Actuator", "Point", "LineOfSi
            "parse_actuator", "parse_point", "parse_los", "write_truss_deck", "read_deck"]
 
 ACTUATOR_ELEMENTS = ("CROD", "CONROD", "CBAR", "CBEAM")
+BIGMAT_ROWS = 65535  # larger OP4 matrices need the BIGMAT layout
 SENSOR_KINDS = ("disp", "accel")
 
 
@@ -1008,7 +1009,8 @@ def write_truss_deck(truss, bdf_path, op4_path, *, units="SI", rotated=(), e_ref
     Grid ``i + 1`` is node ``i``; element ``j + 1`` is rod ``j`` (a CONROD with ``A =
     k L / E_ref`` and the rod's mass as non-structural mass); node masses are CONM2
     (ids after the rods'); fixed DOFs are SPC1; PARAM,COUPMASS,1 for consistent mass.  The
-    OP4 holds KGG and MGG (ASCII, 16 digits) on the g-set, rotations empty.  Scalar
+    OP4 holds KGG and MGG (ASCII sparse, 16 digits; BIGMAT above 65535 rows) on the g-set,
+    rotations empty.  Scalar
     springs of the truss have no BDF card here: they are in the OP4 only.
 
     Parameters
@@ -1073,7 +1075,14 @@ def write_truss_deck(truss, bdf_path, op4_path, *, units="SI", rotated=(), e_ref
     S = sp.diags(s)
     Kg = (S @ T @ K @ T.T @ S) / u.energy
     Mg = (S @ T @ M @ T.T @ S) / u.energy
-    OP4(debug=None).write_op4(str(op4_path), {"KGG": (6, sp.coo_matrix(Kg)),
-                                              "MGG": (6, sp.coo_matrix(Mg))},
-                              name_order=["KGG", "MGG"], is_binary=False)
+    mats = {"KGG": sp.coo_matrix(Kg), "MGG": sp.coo_matrix(Mg)}
+    if Kg.shape[0] <= BIGMAT_ROWS:
+        OP4(debug=None).write_op4(str(op4_path), {k: (6, v) for k, v in mats.items()},
+                                  name_order=list(mats), is_binary=False)
+    else:  # pyNastran's writer packs row indices into 16 bits unless BIGMAT is asked for
+        from pyNastran.op4.op4 import _write_sparse_matrix_ascii
+
+        with open(op4_path, "w") as f:
+            for k, v in mats.items():
+                _write_sparse_matrix_ascii(f, k, v, form=6, is_big_mat=True)
     return Path(bdf_path), Path(op4_path)

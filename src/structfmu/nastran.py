@@ -692,9 +692,10 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
     ReducedModel
     """
     u = unit_system(units)
-    if ritz is not None and not isinstance(ritz, str) and op2 is not None and list(ritz):
+    if op2 is not None and ritz is not None and (ritz != "none" if isinstance(ritz, str)
+                                                 else list(ritz)):
         raise NastranError("static Ritz vectors need the stiffness matrix; the OP2 gives "
-                           "modes only: give --op4 with K and M")
+                           "modes only: give --op4 with K and M, or ritz='none'")
     if (op4 is None) == (op2 is None):
         raise NastranError("give the matrices (op4, --op4) or the SOL 103 modes (op2, --op2), "
                            "exactly one of them")
@@ -731,9 +732,6 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
         K, M = K[keep][:, keep].tocsc(), M[keep][:, keep].tocsc()
         _check_massless(K, M, dofs)
     else:
-        if acts and ritz in ("all", "actuators"):
-            raise NastranError("static Ritz vectors need the stiffness matrix; the OP2 gives "
-                               "modes only: give --op4 with K and M, or ritz='none'")
         lam, phi, dofs = read_modes(op2, u, n_modes)
         removed = frozenset((g, c) for g, c in deck.constrained)
     index = {d: i for i, d in enumerate(dofs)}
@@ -816,9 +814,6 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
                                    "constrain it with SPC cards") from None
             raise
     else:
-        if ritz == "all" and inputs:
-            raise NastranError("static Ritz vectors need the stiffness matrix; the OP2 gives "
-                               "modes only")
         warnings.warn(f"{name}: modes only (SOL 103 OP2): no static Ritz vectors, which need "
                       "the stiffness matrix (give an OP4 with K and M); the local response at "
                       "actuators and loads is that of the retained modes", NastranWarning,

@@ -34,6 +34,7 @@ KERNELS: dict[str, str] = {
     "ctrlfmu.slave:ControllerSlave": "controller",
     "distfmu.excitation:ExcitationSlave": "excitation",
     "acsfmu.slave:AcsSlave": "acs",
+    "distfmu.slave:DisturbanceSlave": "disturbance",
 }
 
 
@@ -156,7 +157,68 @@ def _controller(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
             "aw_gain": law.aw_gain}
 
 
-_WRITERS = {"structure": _structure, "piezo": _piezo, "controller": _controller}
+def _term(source) -> list[float]:
+    """One source as the parameter list csrc/disturbance.c reads (type code first)."""
+    from distfmu import sources as S
+
+    def kind(k):
+        return 0.0 if k == "force" else 1.0
+
+    if isinstance(source, S.Harmonic):
+        n = len(source.amplitudes)
+        h = range(1, n + 1) if source.harmonics is None else source.harmonics
+        phi = [0.0] * n if source.phases is None else source.phases
+        return [1, source.frequency, kind(source.kind), *S._unit(source.direction, "h"), n,
+                *source.amplitudes, *h, *phi]
+    if isinstance(source, S.Chopper):
+        return [2, source.frequency, source.amplitude, kind(source.kind),
+                *S._unit(source.direction, "c"), source.rise_time, source.duty, source.phase]
+    if isinstance(source, S.ScanMirror):
+        return [3, source.inertia, source.period, source.amplitude, source.retrace_fraction,
+                source.turnaround, *S._unit(source.axis, "s", "axis")]
+    if isinstance(source, S.Slew):
+        return [4, source.angle, source.max_rate, source.max_accel, source.inertia,
+                source.start, *S._unit(source.axis, "s", "axis"),
+                float(source.repeat is not None), source.repeat or 0.0, float(source.alternate)]
+    if isinstance(source, S.Stepper):
+        return [5, source.step_rate, source.peak_torque, source.pulse_width,
+                *S._unit(source.axis, "s", "axis"), float(source.bipolar)]
+    if isinstance(source, S.WheelImbalance) and not isinstance(source.speed, S.SpeedProfile):
+        n = len(source.harmonics)
+        zeros = [0.0] * n
+        return [6, n, *source.harmonics, *source.force_coeffs, *source.torque_coeffs,
+                *(source.axial_coeffs or zeros), *(source.phases or zeros),
+                *np.asarray(source._frame).ravel(), source.speed]
+    raise NativeUnsupportedError(f"disturbance source {type(source).__name__} has no native "
+                                 "form (supported: harmonic, chopper, scan mirror, slew, "
+                                 "stepper, constant-speed wheel imbalance, and their sum)")
+
+
+def _disturbance(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
+    from distfmu.presets import PRESETS
+    from distfmu.sources import Sum, Zero
+
+    out: dict = {"n_presets": len(PRESETS)}
+    for i, (name, preset) in enumerate(PRESETS.items()):
+        source = preset.source
+        terms = [] if isinstance(source, Zero) else (
+            list(source.sources) if isinstance(source, Sum) else [source])
+        if any(isinstance(t, (Sum, Zero)) for t in terms):
+            raise NativeUnsupportedError(f"preset {name!r} nests sums; the native "
+                                         "disturbance FMU takes one level")
+        out[f"preset{i}_name_len"] = len(name)
+        out[f"preset{i}_name"] = [ord(c) for c in name]
+        out[f"preset{i}_sum"] = float(isinstance(source, Sum))
+        out[f"preset{i}_n"] = len(terms)
+        for j, term in enumerate(terms):
+            values = _term(term)
+            out[f"preset{i}_term{j}_len"] = len(values)
+            out[f"preset{i}_term{j}"] = values
+    return out
+
+
+_WRITERS = {"structure": _structure, "piezo": _piezo, "controller": _controller,
+            "disturbance": _disturbance}
 
 
 def model_data(spec: FmuSpec, vrs: Mapping[str, int]) -> dict[str, bytes]:

@@ -22,7 +22,8 @@ from nativefmu.build import CFLAGS, compile_sources, mingw_compiler
 pytestmark = pytest.mark.slow
 
 MODELS = ("truss10_structure", "piezo_p243_30", "piezo_p243_40",
-          "controller_truss10_strain_diag", "controller_truss10_strain_long", "excitation", "acs")
+          "controller_truss10_strain_diag", "controller_truss10_strain_long", "excitation", "acs",
+    "disturbance")
 REPO = Path(__file__).resolve().parents[2]
 RTOL = 1e-12
 
@@ -69,7 +70,7 @@ def run(fmu, *, outputs, step_size, n_steps, inputs=None, parameters=None, state
         for name, value in (parameters or {}).items():
             v = var[name]
             setter = {"Real": slave.setReal, "Integer": slave.setInteger,
-                      "Boolean": slave.setBoolean}[v.type]
+                      "Boolean": slave.setBoolean, "String": slave.setString}[v.type]
             setter([v.valueReference], [value])
         slave.enterInitializationMode()
         slave.exitInitializationMode()
@@ -265,7 +266,48 @@ def test_acs_equals_python(fmus, step, params):
     assert np.max(np.abs(python[:, :3])) > 0
 
 
+WRENCH = ["Fx", "Fy", "Fz", "Mx", "My", "Mz"]
+
+
+def _presets():
+    from distfmu.presets import preset_names
+
+    return [(name, 7) for name in preset_names()] + [("swir_cryocooler", 0), ("rwa", 0)]
+
+
+@pytest.mark.parametrize("preset,seed", _presets())
+def test_disturbance_equals_python_for_every_preset(fmus, preset, seed):
+    """Every preset, with phases drawn from seed 7 (numpy's SeedSequence and PCG64,
+    ported to C) and with the preset's own phases (seed 0); a window and a scale."""
+    params = {"preset": preset, "seed": seed, "start_time": 0.5, "stop_time": 11.0,
+              "scale": 1.5}
+    native, python = _pair(fmus, "disturbance", outputs=WRENCH, step_size=8e-3,
+                           n_steps=1500, parameters=params)
+    assert_close(native, python)
+    assert (np.max(np.abs(python)) > 0) == (preset != "none")
+    assert np.all(python[-100:] == 0) and np.all(python[:61] == 0)  # t < 0.5 s, t >= 11 s
+
+
+def test_disturbance_seed_changes_the_phases_the_same_way(fmus):
+    kw = dict(outputs=WRENCH, step_size=1e-3, n_steps=300)
+    a = run(fmus["native"] / "disturbance.fmu", parameters={"preset": "tir_cryocooler",
+                                                             "seed": 1}, **kw)
+    b = run(fmus["native"] / "disturbance.fmu", parameters={"preset": "tir_cryocooler",
+                                                             "seed": 2}, **kw)
+    assert np.max(np.abs(a - b)) > 0.01
+
+
+def test_disturbance_wheel_driven_by_the_speed_input(fmus):
+    speed = 100 + 50 * np.sin(np.arange(1000) * 1e-3)
+    native, python = _pair(fmus, "disturbance", outputs=WRENCH, step_size=1e-3,
+                           n_steps=1000, inputs={"wheel_speed": speed},
+                           parameters={"preset": "rwa", "use_speed_input": True, "seed": 3})
+    assert_close(native, python)
+    assert np.max(np.abs(python)) > 0
+
+
 @pytest.mark.parametrize("model,params", [
+    ("disturbance", {"preset": "no_such_event"}),
     ("acs", {"sample_time": 0.1, "bandwidth": 5.0}),  # w_c T > 0.5
     ("piezo_p243_30", {"amp_order": 3}),
     ("controller_truss10_strain_diag", {"u_min": 10.0, "u_max": -10.0}),

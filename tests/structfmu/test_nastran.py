@@ -178,6 +178,41 @@ def test_aset_matrices_with_a_dof_map(deck, native, tmp_path):
         import_truss10(deck[0], op4, "in-lbf-s")
 
 
+def write_binary_op4(path, matrices):
+    """Dense binary OP4 as NASTRAN's OUTPUT4 writes it (little-endian Fortran records).
+
+    Header record ``ncols, nrows, form, type (2: real double), name``; one record per
+    column ``icol, first row, words, values`` from its first to last non-zero; a closing
+    column ``ncols + 1``.  (pyNastran 1.4.1's own binary writer does not produce this.)
+    """
+    import struct
+
+    def record(f, payload):
+        f.write(struct.pack("<i", len(payload)) + payload + struct.pack("<i", len(payload)))
+
+    with open(path, "wb") as f:
+        for name, A in matrices.items():
+            nrows, ncols = A.shape
+            record(f, struct.pack("<4i8s", ncols, nrows, 6, 2, name.ljust(8).encode()))
+            for j in range(ncols):
+                nz = np.flatnonzero(A[:, j])
+                if nz.size:
+                    vals = np.ascontiguousarray(A[nz[0]:nz[-1] + 1, j], "<f8")
+                    record(f, struct.pack("<3i", j + 1, nz[0] + 1, 2 * vals.size)
+                           + vals.tobytes())
+            record(f, struct.pack("<3i", ncols + 1, 1, 2) + struct.pack("<d", 1.0))
+
+
+def test_binary_op4(deck, native, tmp_path):
+    """The same KGG and MGG as a binary OP4 (NASTRAN's default OUTPUT4 format)."""
+    from pyNastran.op4.op4 import OP4
+
+    mats = OP4(debug=None).read_op4(str(deck[1]))
+    op4 = tmp_path / "truss10_binary.op4"
+    write_binary_op4(op4, {n: sp.csc_matrix(mats[n].data).toarray() for n in ("KGG", "MGG")})
+    assert_same_model(import_truss10(deck[0], op4, "in-lbf-s"), native)
+
+
 def test_bar_and_beam_members_carry_stacks(tmp_path):
     """CBAR/CBEAM/CROD: the axial stiffness E A / L and the mass are swapped for the stack's."""
     from pyNastran.bdf.bdf import BDF

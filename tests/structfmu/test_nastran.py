@@ -460,3 +460,23 @@ def test_modes_only_op2_round_trip(tmp_path):
     g_full = frf(static, [0.5], ["strain_diag"], ["fc_diag"])[0, 0, 0]
     g_modes = frf(model, [0.5], ["strain_diag"], ["fc_diag"])[0, 0, 0]
     assert abs(g_modes / g_full - 1) > 0.1
+
+
+def test_cli_errors_are_one_line(deck, tmp_path, capsys):
+    from orchestrator.cli import main
+
+    base = ["import-nastran", str(deck[0]), "--op4", str(deck[1]), "--modes", "4",
+            "--out", str(tmp_path / "m.npz")]
+    with pytest.raises(SystemExit):  # argparse: --units is required
+        main(base)
+    assert "the following arguments are required: --units" in capsys.readouterr().err
+    for extra, msg in ((["--actuator", "9999=P-243.30"], "actuator element 9999 is not in"),
+                       (["--dof-map", str(tmp_path / "short.dofs")],
+                        "rows but the DOF map has 2 entries"),
+                       (["--zeta-band", "9-10=0.1"], "expected F1:F2=ZETA")):
+        (tmp_path / "short.dofs").write_text("1 1\n1 2\n")
+        assert main(base + ["--units", "in-lbf-s", *extra]) == 2
+        err = capsys.readouterr().err.splitlines()
+        assert err[0].startswith("jitterfmu: error: ") and msg in err[0]
+        assert err[1:] == ["(run with --debug for the traceback)"]
+    assert not (tmp_path / "m.npz").exists()

@@ -32,8 +32,12 @@ def available() -> dict:
     return out
 
 
-def run(name: str, out_dir, quick: bool = False) -> dict:
-    """Run one experiment; returns its JSON dict (also written to ``out_dir``)."""
+def run(name: str, out_dir, quick: bool = False, fmu_dir=None) -> dict:
+    """Run one experiment; returns its JSON dict (also written to ``out_dir``).
+
+    ``fmu_dir`` (optional) is the folder the experiment builds its FMUs into, for those
+    whose ``run`` takes one; default: the experiment's own default.
+    """
     avail = available()
     if name not in avail:
         import difflib
@@ -42,7 +46,15 @@ def run(name: str, out_dir, quick: bool = False) -> dict:
         raise KeyError(f"unknown experiment {name!r}{hint} Available: {', '.join(avail)}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    result = importlib.import_module(EXPERIMENTS[name]).run(out_dir, quick=quick)
+    module = importlib.import_module(EXPERIMENTS[name])
+    kwargs = {}
+    if fmu_dir is not None:
+        import inspect
+        if "fmu_dir" not in inspect.signature(module.run).parameters:
+            raise ValueError(f"experiment {name!r} builds its FMUs where it always does; "
+                             "run it without --fmu-dir")
+        kwargs["fmu_dir"] = fmu_dir
+    result = module.run(out_dir, quick=quick, **kwargs)
     write_json(out_dir / f"{name}.json", result)
     return result
 

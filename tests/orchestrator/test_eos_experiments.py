@@ -102,36 +102,76 @@ def test_eos_budget(out, tmp_path):
             assert r["margin_off"] == b["margin_off"]
 
 
-def test_testbed_isolation(out):
-    res = run_experiment("testbed-isolation", out, quick=True)
-    red = res["jitter_reduction_pct"]
+@pytest.fixture(scope="module")
+def testbed(out):
+    return run_experiment("testbed-isolation", out, quick=True)
+
+
+def test_testbed_isolation(testbed, out):
+    res = testbed
+    red, lin = res["jitter_reduction_pct"], res["linear_reduction_pct"]
     assert set(red) == {"mount3", "all_mounts"}
-    # the closed loops are stable on the linear model and stay off the +-50 V rails
-    assert res["closed_loop_stable_linear"] is True
-    assert max(res["max_strut_voltage_v"].values()) < 50.0
-    if res["reproduced"]:
-        # paper: about 80 % with mount #3 alone, 50-80 % overall, bandwidth about 45 Hz
-        assert red["mount3"] >= 60.0
-        assert 50.0 <= red["all_mounts"] <= 90.0
-        assert 30.0 <= res["isolation_bandwidth_hz"] <= 60.0
-    else:
-        assert res["note"].startswith("Not reproduced")
-        # a stable loop must not amplify the boresight jitter by more than a few percent
-        assert red["mount3"] > -10.0 and red["all_mounts"] > -10.0
+    # every configuration: stable with >= 6 dB gain margin (linear model, all active
+    # loops scaled together); strut voltages inside the paper's +-50 V operating range
+    assert min(res["gain_margin_db"].values()) >= 6.0
+    assert 0.0 < res["max_voltage_v"] < 50.0
+    # the layout (docs/eos_testbed.md): mount #3 is in the dominant 22 Hz path, so an
+    # ideal loop at mount #3 alone could remove about the paper's 80 %
+    assert res["ideal_ceiling_pct"]["mount3"] >= 70.0
+    assert res["ideal_ceiling_pct"]["all_mounts"] >= 90.0
+    # the isolation attenuates the boresight jitter in the co-simulation, as designed on
+    # the linear model (zero gains give 0 %, a flipped sign amplifies or goes unstable)
+    # (the designed values are 22 % and 7 %; the quick run measures 2.4 s after switch-on,
+    # while the 0.5 %-damped 23 Hz bus mode is still settling)
+    assert lin["mount3"] >= 15.0 and red["mount3"] >= 12.0
+    assert lin["all_mounts"] >= 4.0 and red["all_mounts"] >= 3.0
+    assert red["mount3"] == pytest.approx(lin["mount3"], abs=8.0)
     assert (out / "testbed-isolation.png").is_file()
 
 
-def test_swir_isolation(out):
-    res = run_experiment("swir-isolation", out, quick=True)
-    assert set(res["reduction_pct"]) == {"roll", "pitch", "yaw"}
-    # paper: the isolation mounts need < 5 um of stroke and < 15 lb of force
+@pytest.mark.xfail(strict=True, reason="the stated law on the stiff struts is gain-limited "
+                   "to about 22 % at 6 dB margin (docs/eos_experiments.md)")
+def test_testbed_isolation_reaches_the_papers_attenuation(testbed):
+    # paper: about 80 % with mount #3 alone, 50-80 % with all three
+    red = testbed["jitter_reduction_pct"]
+    assert red["mount3"] >= 70.0
+    assert 50.0 <= red["all_mounts"] <= 80.0
+    assert testbed["reproduced"] is True
+
+
+@pytest.fixture(scope="module")
+def swir(out):
+    return run_experiment("swir-isolation", out, quick=True)
+
+
+def test_swir_isolation(swir, out):
+    res = swir
+    red, off = res["reduction_pct"], res["jitter_off_arcsec"]
+    # paper (Fig. 9 text): VNIR pointing gives about 1 arcsec/1.8 s on all three SWIR axes
+    assert all(0.5 <= off[a] <= 2.0 for a in ("roll", "pitch", "yaw"))
+    # paper: roll reduced by only 30 % (rigid-body motion), yaw significantly.  Zero gains
+    # give 0 %, a flipped sign amplifies or goes unstable: both fail here.
+    assert 15.0 <= red["roll"] <= 45.0
+    assert red["yaw"] >= 50.0
+    # the co-simulation is the linear design model (same discretisation and delays)
+    for a in ("roll", "pitch", "yaw"):
+        assert red[a] == pytest.approx(res["linear_reduction_pct"][a], abs=1.0)
+    # all twelve loops keep >= 6 dB common gain margin
+    assert res["margins"]["mimo_gain_margin_db"] >= 6.0
+    # paper: the isolation mounts need < 5 um of stroke and < 15 lb of force (full scale)
     assert 0.0 < res["max_stroke_um"] < 5.0
     assert 0.0 < res["max_force_lbf"] < 15.0
-    if res["reproduced"]:
-        assert res["reduction_pct"]["pitch"] > 50 and res["reduction_pct"]["yaw"] > 50
-        assert 10 <= res["reduction_pct"]["roll"] <= 50
-    else:
-        assert res["note"].startswith("Not reproduced")
-        # active mounts do not make SWIR jitter materially worse in any axis
-        assert all(v > -10.0 for v in res["reduction_pct"].values())
+    # the twelve stacks could cancel the SWIR LOS exactly, but not within 15 lbf
+    assert min(res["ideal_ceiling_pct"].values()) >= 99.0
+    assert res["ideal_ceiling_needs"]["max_force_lbf"] > 15.0
     assert (out / "swir-isolation.png").is_file()
+
+
+@pytest.mark.xfail(strict=True, reason="SWIR pitch rides on 70-125 Hz bus modes that the "
+                   "legs barely strain and the delayed loop cannot damp; MISR falls more "
+                   "than the paper's 10 % (docs/eos_experiments.md)")
+def test_swir_isolation_reaches_the_papers_attenuation(swir):
+    # paper: pitch and yaw lowered significantly, MISR about 10 %
+    assert swir["reduction_pct"]["pitch"] >= 50.0
+    assert 3.0 <= swir["misr_reduction_pct"] <= 20.0
+    assert swir["reproduced"] is True

@@ -21,7 +21,7 @@ import tempfile
 import uuid
 import zipfile
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib import resources as _res
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -182,16 +182,24 @@ def compile_sources(sources: Path, out: Path, *, compiler: str = "gcc",
     return Path(out)
 
 
-def _python_model_description(spec: FmuSpec, python_fmu: Path | None) -> bytes:
-    if python_fmu is not None:
-        with zipfile.ZipFile(python_fmu) as z:
-            return z.read("modelDescription.xml")
-    from fmukit.build import build_fmu
+def _from_python_fmu(spec: FmuSpec, python_fmu: Path | None) -> tuple[FmuSpec, bytes]:
+    """The Python FMU's model description, and ``spec`` with the FMU's own resources.
 
-    with tempfile.TemporaryDirectory(prefix="nativefmu_py_") as tmp:
-        built = build_fmu(spec, tmp, c_loader=False)
-        with zipfile.ZipFile(built) as z:
-            return z.read("modelDescription.xml")
+    The model data (reduced model, control law) are taken from the Python FMU, not
+    recomputed, so both flavours carry the same model even if the code that makes it
+    changed since the Python FMU was built.
+    """
+    if python_fmu is None:
+        from fmukit.build import build_fmu
+
+        with tempfile.TemporaryDirectory(prefix="nativefmu_py_") as tmp:
+            return _from_python_fmu(spec, build_fmu(spec, tmp, c_loader=False))
+    with zipfile.ZipFile(python_fmu) as z:
+        xml = z.read("modelDescription.xml")
+        names = set(z.namelist())
+        resources = {name: z.read(f"resources/{name}") if f"resources/{name}" in names else src
+                     for name, src in spec.resources.items()}
+    return replace(spec, resources=resources), xml
 
 
 def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path | None = None,
@@ -228,8 +236,8 @@ def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path |
         raise NativeBuildError("windows=True needs x86_64-w64-mingw32-gcc (Debian package "
                                "gcc-mingw-w64-x86-64); install it or pass windows=None")
     windows = mingw is not None if windows is None else windows
-    root = native_model_description(_python_model_description(
-        spec, Path(python_fmu) if python_fmu else None), kernel)
+    spec, python_xml = _from_python_fmu(spec, Path(python_fmu) if python_fmu else None)
+    root = native_model_description(python_xml, kernel)
     vrs = {sv.get("name"): int(sv.get("valueReference"))
            for sv in root.iterfind("ModelVariables/ScalarVariable")}
     model_id = spec.model_identifier

@@ -21,6 +21,8 @@ from nativefmu.build import CFLAGS, compile_sources, mingw_compiler
 
 pytestmark = pytest.mark.slow
 
+EOS_MODELS = ("eos_testbed_structure", "piezo_p845_37", "controller_eos_isolation",
+              "controller_testbed_isolation")
 MODELS = ("truss10_structure", "piezo_p243_30", "piezo_p243_40",
           "controller_truss10_strain_diag", "controller_truss10_strain_long", "excitation", "acs",
     "disturbance")
@@ -38,9 +40,9 @@ def fmus(tmp_path_factory):
 
     root = tmp_path_factory.mktemp("native_fmus")
     py, native = root / "py", root / "native"
-    for spec in collect_specs(list(MODELS)):
+    for spec in collect_specs(list(MODELS) + list(EOS_MODELS)):
         built = build_fmu(spec, py)
-        build_native(spec, native, python_fmu=built)
+        build_native(spec, native, python_fmu=built, windows=False)  # win64: its own test
     return {"py": py, "native": native}
 
 
@@ -331,7 +333,7 @@ def test_closed_loop_scenario_gives_the_same_table(fmus, tmp_path):
     tables = {}
     for flavour in ("py", "native"):
         table, meta = run_scenario(scenario, tmp_path / flavour, fmu_dir=fmus[flavour],
-                                   stop_time=6.0)
+                                   stop_time=5.0)
         assert meta["status"] == "ok"
         tables[flavour] = table
     py, nat = tables["py"], tables["native"]
@@ -343,6 +345,32 @@ def test_closed_loop_scenario_gives_the_same_table(fmus, tmp_path):
         assert np.max(np.abs(a - b)) <= RTOL * peak, name
     u = np.asarray(py["ctrl_diag.u1"], float)
     assert np.max(np.abs(u[np.asarray(py["time"]) > 4.6])) > 1.0  # the loop closed
+
+
+@pytest.mark.filterwarnings("ignore:.*not connected and keep their start values")
+def test_eos_budget_scenario_gives_the_same_table(fmus, tmp_path):
+    """scenarios/eos_budget.toml (21 instances: EOS testbed structure with accelerometer
+    low-pass and 59 Ritz vectors, nine disturbances, ACS, five isolation loops) with
+    four events and isolation on: same table both ways."""
+    from orchestrator.master import run_scenario
+
+    overrides = ["dist_swir.preset=swir_cryocooler", "dist_rwa.preset=rwa",
+                 "dist_vnir.preset=vnir_pointing", "dist_ceres.preset=ceres_scan",
+                 "dist_tir.seed=4", "dist_tir.preset=tir_cryocooler",
+                 "ctrl_iso1.gain=0.27", "ctrl_iso2.gain=0.27", "ctrl_iso3.gain=0.27",
+                 "ctrl_swir.gain=0.1", "ctrl_vnir.gain=0.1"]
+    tables = {}
+    for flavour in ("py", "native"):
+        table, meta = run_scenario(REPO / "scenarios" / "eos_budget.toml", tmp_path / flavour,
+                                   fmu_dir=fmus[flavour], stop_time=0.3, overrides=overrides)
+        assert meta["status"] == "ok"
+        tables[flavour] = table
+    py, nat = tables["py"], tables["native"]
+    assert list(py.keys()) == list(nat.keys()) and len(py.keys()) > 30
+    for name in py.keys():
+        a, b = np.asarray(py[name], float), np.asarray(nat[name], float)
+        assert np.max(np.abs(a - b)) <= RTOL * max(np.max(np.abs(a)), 1e-300), name
+    assert np.max(np.abs(np.asarray(py["structure.los_swir_pitch"], float))) > 0
 
 
 # ---------------------------------------------------------------------- FMU state
@@ -464,14 +492,24 @@ def test_runs_in_a_plain_c_host_under_a_clean_environment(fmus, tmp_path):
     assert libs <= {"libc.so.6", "libm.so.6"}, libs
 
 
-def test_windows_dll_is_built_when_mingw_is_installed(fmus):
+def test_windows_dll_is_built_when_mingw_is_installed(fmus, tmp_path):
     if mingw_compiler() is None:
         pytest.skip("x86_64-w64-mingw32-gcc is not installed (Debian: gcc-mingw-w64-x86-64, "
                     "`make native-deps`); the win64 binaries cannot be built here")
-    for model in MODELS:
-        with zipfile.ZipFile(fmus["native"] / f"{model}.fmu") as z:
-            dll = z.read(f"binaries/win64/{model}.dll")
-        assert dll[:2] == b"MZ" and b"fmi2DoStep" in dll and b"fmi2SerializeFMUstate" in dll
+    from fmukit.registry import collect_specs
+
+    from nativefmu import build_native
+
+    spec = collect_specs(["controller_truss10_strain_diag"])[0]
+    fmu = build_native(spec, tmp_path, windows=True,
+                       python_fmu=fmus["py"] / "controller_truss10_strain_diag.fmu")
+    with zipfile.ZipFile(fmu) as z:
+        dll = z.read("binaries/win64/controller_truss10_strain_diag.dll")
+        assert z.read("modelDescription.xml") == zipfile.ZipFile(
+            fmus["native"] / fmu.name).read("modelDescription.xml")
+    assert dll[:2] == b"MZ" and b"fmi2DoStep" in dll and b"fmi2SerializeFMUstate" in dll
+    for needle in (str(REPO).encode(), str(tmp_path).encode(), b"python"):
+        assert needle not in dll
 
 
 def test_library_exports_every_fmi2_function(fmus, tmp_path):

@@ -359,6 +359,10 @@ class Deck:
         SPC'd DOFs.
     coupled_mass : bool
         PARAM,COUPMASS > 0.
+    path : str
+        The BDF (for messages).
+    offset_or_pinned : set of int
+        CBAR/CBEAM ids with end offsets or pin flags (they cannot carry a stack here).
     """
 
     grids: dict
@@ -369,6 +373,7 @@ class Deck:
     constrained: frozenset
     coupled_mass: bool
     path: str = ""
+    offset_or_pinned: frozenset = frozenset()
 
     def position(self, grid: int) -> np.ndarray:
         self.check_grid(grid)
@@ -389,6 +394,10 @@ class Deck:
         if kind not in ACTUATOR_ELEMENTS:
             raise NastranError(f"{what} {eid} is a {kind}, which cannot carry a piezo stack; "
                                f"expected an axial member ({', '.join(ACTUATOR_ELEMENTS)})")
+        if eid in self.offset_or_pinned:
+            raise NastranError(f"{what} {eid} is a {kind} with end offsets or pin flags, which "
+                               "this import does not carry a stack on; use a member between "
+                               "its grids (CROD, CONROD, or a CBAR/CBEAM without offsets)")
         return self.elements[eid]
 
 
@@ -425,7 +434,7 @@ def read_deck(bdf_path, units) -> Deck:
                                    "are supported")
             cd[nid] = np.asarray(coord.beta(), float).T
     spoints = tuple(sorted(getattr(model, "spoints", {}) or {}))
-    elements, types = {}, {}
+    elements, types, shaped = {}, {}, set()
     for eid, e in model.elements.items():
         types[eid] = e.type
         if e.type in ACTUATOR_ELEMENTS:
@@ -436,6 +445,11 @@ def read_deck(bdf_path, units) -> Deck:
             young = mat.e * u.force / u.length**2
             mass = float(e.Mass()) * u.mass
             elements[eid] = (e.type, (int(n1), int(n2)), young * area / length, mass)
+            if e.type in ("CBAR", "CBEAM") and (np.any(np.asarray(e.wa, float) != 0)
+                                                or np.any(np.asarray(e.wb, float) != 0)
+                                                or str(e.pa or 0) != "0"
+                                                or str(e.pb or 0) != "0"):
+                shaped.add(eid)
     for eid, e in getattr(model, "masses", {}).items():
         types.setdefault(eid, e.type)
     constrained = set()
@@ -455,7 +469,8 @@ def read_deck(bdf_path, units) -> Deck:
                         constrained.add((int(nid), int(c) if nid in grids else 0))
     coupmass = model.params.get("COUPMASS")
     coupled = bool(coupmass is not None and int(coupmass.values[0]) > 0)
-    return Deck(grids, cd, spoints, elements, types, frozenset(constrained), coupled, str(path))
+    return Deck(grids, cd, spoints, elements, types, frozenset(constrained), coupled, str(path),
+                frozenset(shaped))
 
 
 def _is_punch(path: Path) -> bool:
@@ -974,10 +989,10 @@ def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
     units : str or UnitSystem
         Unit system of the file.
     """
-    from pyNastran.op2.tables.oug.oug_eigenvectors import RealEigenvectorArray
-
     u = unit_system(units)
     _, OP2, _ = _pynastran()
+    from pyNastran.op2.tables.oug.oug_eigenvectors import RealEigenvectorArray
+
     grids = np.asarray(grids, int)
     dofs = [(int(g), c) for g in grids for c in range(1, 7)]
     native = phi / _dof_scale(dofs, u)[:, None] * np.sqrt(u.energy)

@@ -156,7 +156,7 @@ def test_cli_import_and_band_damping(deck, native, tmp_path):
 
 def test_aset_matrices_with_a_dof_map(deck, native, tmp_path):
     """KAA/MAA on the free translations only, with the DOF map file beside them."""
-    from pyNastran.op4.op4 import OP4
+    OP4 = nas._pynastran()[2]
 
     gset = nas._gset(nas.read_deck(deck[0], "in-lbf-s"))
     mats = OP4(debug=None).read_op4(str(deck[1]))
@@ -205,7 +205,7 @@ def write_binary_op4(path, matrices):
 
 def test_binary_op4(deck, native, tmp_path):
     """The same KGG and MGG as a binary OP4 (NASTRAN's default OUTPUT4 format)."""
-    from pyNastran.op4.op4 import OP4
+    OP4 = nas._pynastran()[2]
 
     mats = OP4(debug=None).read_op4(str(deck[1]))
     op4 = tmp_path / "truss10_binary.op4"
@@ -215,8 +215,7 @@ def test_binary_op4(deck, native, tmp_path):
 
 def test_bar_and_beam_members_carry_stacks(tmp_path):
     """CBAR/CBEAM/CROD: the axial stiffness E A / L and the mass are swapped for the stack's."""
-    from pyNastran.bdf.bdf import BDF
-    from pyNastran.op4.op4 import OP4
+    BDF, _, OP4 = nas._pynastran()
 
     m = BDF(debug=None)
     for i, xyz in enumerate(([0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.5, 0.0]), start=1):
@@ -228,6 +227,7 @@ def test_bar_and_beam_members_carry_stacks(tmp_path):
     m.add_cbeam(2, 20, [2, 3], [0.0, 0.0, 1.0], None)
     m.add_prod(30, 1, A=1e-4)
     m.add_crod(3, 30, [1, 3])
+    m.add_cbar(5, 10, [1, 3], [0.0, 0.0, 1.0], None, wa=[0.0, 0.0, 0.1])  # offset end A
     m.add_grid(4, [0.0, 1.5, 0.0])
     m.add_cquad4(4, 40, [1, 2, 3, 4])  # present, but cannot carry a stack
     m.add_pshell(40, 1, t=0.001)
@@ -267,6 +267,9 @@ def test_bar_and_beam_members_carry_stacks(tmp_path):
     with pytest.raises(ValueError, match="element 4 is a CQUAD4, which cannot carry a piezo"):
         nas.import_nastran(tmp_path / "bars.bdf", units="SI", op4=tmp_path / "bars.op4",
                            n_modes=4, actuators=[nas.Actuator(4, stacks[0].stack)])
+    with pytest.raises(ValueError, match="element 5 is a CBAR with end offsets or pin flags"):
+        nas.import_nastran(tmp_path / "bars.bdf", units="SI", op4=tmp_path / "bars.op4",
+                           n_modes=4, actuators=[nas.Actuator(5, stacks[0].stack)])
     # a single-grid line of sight reads the rotations (grids have them here)
     los = nas.import_nastran(tmp_path / "bars.bdf", units="SI", op4=tmp_path / "bars.op4",
                              n_modes=4, los=[nas.parse_los("b=2")])
@@ -353,7 +356,7 @@ def test_singular_stiffness_needs_rigid_body_handling(tmp_path):
 def test_massless_dof_is_named(tmp_path):
     t = strut_truss()
     bdf, op4 = nas.write_truss_deck(t, tmp_path / "t.bdf", tmp_path / "t.op4")
-    from pyNastran.op4.op4 import OP4
+    OP4 = nas._pynastran()[2]
 
     mats = OP4(debug=None).read_op4(str(op4))
     K = sp.csc_matrix(mats["KGG"].data)

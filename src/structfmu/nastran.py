@@ -441,10 +441,14 @@ def read_deck(bdf_path, units) -> Deck:
             n1, n2 = e.node_ids[:2]
             length = np.linalg.norm(grids[n2] - grids[n1])
             mat = e.mid_ref if e.type == "CONROD" else e.pid_ref.mid_ref
+            if getattr(mat, "e", None) is None:
+                types[eid] = f"{e.type} without a Young's modulus (material {mat.mid})"
+                continue
             area = e.Area() * u.length**2
             young = mat.e * u.force / u.length**2
             mass = float(e.Mass()) * u.mass
-            elements[eid] = (e.type, (int(n1), int(n2)), young * area / length, mass)
+            k_axial = young * area / length if length > 0 else np.nan
+            elements[eid] = (e.type, (int(n1), int(n2)), k_axial, mass)
             if e.type in ("CBAR", "CBEAM") and (np.any(np.asarray(e.wa, float) != 0)
                                                 or np.any(np.asarray(e.wb, float) != 0)
                                                 or str(e.pa or 0) != "0"

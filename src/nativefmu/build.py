@@ -31,6 +31,7 @@ from fmukit.build import FmuSpec
 from nativefmu.data import kernel_of, model_data
 
 __all__ = ["CFLAGS", "NativeBuildError", "NativeReport", "build_native", "build_all_native",
+           "build_native_structure",
            "compile_sources", "mingw_compiler", "native_model_description", "source_files"]
 
 #: Flags the sources must compile with (libc and libm only).
@@ -324,3 +325,34 @@ def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *
             status = "ok" if not found else f"{len(found)} problem(s)"
             progress(f"[{i}/{len(specs)}] {spec.model_identifier}: {path} (native) {status}")
     return NativeReport(tuple(fmus), tuple(skipped), tuple(problems))
+
+
+def build_native_structure(npz: str | Path, out_dir: str | Path,
+                           model_identifier: str | None = None) -> NativeReport:
+    """Build and validate the native structure FMU of a reduced model file.
+
+    The native twin of :func:`structfmu.fmuspec.build_structure_fmu` (same name rule:
+    ``<npz stem>_structure`` unless ``model_identifier``).
+
+    Parameters
+    ----------
+    npz : str or Path
+        A file written by ``ReducedModel.save`` (e.g. by ``jitterfmu import-nastran``).
+    out_dir : str or Path
+        Destination folder.
+    model_identifier : str, optional
+        FMI modelIdentifier and file stem.
+
+    Returns
+    -------
+    NativeReport
+        The FMU path and its validation problems.
+    """
+    from fmukit.validate import validate_fmu
+    from structfmu.fmuspec import build_structure_fmu, spec_from_npz
+
+    with tempfile.TemporaryDirectory(prefix="nativefmu_py_") as tmp:
+        python_fmu = build_structure_fmu(npz, tmp, model_identifier).fmus[0]
+        spec = spec_from_npz(npz, python_fmu.stem)
+        path = build_native(spec, out_dir, python_fmu=python_fmu)
+    return NativeReport((path,), (), tuple(validate_fmu(path, strict=True)))

@@ -522,3 +522,30 @@ def test_library_exports_every_fmi2_function(fmus, tmp_path):
         assert hasattr(lib, name), name
     lib.fmi2GetVersion.restype = ctypes.c_char_p
     assert lib.fmi2GetVersion() == b"2.0"
+
+
+# ---------------------------------------------------------------------- command line
+
+def test_jitterfmu_build_native_writes_native_fmus(tmp_path, capsys):
+    from orchestrator.cli import main
+
+    status = main(["build", "--native", "--out", str(tmp_path), "--model", "excitation",
+                   "--model", "acs"])
+    assert status == 0
+    for name in ("excitation", "acs"):
+        root = _md(tmp_path / f"{name}.fmu")
+        assert root.find("CoSimulation/SourceFiles") is not None
+    assert "(native) ok" in capsys.readouterr().out
+
+
+def test_jitterfmu_build_native_structure_from_a_reduced_model(tmp_path):
+    from orchestrator.cli import main
+    from structfmu.models import get_model
+
+    npz = get_model("truss10").reduced().save(tmp_path / "mytruss.npz")
+    assert main(["build", "--native", "--structure", str(npz), "--out",
+                 str(tmp_path / "out")]) == 0
+    root = _md(tmp_path / "out" / "mytruss_structure.fmu")
+    assert root.find("CoSimulation").get("modelIdentifier") == "mytruss_structure"
+    kw = dict(outputs=["strain_diag"], step_size=1e-3, n_steps=50, inputs={"fc_diag": 10.0})
+    assert np.max(np.abs(run(tmp_path / "out" / "mytruss_structure.fmu", **kw))) > 0

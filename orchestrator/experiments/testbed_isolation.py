@@ -1,23 +1,36 @@
-"""Figs. 13-15: EOS Dynamics Testbed, MISR payload isolation against a 22 Hz disturbance.
+"""Figs. 13-16: EOS Dynamics Testbed, MISR payload isolation against a 22 Hz disturbance.
 
 Co-simulation of ``scenarios/eos_budget.toml`` with the ``swir_cryocooler`` preset at the
-SWIR location (22, 44, 66 Hz) and the MISR strut controllers switched on at t = 2.4 s
-(``t_on``), with isolator mount #3 alone and with all three.  The jitter reduction is
-computed from the co-simulated MISR boresight roll and pitch: RMS over [1.2, 2.4) s
-before and over the last 1.2 s after switch-on (the optical scoring system measures roll
-and pitch).  The suspended testbed has no ACS; our scenario keeps its 0.1 Hz ACS, and
-the slow rigid-body motion (< 5 Hz) is removed by a zero-phase high-pass before the RMS,
-as an optical scoring record of a suspended article would be read.
+SWIR location (22, 44, 66 Hz, vertical) and the MISR strut controllers (the paper's law:
+2nd-order Butterworth band-pass 20-60 Hz, two zeros at 100 rad/s, two poles at 1 rad/s,
+1 kHz, payload- and bus-side acceleration, each mount independent) switched on at
+t = 2.4 s, with isolator mount #3 alone and with all three.  The jitter reduction is
+computed from the co-simulated MISR boresight roll and pitch (the gimballed body; the
+optical scoring system measures roll and pitch): RMS over the last 1.2 s, isolation on
+against a third run with isolation off (the same window, so the start-up transient of the
+lightly damped 23 Hz bus mode, still decaying before 2.4 s, does not count as isolation),
+after a zero-phase 5 Hz high-pass that removes the slow rigid-body drift of the
+free-free model (the suspended testbed has no ACS).  The paper's way, [1.2, 2.4) s before
+against the last 1.2 s after switch-on in one run, is reported as well.
 
-The transmissibility (Fig. 14) is computed from the linear models: the reduced structure
-(the FMU's own ``model.npz``), sampled with a zero-order hold at 1 kHz, the controller's
-discrete law and one sample of amplifier delay; it is the ratio of open-loop to closed-
-loop payload acceleration at strut #3 (our "accelerometer #6") for a SWIR-location
-vertical force.
+Design first, on the linear model (:func:`linear_plant`): the reduced structure of the
+FMU (``model.npz``, accelerometers through their 150 Hz low-pass), sampled exactly with a
+zero-order hold at 1 kHz, the P-865.10 amplifier (its first-order lag, exact at 1 kHz,
+whose output the structure sees one step later, as in the co-simulation), ``f = c h v``
+and the discrete law with its Eq. (11) delay.  On it:
+
+* :func:`ideal_ceiling` -- the reduction of the boresight if the payload accelerometers at
+  the chosen mounts were held at exactly zero at 22, 44 and 66 Hz (perfect cancellation),
+  and the least-squares optimum over any strut forces (no controller can do better);
+* :func:`gain_margin_db` -- the factor on the gains (all active mounts together) that
+  first makes the sampled closed loop unstable, from its eigenvalues;
+* :func:`design_gains` -- the gain direction (payload, bus) that removes the most
+  boresight jitter at 6 dB gain margin (the stored gains come from it).
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -25,21 +38,294 @@ import numpy as np
 from . import eos_budget
 
 NAME = "testbed-isolation"
-DESCRIPTION = "Figs. 13-15: MISR active isolator struts against a 22 Hz SWIR-location " \
+DESCRIPTION = "Figs. 13-16: MISR active isolator struts against a 22 Hz SWIR-location " \
               "disturbance, switched on at 2.4 s"
 
 T_ON = 2.4
-#: Strut controller gain (multiplier of the design's gains) per configuration, chosen on
-#: the linear model with the accelerometers' 150 Hz low-pass: half the stability limit
-#: (about -1 for mount #3 alone, -0.45 for all three; the loops go unstable at 40, 48 and
-#: 158 Hz, and at 31 and 119 Hz).
-GAINS = {"mount3": -0.5, "all_mounts": -0.2}
+DT = 1e-3
+#: Multiplier of the design's gains (ctrlfmu.designs.TESTBED_ISOLATION_GAINS, the mount-#3
+#: design) per configuration: 1 for mount #3 alone (6 dB margin); all three mounts with
+#: the same law, at half their joint stability limit (design_gains on the same direction).
+GAINS = {"mount3": 1.0, "all_mounts": 0.27}
 MOUNTS = {"mount3": (3,), "all_mounts": (1, 2, 3)}
-CH = 26.8  # N/V: P-845.37 k_e d0 / V0 = 6.70e7 N/m x 0.4 um/V
+#: Disturbance harmonics of the ``swir_cryocooler`` preset (Hz: N, full scale).
+HARMONICS = {22.0: 0.5, 44.0: 0.15, 66.0: 0.05}
 HP_HZ = 5.0
-FREQS = np.geomspace(2.0, 300.0, 300)
+FREQS = np.geomspace(5.0, 300.0, 160)
+PAPER = {"mount3": 80.0, "all_mounts": (50.0, 80.0), "bandwidth_hz": 45.0}
+RAD2ARCSEC = 180 / np.pi * 3600
+_SENSORS = [f"acc_{s}_iso{i}" for i in (1, 2, 3) for s in ("pay", "bus")]
+_OUT = _SENSORS + ["los_misr_roll", "los_misr_pitch", "acc_pay_iso3"]
+_IN = ["fc_iso1", "fc_iso2", "fc_iso3", "swir_fz"]
 
 
+# -- linear model ------------------------------------------------------------------------
+def linear_model(fmu_dir="fmus"):
+    """The reduced structure packed in the structure FMU (a ReducedModel)."""
+    import tempfile
+    import zipfile
+
+    from structfmu.reduced import ReducedModel
+
+    fmu = Path(eos_budget.fmu_dir(fmu_dir)) / f"{eos_budget.STRUCTURE}.fmu"
+    with zipfile.ZipFile(fmu) as z, tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "model.npz"
+        path.write_bytes(z.read("resources/model.npz"))
+        return ReducedModel.load(path)
+
+
+def linear_plant(model):
+    """Sampled structure + amplifier, inputs strut commands (V) and SWIR force (N).
+
+    Returns
+    -------
+    control.StateSpace
+        Discrete (1 kHz) system; inputs ``v_iso1..3`` (V, amplifier commands) and
+        ``swir_fz`` (N); outputs the six MISR strut accelerometers (payload, bus per
+        strut, m/s^2), ``los_misr_roll``, ``los_misr_pitch`` (rad) and ``acc_pay_iso3``.
+    """
+    import control
+    from scipy.linalg import expm
+
+    from piezofmu.amplifier import amplifier_preset
+    from structfmu.statespace import first_order
+
+    A, B, C, D = first_order(model)
+    ins, outs = list(model.input_names), list(model.output_names)
+    ii = [ins.index(n) for n in _IN]
+    oo = [outs.index(n) for n in _OUT]
+    n, m = A.shape[0], len(ii)
+    E = expm(np.block([[A, B[:, ii]], [np.zeros((m, n + m))]]) * DT)
+    G = control.ss(E[:n, :n], E[:n, n:], C[oo], D[np.ix_(oo, ii)], DT)
+    amp = amplifier_preset("P-865.10")
+    a = float(np.exp(-2 * np.pi * amp.bandwidth * DT))
+    acts = []
+    for k in (1, 2, 3):
+        ch = model.meta["actuators"][f"iso{k}"]["ch"]
+        acts.append(control.ss([[a]], [[1 - a]], [[ch]], [[0.0]], DT))
+    acts.append(control.ss([], [], [], [[1.0]], DT))
+    return control.series(control.append(*acts), G)
+
+
+def _law(gain):
+    import control
+
+    from ctrlfmu.analysis import to_statespace
+    from ctrlfmu.designs import design
+
+    law = to_statespace(design("testbed_isolation"))
+    return control.ss(law.A, law.B, gain * law.C, gain * law.D, DT)
+
+
+def closed_loop(plant, mounts, gain=1.0, law=None):
+    """Plant with the isolation law (times ``gain``) closed on the ``mounts`` struts."""
+    import control
+
+    law = _law(gain) if law is None else law
+    off = control.ss([], [], [], np.zeros((1, 2)), DT)
+    K = control.append(*[law if k in mounts else off for k in (1, 2, 3)],
+                       control.ss([], [], [], np.zeros((1, 3)), DT))
+    return control.feedback(plant, K, sign=+1)
+
+
+def is_stable(sys) -> bool:
+    """All poles inside the unit circle, the free-free rigid-body poles at 1 excepted."""
+    ev = np.linalg.eigvals(np.asarray(sys.A))
+    return bool(np.all(np.abs(ev[np.abs(ev - 1) > 1e-6]) < 1.0))
+
+
+def gain_margin_db(plant, mounts, gain=1.0, law=None, max_factor=64.0) -> float:
+    """Gain margin (dB) of the isolation loops on ``mounts``, all scaled together.
+
+    The largest factor ``g`` (bisection to 0.5 %) such that ``g`` times the loops is still
+    stable; ``-inf`` when the nominal loop is unstable.
+    """
+    base = _law(gain) if law is None else law
+
+    def stable(g):
+        import control
+        scaled = control.ss(base.A, base.B, g * base.C, g * base.D, DT)
+        return is_stable(closed_loop(plant, mounts, law=scaled))
+
+    if not stable(1.0):
+        return -np.inf
+    lo, hi = 1.0, 2.0
+    while stable(hi):
+        lo, hi = hi, 2 * hi
+        if hi > max_factor:
+            return 20 * np.log10(max_factor)
+    while hi / lo > 1.005:
+        mid = np.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return float(20 * np.log10(lo))
+
+
+def _at(sys, f):
+    return np.asarray(sys(np.exp(2j * np.pi * f * DT)))
+
+
+def plant_frf(plant, freqs) -> np.ndarray:
+    """Frequency response of :func:`linear_plant`, shape (n_freq, 9, 4) complex."""
+    return np.stack([_at(plant, f) for f in np.atleast_1d(freqs)])
+
+
+def accel_frf(plant, freqs) -> np.ndarray:
+    """Acceleration rows of :func:`plant_frf` at many frequencies, fast (modal form).
+
+    One eigendecomposition instead of a solve per frequency.  The free-free rigid-body
+    modes sample to Jordan blocks at ``z = 1``, so the modal form is ill-conditioned for
+    the boresight angles; the accelerations do not see rigid-body displacement and come
+    agree with :func:`plant_frf` to about 1e-8 relative.  The angle rows are
+    NaN.  Shape (n_freq, 9, 4) complex.
+    """
+    A, B, C, D = (np.asarray(m) for m in (plant.A, plant.B, plant.C, plant.D))
+    lam, V = np.linalg.eig(A)
+    Bv, Cv = np.linalg.solve(V, B), C @ V
+    z = np.exp(2j * np.pi * np.asarray(freqs, float) * DT)
+    H = np.einsum("oi,fi,ij->foj", Cv, 1.0 / (z[:, None] - lam[None, :]), Bv) + D
+    H[:, 6:8] = np.nan
+    return H
+
+
+def closed_frf(Gf, law_f, mounts) -> np.ndarray:
+    """Closed-loop response to ``swir_fz`` from open-loop responses, shape (n_freq, 9).
+
+    With ``u = K s`` (the law on each mount's payload and bus accelerometers ``s``, the
+    first six outputs), ``s = (I - G_su K)^-1 G_sd d`` and ``y = G_yd d + G_yu u``.
+
+    Parameters
+    ----------
+    Gf : ndarray, shape (n_freq, 9, 4)
+        :func:`plant_frf`.
+    law_f : ndarray, shape (n_freq, 1, 2)
+        Law response (V per m/s^2), delay included.
+    mounts : sequence of int
+    """
+    out = []
+    for g, k in zip(Gf, law_f):
+        K = np.zeros((3, 6), complex)
+        for m in mounts:
+            K[m - 1, 2 * (m - 1):2 * m] = k[0]
+        sens = np.linalg.solve(np.eye(6) - g[:6, :3] @ K, g[:6, 3])
+        out.append(g[:, 3] + g[:, :3] @ (K @ sens))
+    return np.array(out)
+
+
+def law_frf(freqs, gain=1.0, law=None) -> np.ndarray:
+    """Response of the isolation law (times ``gain``), shape (n_freq, 1, 2)."""
+    law = _law(gain) if law is None else law
+    return np.stack([_at(law, f) for f in np.atleast_1d(freqs)])
+
+
+def boresight_reduction(plant, mounts, gain=1.0, law=None, Gh=None) -> float:
+    """Steady-state reduction (%) of the boresight RMS (roll, pitch) over the harmonics.
+
+    ``Gh``: :func:`plant_frf` at ``HARMONICS`` (computed if not given).
+    """
+    f = np.array(list(HARMONICS))
+    a = np.array(list(HARMONICS.values()))
+    Gh = plant_frf(plant, f) if Gh is None else Gh
+    yc = closed_frf(Gh, law_frf(f, gain, law), mounts)
+    num = np.sum(a[:, None] ** 2 * np.abs(yc[:, 6:8]) ** 2)
+    den = np.sum(a[:, None] ** 2 * np.abs(Gh[:, 6:8, 3]) ** 2)
+    return float(100 * (1 - np.sqrt(num / den)))
+
+
+def ideal_ceiling(plant, mounts, Gh=None) -> dict:
+    """Most any controller at the ``mounts`` struts could remove from the boresight (%).
+
+    ``accel_null``: the payload accelerometers of those mounts held at exactly zero at
+    each harmonic (perfect cancellation of the fed-back signals); ``optimal``: the
+    least-squares best strut commands at each harmonic (a bound for any controller).
+    """
+    cols = [k - 1 for k in mounts]
+    rows = [2 * (k - 1) for k in mounts]
+    Gh = plant_frf(plant, list(HARMONICS)) if Gh is None else Gh
+    den = null = opt = 0.0
+    for H, a in zip(Gh, HARMONICS.values()):
+        b, Hb = H[6:8, 3], H[6:8][:, cols]
+        v = -np.linalg.solve(H[np.ix_(rows, cols)], H[rows, 3])
+        w = np.linalg.lstsq(Hb, -b, rcond=None)[0]
+        den += a**2 * np.sum(np.abs(b) ** 2)
+        null += a**2 * np.sum(np.abs(b + Hb @ v) ** 2)
+        opt += a**2 * np.sum(np.abs(b + Hb @ w) ** 2)
+    return {"accel_null": float(100 * (1 - np.sqrt(null / den))),
+            "optimal": float(100 * (1 - np.sqrt(opt / den)))}
+
+
+def design_gains(plant, mounts, n_dir=36, margin_db=6.0):
+    """Best (payload, bus) gains at ``margin_db`` gain margin (slow: ~n_dir x 12 eigs).
+
+    For each direction ``(cos t, sin t)`` the stability limit is found by bisection and
+    the gains are set ``margin_db`` below it; returns ``(reduction %, payload, bus)`` of
+    the best direction.
+    """
+    from ctrlfmu.analysis import to_statespace
+    from ctrlfmu.designs import design
+
+    best = (-np.inf, 0.0, 0.0)
+    for t in np.linspace(0, 2 * np.pi, n_dir, endpoint=False):
+        kp, kb = 100 * np.cos(t), 100 * np.sin(t)
+        law = to_statespace(design("testbed_isolation", payload_gain=kp, bus_gain=kb))
+        gm = gain_margin_db(plant, mounts, law=law, max_factor=1e4)
+        g = 10 ** ((gm - margin_db) / 20)
+        law = to_statespace(design("testbed_isolation", payload_gain=g * kp,
+                                   bus_gain=g * kb))
+        best = max(best, (boresight_reduction(plant, mounts, law=law), g * kp, g * kb))
+    return best
+
+
+def loop_shape(Gf, freqs=FREQS, mount=3) -> dict:
+    """Why payload-acceleration feedback through the stated law stays weak at 22 Hz.
+
+    The loop ``L`` (law with unit payload gain and no bus gain x amplifier x structure,
+    the other mounts open; positive-feedback convention, ``L = -|L|`` attenuates) at
+    22 Hz, the first frequency above 30 Hz where its phase crosses 0 (there ``|L| = 1`` is
+    the stability limit), ``|L|`` there, their ratio, and ``|L(22 Hz)|`` at 6 dB gain
+    margin (``0.5 / ratio``: the most this loop can have at 22 Hz).
+
+    Parameters
+    ----------
+    Gf : ndarray, shape (n_freq, 9, 4)
+        :func:`plant_frf` or :func:`accel_frf` at ``freqs`` (Hz).
+    """
+    from ctrlfmu.analysis import to_statespace
+    from ctrlfmu.designs import design
+
+    law = to_statespace(design("testbed_isolation", payload_gain=1.0, bus_gain=0.0))
+    rows = [2 * (mount - 1), 2 * (mount - 1) + 1]
+    vals = np.array([(_at(law, f) @ g[rows, mount - 1])[0] for f, g in zip(freqs, Gf)])
+    l22 = np.interp(22.0, freqs, vals.real) + 1j * np.interp(22.0, freqs, vals.imag)
+    cross = np.flatnonzero((freqs > 30.0)[1:] & (np.sign(vals.imag[1:]) != np.sign(vals.imag[:-1]))
+                           & (vals.real[1:] > 0))
+    if not cross.size:
+        return {"loop_phase_22hz_deg": float(np.degrees(np.angle(l22))),
+                "phase_crossover_hz": None}
+    lc = abs(vals[cross[0] + 1])
+    ratio = float(lc / abs(l22))
+    return {"loop_phase_22hz_deg": float(np.degrees(np.angle(l22))),
+            "phase_crossover_hz": float(freqs[cross[0] + 1]),
+            "crossover_to_22hz_ratio": ratio, "max_loop_gain_22hz_at_6db": 0.5 / ratio}
+
+
+def isolation_bandwidth(ratio, freqs=FREQS):
+    """Upper end (Hz) of the band around 22 Hz where open/closed > 1; None if 22 Hz is not
+    isolated."""
+    k = int(np.argmin(np.abs(freqs - 22.0)))
+    if ratio[k] <= 1.0:
+        return None
+    above = np.flatnonzero(ratio[k:] <= 1.0)
+    return float(freqs[k + above[0] - 1]) if above.size else float(freqs[-1])
+
+
+def frequency_responses(Gf, mounts, gain, freqs=FREQS):
+    """Accelerometer #6 (payload side of mount #3) per SWIR vertical force, open and
+    closed loop (m/s^2 per N), shape (2, n_freq) complex; ``Gf`` from :func:`plant_frf`
+    or :func:`accel_frf` (the loops read accelerations only)."""
+    return np.array([Gf[:, 8, 3], closed_frf(Gf, law_frf(freqs, gain), mounts)[:, 8]])
+
+
+# -- co-simulation -----------------------------------------------------------------------
 def _cosim(fmu_dir, mounts, gain, stop):
     from orchestrator.master import run_scenario
 
@@ -51,150 +337,189 @@ def _cosim(fmu_dir, mounts, gain, stop):
                         fmu_dir=fmu_dir).table
 
 
-def boresight_rms(t, roll, pitch, t0, t1):
-    """RMS of the high-passed boresight (roll, pitch) over [t0, t1) (rad)."""
+def _highpassed(t, x):
     from scipy.signal import butter, sosfiltfilt
 
-    dt = t[1] - t[0]
-    sos = butter(2, HP_HZ, "highpass", fs=1.0 / dt, output="sos")
+    sos = butter(2, HP_HZ, "highpass", fs=1.0 / (t[1] - t[0]), output="sos")
+    return sosfiltfilt(sos, x)
+
+
+def boresight_rms(t, roll, pitch, t0, t1):
+    """RMS of the high-passed boresight (roll, pitch) over [t0, t1) (rad)."""
     m = (t >= t0) & (t < t1)
-    r, p = sosfiltfilt(sos, roll), sosfiltfilt(sos, pitch)
+    r, p = _highpassed(t, roll), _highpassed(t, pitch)
     return float(np.sqrt(np.mean(r[m] ** 2 + p[m] ** 2)))
 
 
-def linear_model():
-    """The reduced structure packed in the structure FMU (a ReducedModel)."""
-    import tempfile
-    import zipfile
-
-    from structfmu.reduced import ReducedModel
-
-    fmu = Path(eos_budget.fmu_dir()) / f"{eos_budget.STRUCTURE}.fmu"
-    with zipfile.ZipFile(fmu) as z, tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "model.npz"
-        path.write_bytes(z.read("resources/model.npz"))
-        return ReducedModel.load(path)
-
-
-def transmissibility(model, mounts=(3,), gain=GAINS["mount3"], freqs=FREQS):
-    """Open-loop / closed-loop payload acceleration at strut #3 for a SWIR vertical force.
-
-    Returns
-    -------
-    ratio : ndarray, shape (n_freq,)
-        |a_open| / |a_closed| (> 1: isolated).
-    stable : bool
-        All closed-loop poles inside the unit circle (rigid-body poles at 1 excepted).
-    """
-    import control
-    from ctrlfmu.analysis import to_statespace
-    from ctrlfmu.designs import design
-    from structfmu.statespace import first_order
-
-    A, B, C, D = first_order(model)
-    ins, outs = list(model.input_names), list(model.output_names)
-    yo = [f"acc_{s}_iso{i}" for i in (1, 2, 3) for s in ("pay", "bus")]
-    ii = [ins.index(n) for n in ("fc_iso1", "fc_iso2", "fc_iso3", "swir_fz")]
-    oo = [outs.index(n) for n in yo + ["acc_pay_iso3"]]
-    G = control.sample_system(control.ss(A, B[:, ii], C[oo], D[np.ix_(oo, ii)]), 1e-3, "zoh")
-    law = to_statespace(design("testbed_isolation"))
-    delay = control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 1e-3)
-    off = control.ss([], [], [], np.zeros((1, 2)), 1e-3)
-    K = control.append(*[(gain * CH * delay * law) if i in mounts else off for i in (1, 2, 3)],
-                       control.ss([], [], [], np.zeros((1, 1)), 1e-3))
-    cl = control.feedback(G, K, sign=+1)
-    ev = np.linalg.eigvals(cl.A)
-    stable = bool(np.all(np.abs(ev[np.abs(ev - 1) > 1e-6]) < 1.0))
-    z = np.exp(2j * np.pi * np.asarray(freqs) * 1e-3)
-    ho = np.array([np.asarray(G(zz))[6, 3] for zz in z])
-    hc = np.array([np.asarray(cl(zz))[6, 3] for zz in z])
-    return np.abs(ho) / np.abs(hc), stable
-
-
-def compute(quick=False):
-    fdir = eos_budget.fmu_dir()
-    stop = 4.0 if quick else 4.8
+def compute(quick=False, fmu_dir="fmus"):
+    """Linear design numbers and the two co-simulations (mount #3, all mounts)."""
+    fdir = eos_budget.fmu_dir(fmu_dir)
+    model = linear_model(fmu_dir)
+    plant = linear_plant(model)
+    Gh = plant_frf(plant, list(HARMONICS))
+    lin = {}
+    for k, mounts in MOUNTS.items():
+        lin[k] = {"gain_margin_db": gain_margin_db(plant, mounts, GAINS[k]),
+                  "reduction_pct": boresight_reduction(plant, mounts, GAINS[k], Gh=Gh),
+                  "ceiling": ideal_ceiling(plant, mounts, Gh=Gh)}
+    Gf = accel_frf(plant, FREQS)
+    frf = {k: frequency_responses(Gf, MOUNTS[k], GAINS[k]) for k in MOUNTS}
+    ratio = np.abs(frf["mount3"][0]) / np.abs(frf["mount3"][1])
+    bw = isolation_bandwidth(ratio)
+    shape = loop_shape(Gf)
+    stop = 6.0 if quick else 9.6
     runs = {k: _cosim(fdir, MOUNTS[k], GAINS[k], stop) for k in MOUNTS}
-    red, before_after, sat = {}, {}, {}
+    off = _cosim(fdir, (), 0.0, stop)
+    t = off["time"]
+    ref = boresight_rms(t, off["structure.los_misr_roll"], off["structure.los_misr_pitch"],
+                        stop - 1.2, stop)
+    red, before_after, vmax = {}, {}, {}
     for k, tab in runs.items():
-        t = tab["time"]
         r, p = tab["structure.los_misr_roll"], tab["structure.los_misr_pitch"]
         b = boresight_rms(t, r, p, T_ON - 1.2, T_ON)
         a = boresight_rms(t, r, p, stop - 1.2, stop)
-        before_after[k] = {"before_arcsec_rms": b * 206264.8, "after_arcsec_rms": a * 206264.8}
-        red[k] = 100.0 * (1.0 - a / b)
-        sat[k] = float(max(np.abs(tab[f"piezo_iso{i}.voltage"]).max() for i in (1, 2, 3)))
-    model = linear_model()
-    ratio, stable = transmissibility(model)
-    ratio_all, stable_all = transmissibility(model, mounts=(1, 2, 3),
-                                             gain=GAINS["all_mounts"])
-    iso = ratio > 1.0
-    bw = float(FREQS[np.flatnonzero(iso)[-1]]) if iso.any() else None
-    above = FREQS > (bw or 0.0)
-    return {"runs": runs, "reduction": red, "before_after": before_after,
-            "max_voltage": sat, "ratio": ratio, "ratio_all": ratio_all,
-            "stable": stable and stable_all, "bandwidth": bw,
-            "amplification": float(1.0 / ratio[above].min()) if above.any() else None}
+        before_after[k] = {"before_arcsec_rms": b * RAD2ARCSEC,
+                           "after_arcsec_rms": a * RAD2ARCSEC,
+                           "before_after_reduction_pct": 100.0 * (1.0 - a / b)}
+        red[k] = 100.0 * (1.0 - a / ref)
+        vmax[k] = float(max(np.abs(tab[f"piezo_iso{i}.voltage"]).max() for i in (1, 2, 3)))
+    before_after["off"] = {"after_arcsec_rms": ref * RAD2ARCSEC}
+    return {"runs": runs, "off": off, "stop": stop, "reduction": red, "before_after": before_after,
+            "max_voltage": vmax, "linear": lin, "frf": frf, "ratio": ratio,
+            "bandwidth": bw, "loop_shape": shape}
 
 
+# -- figures -----------------------------------------------------------------------------
 def plot(data, out_dir):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(2, 1, figsize=(8, 6.5))
-    ax = axes[0]
-    ax.loglog(FREQS, data["ratio"], label="mount #3 alone")
-    ax.loglog(FREQS, data["ratio_all"], label="all three mounts")
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    ax = axes[0, 0]
+    ax.loglog(FREQS, np.abs(data["frf"]["mount3"][0]), label="open loop (baseline)")
+    ax.loglog(FREQS, np.abs(data["frf"]["mount3"][1]), label="mount #3 closed")
+    ax.loglog(FREQS, np.abs(data["frf"]["all_mounts"][1]), ls="--", label="all mounts closed")
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("accel. #6 / SWIR force ((m/s^2)/N)")
+    ax.set_title("Fig. 13 style: accelerometer #6 (payload, mount #3)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax = axes[0, 1]
+    ax.loglog(FREQS, data["ratio"], label="mount #3")
+    ax.loglog(FREQS, np.abs(data["frf"]["all_mounts"][0]) / np.abs(data["frf"]["all_mounts"][1]),
+              ls="--", label="all mounts")
     ax.axhline(1.0, color="0.5", lw=0.8)
     ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("open-loop / closed-loop accel.")
-    ax.set_title("Transmissibility at strut #3 (linear model; paper Fig. 14)")
+    ax.set_ylabel("open / closed accel. #6")
+    ax.set_title("Fig. 14 style: transmissibility (linear model)")
     ax.grid(alpha=0.3, which="both")
-    ax.legend()
-    ax = axes[1]
-    for k, tab in data["runs"].items():
-        ax.plot(tab["time"], tab["structure.los_misr_pitch"] * 206264.8, lw=0.5, label=k)
+    ax.legend(fontsize=8)
+    ax = axes[1, 0]
+    t = data["off"]["time"]
+    n = int(round(0.25 / (t[1] - t[0])))
+    kernel = np.ones(n) / n
+
+    def moving_rms(tab):
+        r = _highpassed(t, tab["structure.los_misr_roll"])
+        p = _highpassed(t, tab["structure.los_misr_pitch"])
+        ms = np.convolve(r**2 + p**2, kernel, "same")
+        ms[: n // 2], ms[-(n // 2):] = np.nan, np.nan  # partial windows at the ends
+        return np.sqrt(ms) * RAD2ARCSEC
+
+    pitch3 = _highpassed(t, data["runs"]["mount3"]["structure.los_misr_pitch"]) * RAD2ARCSEC
+    ax.plot(t, pitch3, lw=0.3, color="C1", alpha=0.5, label="pitch, mount #3")
+    ax.plot(t, moving_rms(data["off"]), color="0.3", label="RMS, isolation off")
+    for k, c in (("mount3", "C1"), ("all_mounts", "C2")):
+        ax.plot(t, moving_rms(data["runs"][k]), color=c,
+                label=f"RMS, {k} ({data['reduction'][k]:.0f} %)")
     ax.axvline(T_ON, color="0.5", ls="--", lw=0.8)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("MISR pitch (arcsec)")
-    ax.set_title("MISR boresight, isolation on at 2.4 s (co-simulation; paper Fig. 15)")
+    ax.set_ylabel("MISR boresight (arcsec, >5 Hz; RMS over 0.25 s)")
+    ax.set_title("Fig. 15 style: boresight, isolation on at 2.4 s (co-simulation)")
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=8)
+    ax = axes[1, 1]
+    last = t >= data["stop"] - 1.2
+    for tab, label in ((data["off"], "without isolation"),
+                       (data["runs"]["mount3"], "with isolation (mount #3)")):
+        r = _highpassed(t, tab["structure.los_misr_roll"]) * RAD2ARCSEC
+        p = _highpassed(t, tab["structure.los_misr_pitch"]) * RAD2ARCSEC
+        ax.plot(r[last], p[last], ".", ms=2, label=f"{label}, last 1.2 s")
+    ax.set_xlabel("roll (arcsec)")
+    ax.set_ylabel("pitch (arcsec)")
+    ax.set_title("Fig. 16 style: image-plane jitter")
+    ax.set_aspect("equal", "datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(Path(out_dir) / "testbed-isolation.png", dpi=110)
     plt.close(fig)
 
 
-def run(out_dir, quick: bool = False) -> dict:
-    data = compute(quick)
+def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
+    """Run the experiment into ``out_dir``; returns the JSON-able result.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Output folder (figure ``testbed-isolation.png``).
+    quick : bool
+        6.0 s instead of 9.6 s of co-simulation (the last 1.2 s are measured: 2.4 s or
+        6 s after switch-on; the 23 Hz bus mode, 0.5 % damped, settles in about 1.4 s).
+    fmu_dir : path-like
+        Folder of the built FMUs (built there if missing or stale).
+    """
+    data = compute(quick, fmu_dir)
     plot(data, out_dir)
-    red = data["reduction"]
-    reproduced = (red["mount3"] >= 60.0 and 50.0 <= red["all_mounts"] <= 90.0
-                  and data["bandwidth"] is not None and 30.0 <= data["bandwidth"] <= 60.0)
+    red, lin = data["reduction"], data["linear"]
+    lo, hi = PAPER["all_mounts"]
+    reproduced = bool(red["mount3"] >= 70.0 and lo <= red["all_mounts"] <= hi)
+    ceil = {k: lin[k]["ceiling"]["accel_null"] for k in MOUNTS}
+    ls = data["loop_shape"]
     note = ("Reproduced within the paper's ranges." if reproduced else
-            "Not reproduced: on this structure model the P-845.37 struts are so stiff "
-            "(strut-payload mode near 600 Hz) that the payload follows the bus at 22 Hz; the "
-            "payload acceleration a strut commands at 22 Hz is small (6e-3 m/s^2 per V), so "
-            "at the design's gain the loop gain at 22 Hz is only about 0.14, and the loops "
-            "go unstable near that gain through the 31-48 Hz payload and bus modes (and "
-            "119-158 Hz). The gains used, half the stability limits "
-            f"({GAINS['mount3']} for mount #3, {GAINS['all_mounts']} for all three), give a "
-            "stable but small isolation; see docs/eos_experiments.md.")
+            f"Not reproduced: the layout puts mount #3 in the dominant 22 Hz path (holding "
+            f"its payload accelerometer at zero would remove {ceil['mount3']:.0f} % of the "
+            f"boresight jitter, all three {ceil['all_mounts']:.0f} %), but the stated law "
+            f"cannot get near that with a 6 dB gain margin.  On the stiff strut the plant "
+            f"from volts to payload acceleration rises as s^2 through the 20-60 Hz band, so "
+            f"the payload-feedback loop of mount #3 is {ls['crossover_to_22hz_ratio']:.1f} "
+            f"times larger where its phase crosses 0 ({ls['phase_crossover_hz']:.0f} Hz) "
+            f"than at 22 Hz: at 6 dB margin it can be at most "
+            f"{ls['max_loop_gain_22hz_at_6db']:.2f} at 22 Hz (phase "
+            f"{ls['loop_phase_22hz_deg']:.0f} deg; +-180 would be pure attenuation).  The "
+            f"best (payload, bus) gain direction at 6 dB (design_gains; the bus path acts "
+            f"mostly as feedforward) removes {lin['mount3']['reduction_pct']:.0f} % on the "
+            f"linear model; see "
+            f"docs/eos_experiments.md.")
     return {
         "jitter_reduction_pct": red,
-        "boresight_rms": data["before_after"],
+        "ideal_ceiling_pct": ceil,
+        "optimal_bound_pct": {k: lin[k]["ceiling"]["optimal"] for k in MOUNTS},
+        "linear_reduction_pct": {k: lin[k]["reduction_pct"] for k in MOUNTS},
+        "gain_margin_db": {k: lin[k]["gain_margin_db"] for k in MOUNTS},
         "isolation_bandwidth_hz": data["bandwidth"],
-        "amplification_above_bandwidth": data["amplification"],
-        "closed_loop_stable_linear": data["stable"],
+        "loop_shape_mount3": data["loop_shape"],
+        "max_voltage_v": max(data["max_voltage"].values()),
         "max_strut_voltage_v": data["max_voltage"],
+        "boresight_rms": data["before_after"],
         "gain": GAINS,
         "t_on_s": T_ON,
-        "paper": {"jitter_reduction_pct": {"mount3": 80, "all_mounts": [50, 80]},
-                  "isolation_bandwidth_hz": 45},
-        "reproduced": bool(reproduced),
+        "paper": {"jitter_reduction_pct": {"mount3": PAPER["mount3"],
+                                           "all_mounts": list(PAPER["all_mounts"])},
+                  "isolation_bandwidth_hz": PAPER["bandwidth_hz"]},
+        "reproduced": reproduced,
         "note": note,
-        "transmissibility": {"freq_hz": FREQS, "mount3": data["ratio"],
-                             "all_mounts": data["ratio_all"]},
+        "transmissibility": {"freq_hz": FREQS, "mount3": data["ratio"]},
     }
+
+
+if __name__ == "__main__":  # python -m orchestrator.experiments.testbed_isolation OUT [BASE]
+    import sys
+
+    out = Path(sys.argv[1])
+    out.mkdir(parents=True, exist_ok=True)
+    res = run(out, quick="--quick" in sys.argv,
+              fmu_dir=next((a for a in sys.argv[2:] if not a.startswith("--")), "fmus"))
+    print(json.dumps({k: v for k, v in res.items() if k != "transmissibility"}, indent=1))

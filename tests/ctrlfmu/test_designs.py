@@ -84,7 +84,7 @@ def test_testbed_isolation_poles_and_zeros():
         s_z = np.sort_complex(inverse_tustin(finite, law.dt))
         # A double root moves by ~sqrt(rounding error): compare the pair's mean tightly
         # and each root to 1e-4 relative.
-        pair = s_z[np.abs(s_z) > 1]
+        pair = s_z[np.abs(s_z) > 10]   # the split s = 0 pair can reach about 1.3 rad/s
         np.testing.assert_allclose(pair.mean(), -100.0, rtol=1e-8)
         np.testing.assert_allclose(pair, [-100.0, -100.0], rtol=1e-4)
         assert np.sum(np.abs(z + 1) <= 1e-3) == 2
@@ -129,10 +129,10 @@ def test_testbed_isolation_band_pass_20_60_hz():
     np.testing.assert_allclose(edges(mag), [20.0, 60.0], rtol=0.15)
     assert wp[0] > 2 * np.pi * 20.0     # prewarping moved the analog edges outward
     # Unit magnitude at the band centre, so the gains are in V per m/s^2 there.
-    # Default gains: -g/2 each with g = 1 / (d w0^2), d = 0.4 um/V (P-845.37).
-    g = 1 / (0.4e-6 * (2 * np.pi * 34.641016151377546) ** 2)
+    # Default gains: the testbed design's (payload, bus) gains in V per m/s^2.
+    from ctrlfmu.designs import TESTBED_ISOLATION_GAINS
     np.testing.assert_allclose(np.abs(frequency_response(law, [34.641016151377546])[0, :, 0]),
-                               [g / 2, g / 2], rtol=1e-9)
+                               np.abs(TESTBED_ISOLATION_GAINS), rtol=1e-9)
 
 
 def test_testbed_gains_are_separate_per_input():

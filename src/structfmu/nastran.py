@@ -758,6 +758,9 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
     E_rows, in_names, in_units = _Rows(index, removed), [], []
     H_rows, out_names, out_kinds = _Rows(index, removed), [], []
     for p in loads:
+        if p.kind != "force":
+            raise NastranError(f"load {p.name!r}: a load is a force or moment at a DOF "
+                               f"(NAME=GRID:COMP), not {p.kind!r}")
         kind = "torque" if 4 <= p.component <= 6 else "force"
         E_rows.add([((p.grid, p.component), 1.0)], f"load {p.name!r}")
         in_names.append(p.name)

@@ -324,6 +324,7 @@ def test_bad_input_is_one_clear_sentence(deck, tmp_path):
          "every DOF it uses is constrained or has neither stiffness nor mass"),
         (dict(los=[nas.LineOfSight("l", LINE)]), "the grids are collinear"),
         (dict(op2=op4), "exactly one of them"),
+        (dict(loads=[nas.parse_point("f=41:1:accel", "force")]), "a load is a force"),
     ]
     for kw, msg in cases:
         args = dict(units="in-lbf-s", op4=op4, n_modes=4) | kw

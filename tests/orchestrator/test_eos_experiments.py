@@ -141,7 +141,8 @@ def test_testbed_isolation_reaches_the_papers_attenuation(testbed):
 
 @pytest.fixture(scope="module")
 def swir(out):
-    return run_experiment("swir-isolation", out, quick=True)
+    # its own FMU folder: the experiment builds a structure FMU of its own
+    return run_experiment("swir-isolation", out, quick=True, fmu_dir=out / "swir-fmus")
 
 
 def test_swir_isolation(swir, out):
@@ -167,9 +168,10 @@ def test_swir_isolation(swir, out):
     assert (out / "swir-isolation.png").is_file()
 
 
-@pytest.mark.xfail(strict=True, reason="SWIR pitch rides on 70-125 Hz bus modes that the "
-                   "legs barely strain and the delayed loop cannot damp; MISR falls more "
-                   "than the paper's 10 % (docs/eos_experiments.md)")
+@pytest.mark.xfail(strict=True, reason="SWIR pitch rides on 70-125 Hz bus modes with 5-17 % "
+                   "of their strain energy in the legs: leg springs and dampers cannot cut "
+                   "it (5 % damping on every mode above 20 Hz gives 34 %); MISR falls 25 %, "
+                   "more than the paper's 10 % (docs/eos_experiments.md)")
 def test_swir_isolation_reaches_the_papers_attenuation(swir):
     # paper: pitch and yaw lowered significantly, MISR about 10 %
     assert swir["reduction_pct"]["pitch"] >= 50.0

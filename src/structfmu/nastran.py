@@ -1,4 +1,4 @@
-"""Structure models from NASTRAN: BDF geometry + OP4 matrices, or SOL 103 OP2 modes.
+"""Structure models from NASTRAN: BDF + OP4 matrices, or OP2 modes.
 
 Pipeline (:func:`import_nastran`)::
 
@@ -56,7 +56,7 @@ SENSOR_KINDS = ("disp", "accel")
 
 
 class NastranError(ModelError):
-    """A NASTRAN model cannot be imported (bad ids, units, sizes, element types)."""
+    """A NASTRAN model cannot be imported (ids, units, sizes...)."""
 
 
 class NastranWarning(UserWarning):
@@ -98,7 +98,7 @@ UNIT_SYSTEMS = {u.name: u for u in (UnitSystem("SI", 1.0, 1.0),
 
 
 def unit_system(units) -> UnitSystem:
-    """The declared unit system (a name of :data:`UNIT_SYSTEMS` or a UnitSystem)."""
+    """The declared unit system (a name or a UnitSystem)."""
     if isinstance(units, UnitSystem):
         return units
     if units is None:
@@ -227,7 +227,9 @@ class Channel:
 # -- CLI-style parsers -------------------------------------------------------------------
 
 def parse_actuator(text: str, units) -> Actuator:
-    """Parse ``EID=PRESET[,name=N][,gauge=EID]`` or ``EID=k_e=..,ch=..,mass=..[,..]``.
+    """Parse an actuator: ``EID=PRESET[,name=N][,gauge=EID]``.
+
+    Or ``EID=k_e=..,ch=..,mass=..[,name=N][,gauge=EID]``.
 
     Explicit ``k_e`` (force/length), ``ch`` (force/V) and ``mass`` are in the declared
     unit system and converted to SI.
@@ -273,7 +275,9 @@ def parse_actuator(text: str, units) -> Actuator:
 
 
 def parse_point(text: str, kind: str = "disp") -> Point:
-    """Parse ``NAME=GRID:COMP[:KIND]`` (KIND ``disp`` or ``accel`` for sensors)."""
+    """Parse a sensor or load ``NAME=GRID:COMP[:KIND]``.
+
+    KIND is ``disp`` or ``accel`` (sensors only)."""
     name, sep, rest = text.partition("=")
     parts = rest.split(":")
     if not sep or len(parts) not in (2, 3) or not name:
@@ -290,7 +294,7 @@ def parse_point(text: str, kind: str = "disp") -> Point:
 
 
 def parse_los(text: str) -> LineOfSight:
-    """Parse ``NAME=GRID`` or ``NAME=G1,G2,G3[,...]`` (a rigid optical bench)."""
+    """Parse a line of sight ``NAME=GRID`` or ``NAME=G1,G2,G3,...``."""
     name, sep, rest = text.partition("=")
     if not sep or not name or not rest:
         raise NastranError(f"line of sight {text!r}: expected NAME=GRID or NAME=G1,G2,G3")
@@ -662,7 +666,7 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
                    sensors=(), loads=(), los=(), inputs=(), outputs=(), ritz=None,
                    shift=None, damping: Damping | None = None, zeta_bands=(),
                    dof_map=None, k_name=None, m_name=None, name=None) -> ReducedModel:
-    """Reduced structure model from a NASTRAN BDF and OP4 matrices (or a SOL 103 OP2).
+    """Reduced model from a NASTRAN BDF + OP4 (or SOL 103 OP2).
 
     Parameters
     ----------
@@ -923,7 +927,7 @@ def _los_terms(deck: Deck, line: LineOfSight) -> list:
 
 
 def read_modes(op2_path, units, n_modes: int):
-    """Eigenvalues and mass-normalised eigenvectors (SI) from a SOL 103 OP2.
+    """Eigenvalues and eigenvectors (SI) from a SOL 103 OP2.
 
     Returns
     -------
@@ -977,7 +981,7 @@ def read_modes(op2_path, units, n_modes: int):
 # -- writing a deck (test data, benchmarks, exporting built-in models) -------------------
 
 def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
-    """Write eigenvalues and mass-normalised eigenvectors as a SOL 103-style OP2.
+    """Write eigenvalues and eigenvectors as a SOL 103-style OP2.
 
     pyNastran 1.4.1 writes the eigenvector table (single precision) but skips the LAMA
     eigenvalue table; the eigenvalues travel in the eigenvector table's header (single
@@ -1021,7 +1025,7 @@ def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
 
 
 def write_truss_deck(truss, bdf_path, op4_path, *, units="SI", rotated=(), e_ref=70e9):
-    """Write a :class:`structfmu.fem.Truss` as a BDF plus its K and M as an OP4.
+    """Write a truss as a BDF plus its K and M as an OP4.
 
     Grid ``i + 1`` is node ``i``; element ``j + 1`` is rod ``j`` (a CONROD with ``A =
     k L / E_ref`` and the rod's mass as non-structural mass); node masses are CONM2

@@ -357,8 +357,10 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     return fmi2OK;
 }
 
+/* Kernels refresh direct-feedthrough outputs here, in any phase (as the Python slaves'
+ * set_real does); those that need initialised parameters check their own flag. */
 static fmi2Status after_set(JfInstance *inst, size_t nvr) {
-    if (nvr == 0 || inst->phase != JF_STEPPING) return fmi2OK;
+    if (nvr == 0) return fmi2OK;
     return kernel_status(inst, model_inputs_changed(inst));
 }
 

@@ -582,3 +582,15 @@ def test_feedthrough_outputs_follow_inputs_in_initialisation_mode(fmus):
         got[flavour] = (in_init, after)
     assert got["native"] == pytest.approx(got["py"], rel=1e-13, abs=0)
     assert got["py"][0] != 0 and got["py"][1] == pytest.approx(-0.6 * got["py"][0])
+
+
+def test_runs_in_libcosim_like_in_fmpy(fmus):
+    from fmukit.testing import run_libcosim
+
+    kw = dict(outputs=["u1"], step_size=4e-3, n_steps=300,
+              inputs={"y1": 1e-5 * np.sin(2 * np.pi * 8.4 * T[:300] * 4)},
+              parameters={"t_on": 0.1})
+    fmu = fmus["native"] / "controller_truss10_strain_diag.fmu"
+    in_libcosim = run_libcosim(fmu, **kw)
+    np.testing.assert_array_equal(in_libcosim, run(fmu, **kw))
+    assert np.max(np.abs(in_libcosim)) > 0

@@ -7,13 +7,24 @@
  *   <rows * cols values, row-major, C99 hexadecimal floats such as 0x1.8p+1>
  *   ...
  *
- * Hexadecimal floats round-trip every double exactly with strtod.
+ * Hexadecimal floats hold every double exactly.  They are parsed here rather than with
+ * strtod, whose decimal point follows the host's locale (a tool running with
+ * LC_NUMERIC=de_DE would read "0x1.8p+1" as 1).
  */
+#include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "jfmu.h"
+
+static int hexval(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
 
 #define MAX_NAME 64
 
@@ -52,6 +63,44 @@ static char *read_file(JfInstance *inst, const char *path) {
     fclose(f);
     if (buf != NULL) buf[size] = '\0';
     return buf;
+}
+
+/* A C99 hexadecimal float ([-]0x<hex>[.<hex>]p<exp>) starting at p; *end after it, or
+ * *end == p if there is none.  Exact: at most 16 significant hex digits are kept, and
+ * float.hex() writes 14. */
+static double parse_hex(const char *p, const char **end) {
+    const char *q = p;
+    uint64_t mant = 0;
+    int exp2 = 0, neg = 0, digits = 0, any = 0, e = 0, eneg = 0, d;
+    *end = p;
+    if (*q == '-' || *q == '+') neg = *q++ == '-';
+    if (q[0] != '0' || (q[1] != 'x' && q[1] != 'X')) return 0.0;
+    q += 2;
+    for (; (d = hexval(*q)) >= 0; q++, any = 1) {
+        if (digits < 16) {
+            mant = mant * 16 + (uint64_t)d;
+            if (mant) digits++;
+        } else {
+            exp2 += 4;
+        }
+    }
+    if (*q == '.') {
+        for (q++; (d = hexval(*q)) >= 0; q++, any = 1) {
+            if (digits < 16) {
+                mant = mant * 16 + (uint64_t)d;
+                if (mant) digits++;
+                exp2 -= 4;
+            }
+        }
+    }
+    if (!any || (*q != 'p' && *q != 'P')) return 0.0;
+    q++;
+    if (*q == '-' || *q == '+') eneg = *q++ == '-';
+    if (*q < '0' || *q > '9') return 0.0;
+    for (; *q >= '0' && *q <= '9'; q++)
+        if (e < 100000) e = e * 10 + (*q - '0');
+    *end = q;
+    return (neg ? -1.0 : 1.0) * ldexp((double)mant, exp2 + (eneg ? -e : e));
 }
 
 static const char *skip_space(const char *p) {
@@ -127,9 +176,11 @@ JfData *jf_data_open(JfInstance *inst, const char *file_name) {
         rec->values = (double *)jf_alloc(inst, count, sizeof(double));
         if (rec->values == NULL) goto bad;
         for (i = 0; i < count; i++) {
-            rec->values[i] = strtod(p, &end);
-            if (end == p) goto bad;
-            p = end;
+            const char *next;
+            p = skip_space(p);
+            rec->values[i] = parse_hex(p, &next);
+            if (next == p) goto bad;
+            p = next;
         }
     }
     free(text);

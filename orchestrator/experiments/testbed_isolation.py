@@ -17,7 +17,8 @@ Design first, on the linear model (:func:`linear_plant`): the reduced structure 
 FMU (``model.npz``, accelerometers through their 150 Hz low-pass), sampled exactly with a
 zero-order hold at 1 kHz, the P-865.10 amplifier (its first-order lag, exact at 1 kHz,
 whose output the structure sees one step later, as in the co-simulation), ``f = c h v``
-and the discrete law with its Eq. (11) delay.  On it:
+and the discrete law with its Eq. (11) delay (``delayed=False`` in
+``ctrlfmu.designs.testbed_isolation`` acts on the current sample instead).  On it:
 
 * :func:`ideal_ceiling` -- the reduction of the boresight if the payload accelerometers at
   the chosen mounts were held at exactly zero at 22, 44 and 66 Hz (perfect cancellation),
@@ -253,12 +254,12 @@ def ideal_ceiling(plant, mounts, Gh=None) -> dict:
             "optimal": float(100 * (1 - np.sqrt(opt / den)))}
 
 
-def design_gains(plant, mounts, n_dir=36, margin_db=6.0):
+def design_gains(plant, mounts, n_dir=36, margin_db=6.0, delayed=True):
     """Best (payload, bus) gains at ``margin_db`` gain margin (slow: ~n_dir x 12 eigs).
 
     For each direction ``(cos t, sin t)`` the stability limit is found by bisection and
     the gains are set ``margin_db`` below it; returns ``(reduction %, payload, bus)`` of
-    the best direction.
+    the best direction.  ``delayed=False``: the law without its Eq. (11) sample.
     """
     from ctrlfmu.analysis import to_statespace
     from ctrlfmu.designs import design
@@ -266,11 +267,12 @@ def design_gains(plant, mounts, n_dir=36, margin_db=6.0):
     best = (-np.inf, 0.0, 0.0)
     for t in np.linspace(0, 2 * np.pi, n_dir, endpoint=False):
         kp, kb = 100 * np.cos(t), 100 * np.sin(t)
-        law = to_statespace(design("testbed_isolation", payload_gain=kp, bus_gain=kb))
+        law = to_statespace(design("testbed_isolation", payload_gain=kp, bus_gain=kb,
+                                   delayed=delayed))
         gm = gain_margin_db(plant, mounts, law=law, max_factor=1e4)
         g = 10 ** ((gm - margin_db) / 20)
         law = to_statespace(design("testbed_isolation", payload_gain=g * kp,
-                                   bus_gain=g * kb))
+                                   bus_gain=g * kb, delayed=delayed))
         best = max(best, (boresight_reduction(plant, mounts, law=law), g * kp, g * kb))
     return best
 
@@ -452,7 +454,7 @@ def plot(data, out_dir):
     ax.set_title("Fig. 16 style: image-plane jitter")
     ax.set_aspect("equal", "datalim")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="lower left", markerscale=4)
     fig.tight_layout()
     fig.savefig(Path(out_dir) / "testbed-isolation.png", dpi=110)
     plt.close(fig)

@@ -6,39 +6,49 @@
  * No internal state.
  */
 #include <math.h>
+#include <stdlib.h>
 
 #include "jfmu.h"
 
 #define PI 3.141592653589793
 
-static long vr_amp[2], vr_freq[2], vr_out[2], vr_start, vr_stop;
+typedef struct {
+    long amp[2], freq[2], out[2], start, stop;
+} Excitation;
 
 int model_instantiate(JfInstance *inst) {
     static const char *amp[2] = {"amp1", "amp2"}, *freq[2] = {"freq1", "freq2"},
                       *out[2] = {"v1", "v2"};
+    Excitation *m = (Excitation *)jf_alloc(inst, 1, sizeof(Excitation));
     int i;
+    inst->model = m;
+    if (m == NULL) return JF_ERROR;
     for (i = 0; i < 2; i++) {
-        if ((vr_amp[i] = jf_vr(inst, amp[i], JF_REAL)) < 0 ||
-            (vr_freq[i] = jf_vr(inst, freq[i], JF_REAL)) < 0 ||
-            (vr_out[i] = jf_vr(inst, out[i], JF_REAL)) < 0)
+        if ((m->amp[i] = jf_vr(inst, amp[i], JF_REAL)) < 0 ||
+            (m->freq[i] = jf_vr(inst, freq[i], JF_REAL)) < 0 ||
+            (m->out[i] = jf_vr(inst, out[i], JF_REAL)) < 0)
             return JF_ERROR;
     }
-    if ((vr_start = jf_vr(inst, "t_start", JF_REAL)) < 0 ||
-        (vr_stop = jf_vr(inst, "t_stop", JF_REAL)) < 0)
+    if ((m->start = jf_vr(inst, "t_start", JF_REAL)) < 0 ||
+        (m->stop = jf_vr(inst, "t_stop", JF_REAL)) < 0)
         return JF_ERROR;
     inst->n_state = 0;
     return JF_OK;
 }
 
-void model_free(JfInstance *inst) { (void)inst; }
+void model_free(JfInstance *inst) {
+    free(inst->model);
+    inst->model = NULL;
+}
 
 static void write_outputs(JfInstance *inst, double t) {
+    const Excitation *m = (const Excitation *)inst->model;
     const double *r = inst->r;
-    double t0 = r[vr_start], t1 = r[vr_stop];
+    double t0 = r[m->start], t1 = r[m->stop];
     int i;
     for (i = 0; i < 2; i++) {
-        double a = r[vr_amp[i]], f = r[vr_freq[i]];
-        inst->r[vr_out[i]] = (t >= t0 && t < t1) ? a * sin(2 * PI * f * (t - t0)) : 0.0;
+        double a = r[m->amp[i]], f = r[m->freq[i]];
+        inst->r[m->out[i]] = (t >= t0 && t < t1) ? a * sin(2 * PI * f * (t - t0)) : 0.0;
     }
 }
 

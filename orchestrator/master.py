@@ -451,6 +451,7 @@ def prepare(scenario: Scenario, fmu_dir=None) -> Plan:
 
 _LOG_KEYS = itertools.count(1)
 _LOG_SINKS: dict[int, list] = {}
+_LOG_BY_NAME: dict[str, list] = {}  # the latest instance of each name
 _LOGGER = []
 
 
@@ -459,6 +460,8 @@ def _shared_logger(logger_type):
     if not _LOGGER:
         def log(env, inst, status, category, message):
             sink = _LOG_SINKS.get(env or 0)
+            if sink is None:  # an FMU that does not hand back its componentEnvironment
+                sink = _LOG_BY_NAME.get(inst.decode("utf-8", "replace") if inst else "")
             if sink is None:
                 return
             text = message.decode("utf-8", "replace") if message else ""
@@ -489,7 +492,7 @@ class _Slave:
         # instance logs through one callback that finds the instance's message list by
         # the componentEnvironment the FMU hands back
         self._log_key = next(_LOG_KEYS)
-        _LOG_SINKS[self._log_key] = self.messages
+        _LOG_SINKS[self._log_key] = _LOG_BY_NAME[name] = self.messages
         cb = fmi2CallbackFunctions()
         cb.logger = _shared_logger(fmi2CallbackLoggerTYPE)
         cb.allocateMemory = f2.defaultCallbacks.allocateMemory

@@ -99,9 +99,11 @@ def fmu_dir(base="fmus") -> Path:
     the structure FMU with its moment inputs in ``N.m`` (see :func:`_moment_units_fixed`) while the built FMU
     declares them in ``N``.
     """
+    from orchestrator.experiments import swir_isolation
     from orchestrator.fmucache import ensure_fmus
 
     paths = ensure_fmus(FMUS, base)
+    swir_isolation.ensure_fmus(base)     # the structure with every mount leg active
     fixed = _moment_units_fixed(paths[STRUCTURE],
                                 Path(base).resolve().parent / "build" / "fmus-moment-units")
     return Path(base).resolve() if fixed is None else fixed.parent.resolve()

@@ -80,8 +80,10 @@ def test_eos_budget(out, tmp_path):
     # the cases are reused (their keys do not contain requirements), so the new margin
     # can only come from the file.
     src = eos_budget.CAMPAIGN.read_text(encoding="utf-8")
-    changed = src.replace('scenario = "../scenarios/eos_budget.toml"',
-                          f'scenario = "{eos_budget.SCENARIO.as_posix()}"')
+    import re
+    rel = re.search(r'^scenario = "(.+)"$', src, re.M).group(1)
+    base = (eos_budget.CAMPAIGN.parent / rel).resolve()
+    changed = src.replace(f'scenario = "{rel}"', f'scenario = "{base.as_posix()}"')
     i = changed.index('instrument = "SWIR"')
     changed = changed[:i] + changed[i:].replace("value = 2.2", "value = 5.0", 1)
     assert changed.count("value = 5.0") == 1

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import warnings
 import xml.etree.ElementTree as ET
 import zipfile
 from fractions import Fraction
@@ -21,7 +22,7 @@ from pathlib import Path
 from .scenario import Scenario, ScenarioError, load_scenario, scenario_from_dict
 from .timebase import make_timebase, to_fraction
 
-__all__ = ["write_ssp", "read_ssp"]
+__all__ = ["write_ssp", "read_ssp", "JacobiExportWarning"]
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -62,6 +63,10 @@ def _whole_ns(x: Fraction, what: str) -> None:
                             "which libcosim needs; choose periods on a 1 ns grid")
 
 
+class JacobiExportWarning(UserWarning):
+    """An exported Gauss-Seidel scenario computes something else under a Jacobi master."""
+
+
 def write_ssp(scenario, out_path, fmu_dir=None) -> Path:
     """Export a scenario as an SSP 1.0 archive (libcosim-compatible).
 
@@ -81,6 +86,15 @@ def write_ssp(scenario, out_path, fmu_dir=None) -> Path:
 
     sc = load_scenario(scenario)
     plan = prepare(sc, fmu_dir)
+    if sc.experiment.algorithm == "gauss-seidel" and plan.feedthrough_edges:
+        edges = [f"{c.start} -> {c.end}" for c in plan.feedthrough_edges]
+        shown = ", ".join(edges[:3]) + (f" and {len(edges) - 3} more" if len(edges) > 3 else "")
+        warnings.warn(JacobiExportWarning(
+            f"scenario {Path(sc.source).name or 'scenario'!r} steps Gauss-Seidel and has "
+            f"{len(edges)} direct-feedthrough connection(s) ({shown}); a Jacobi master such "
+            "as libcosim's fixed-step algorithm reads them one communication step late, so "
+            "it computes something else from this archive ('jitterfmu run' on it follows "
+            "the algorithm recorded in its org.jitterfmu annotation)"), stacklevel=2)
     tb = plan.timebase
     _whole_ns(tb.base, "base step")
     # one copy of each distinct FMU file under resources/

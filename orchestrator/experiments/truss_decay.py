@@ -325,8 +325,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
         "reproduces_paper_cycles": reproduced,
         "note": ("Both members decay to 10 % within the paper's two cycles with Eq. 11's "
                  "one-sample delay at 250 Hz, amplifiers in the loop and no saturation; "
-                 "the absorbers are tuned on this decay with both loops closed "
-                 "(truss_decay.tune)." if reproduced else
+                 "the absorbers are designed on this decay with both loops closed, "
+                 "then on the forced tip jitter within 1.8 cycles (truss_decay.tune)." if reproduced else
                  "Not reproduced: see linear_prediction and docs/controllers.md."),
         "figures": ["truss-decay-open-loop.png", "truss-decay-closed-loop.png"],
     }

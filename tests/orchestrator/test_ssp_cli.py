@@ -10,7 +10,7 @@ from orchestrator.cli import main
 from orchestrator.master import run_scenario
 from orchestrator.results import read_table
 from orchestrator.scenario import ScenarioError
-from orchestrator.ssp import read_ssp, write_ssp
+from orchestrator.ssp import JacobiExportWarning, read_ssp, write_ssp
 
 pytestmark = [pytest.mark.slow,
               pytest.mark.filterwarnings("ignore::orchestrator.master.UnconnectedInputWarning")]
@@ -95,6 +95,24 @@ def test_libcosim_runs_the_exported_ssp_like_jacobi(fmu_dir, tmp_path):
         np.testing.assert_allclose(ours[ref][rows], theirs[rows - 1, j], rtol=0, atol=1e-9,
                                    err_msg=ref)
     assert np.ptp(ours["plant.x"]) > 0.01  # the loop actually moved
+
+
+def test_export_of_a_gauss_seidel_scenario_warns_about_jacobi_masters(fmu_dir, tmp_path,
+                                                                      recwarn):
+    # MtGain's y depends on its u (y = k u + b): ctrl.y drives plant.u and g2.y drives
+    # sink.u; Gauss-Seidel reads them after the gains' inputs are set, a Jacobi master one
+    # step late
+    with pytest.warns(JacobiExportWarning, match=r"2 direct-feedthrough connection\(s\) "
+                                                 r"\(ctrl\.y -> plant\.u, g2\.y -> sink\.u\)"):
+        ssp = write_ssp(mixed("gauss-seidel"), tmp_path / "gs.ssp", fmu_dir=fmu_dir)
+    assert read_ssp(ssp).experiment.algorithm == "gauss-seidel"   # recorded in the archive
+    # the same scenario stepped Jacobi, or one without feedthrough, exports silently
+    write_ssp(mixed("jacobi"), tmp_path / "j.ssp", fmu_dir=fmu_dir)
+    no_ft = mixed("gauss-seidel")
+    no_ft["connections"] = [c for c in no_ft["connections"]
+                            if c["from"] not in ("ctrl.y", "g2.y")]
+    write_ssp(no_ft, tmp_path / "noft.ssp", fmu_dir=fmu_dir)
+    assert not [w for w in recwarn if issubclass(w.category, JacobiExportWarning)]
 
 
 def test_run_command_writes_results_and_metadata(fmu_dir, tmp_path, capsys):

@@ -680,7 +680,7 @@ def execute_case(case: Case, runner: Callable, cases_dir, instruments, metrics, 
         rows = case_metrics(t, cols, instruments, metrics, skip)
         table = pa.Table.from_pylist(rows, schema=_METRIC_SCHEMA)
         _write_table_atomic(table, tmp / "metrics.parquet")
-        info.update(status="ok", error="")
+        info.update(status="ok", error="", files={n: _file_record(tmp / n) for n in _CASE_FILES})
     except Exception as exc:  # a failing case is recorded and does not stop the others
         info.update(status="failed", error=_one_sentence(exc),
                     traceback=traceback.format_exc(limit=8))
@@ -697,6 +697,35 @@ _METRIC_SCHEMA = pa.schema([
     ("instrument", pa.string()), ("axis", pa.string()), ("metric", pa.string()),
     ("window", pa.float64()), ("value", pa.float64()),
 ])
+
+
+_CASE_FILES = ("results.parquet", "metrics.parquet")
+
+
+def _file_record(path: Path) -> dict:
+    from .master import _sha256
+
+    return {"size": path.stat().st_size, "sha256": _sha256(path)}
+
+
+def _case_verified(cases_dir: Path, key: str) -> bool:
+    """A finished case whose files are the ones its ``case.json`` recorded.
+
+    Status ``ok`` and, for every file of :data:`_CASE_FILES`, the recorded size and
+    SHA-256; a truncated, replaced or missing file (or a ``case.json`` without the
+    record) makes the case run again.
+    """
+    st = _case_status(cases_dir, key)
+    if st is None or st.get("status") != "ok" or not isinstance(st.get("files"), dict):
+        return False
+    folder = cases_dir / key
+    for name in _CASE_FILES:
+        rec, path = st["files"].get(name), folder / name
+        if not isinstance(rec, dict) or not path.is_file():
+            return False
+        if path.stat().st_size != rec.get("size") or _file_record(path) != rec:
+            return False
+    return True
 
 
 def _case_status(cases_dir: Path, key: str) -> dict | None:
@@ -793,7 +822,8 @@ def _run_local(todo, args, workers, on_done):
     """Process pool with at most ``workers`` cases in flight; survives dead workers."""
     queue = list(todo)
     while queue:
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=_pool_context())
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=_pool_context(),
+                                   initializer=_die_with_parent, initargs=(os.getpid(),))
         inflight = {}
         broken = False
         try:
@@ -886,51 +916,103 @@ def run_campaign(
     out = Path(out_dir)
     cases_dir = out / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
-    for stale in cases_dir.glob(".tmp-*"):  # left by a killed run
-        shutil.rmtree(stale, ignore_errors=True)
-    runner = runner or MasterRunner(campaign.scenario_dir)
-    campaign = keyed(campaign, runner)
-    _write_json_atomic(out / "campaign.json", {
-        "name": campaign.name, "unit": campaign.unit, "skip": campaign.skip,
-        "instruments": campaign.instruments, "metrics": campaign.metrics,
-        "requirements": campaign.requirements,
-        "cases": [{"key": c.key, "label": c.label, "event": c.event,
-                   "configuration": c.configuration, "sweep": c.sweep} for c in campaign.cases],
-    })
-    todo, skipped = [], 0
-    for case in campaign.cases:
-        st = _case_status(cases_dir, case.key)
-        if st is not None and st.get("status") == "ok":
-            skipped += 1
-        else:
-            todo.append(case)
-    bar = Progress(len(campaign.cases), enabled=progress)
-    for _ in range(skipped):
-        bar.update("ok")
-    failures = {}
+    with _folder_lock(out):
+        for stale in cases_dir.glob(".tmp-*"):  # left by a killed run
+            shutil.rmtree(stale, ignore_errors=True)
+        runner = runner or MasterRunner(campaign.scenario_dir)
+        campaign = keyed(campaign, runner)
+        _write_json_atomic(out / "campaign.json", {
+            "name": campaign.name, "unit": campaign.unit, "skip": campaign.skip,
+            "instruments": campaign.instruments, "metrics": campaign.metrics,
+            "requirements": campaign.requirements,
+            "cases": [{"key": c.key, "label": c.label, "event": c.event,
+                       "configuration": c.configuration, "sweep": c.sweep} for c in campaign.cases],
+        })
+        todo, skipped = [], 0
+        for case in campaign.cases:
+            if _case_verified(cases_dir, case.key):
+                skipped += 1
+            else:
+                todo.append(case)
+        bar = Progress(len(campaign.cases), enabled=progress)
+        for _ in range(skipped):
+            bar.update("ok")
+        failures = {}
 
-    def on_done(case, status):
-        if status["status"] == "failed":
-            failures[case.label] = status["error"]
-            if status.get("unpublished"):  # the case never wrote its folder
-                _record_lost(cases_dir, case, status["error"])
-        bar.update(status["status"])
+        def on_done(case, status):
+            if status["status"] == "failed":
+                failures[case.label] = status["error"]
+                if status.get("unpublished"):  # the case never wrote its folder
+                    _record_lost(cases_dir, case, status["error"])
+            bar.update(status["status"])
 
-    args = (runner, cases_dir, campaign.instruments, campaign.metrics, campaign.skip)
-    workers = (os.cpu_count() or 1) if workers is None else int(workers)
-    try:
-        if scheduler is not None:
-            _run_dask(todo, args, scheduler, on_done)
-        elif workers <= 0:
-            for case in todo:
-                on_done(case, execute_case(case, *args))
-        else:
-            _run_local(todo, args, workers, on_done)
-    finally:
-        bar.close()
-    summary_path = write_summary(campaign, out)
-    return CampaignResult(out, len(campaign.cases), len(todo), skipped, len(failures),
-                          summary_path, failures)
+        args = (runner, cases_dir, campaign.instruments, campaign.metrics, campaign.skip)
+        workers = (os.cpu_count() or 1) if workers is None else int(workers)
+        try:
+            if scheduler is not None:
+                _run_dask(todo, args, scheduler, on_done)
+            elif workers <= 0:
+                for case in todo:
+                    on_done(case, execute_case(case, *args))
+            else:
+                _run_local(todo, args, workers, on_done)
+        finally:
+            bar.close()
+        summary_path = write_summary(campaign, out)
+        return CampaignResult(out, len(campaign.cases), len(todo), skipped, len(failures),
+                              summary_path, failures)
+
+
+class _folder_lock:
+    """Exclusive lock on a campaign folder for the life of a campaign run.
+
+    A second campaign (or a run) into the same folder fails at once instead of deleting
+    the other's in-progress cases; the lock goes with the process, so a killed
+    campaign leaves nothing to clean up.
+    """
+
+    def __init__(self, folder: Path):
+        self.path = Path(folder) / ".jitterfmu.lock"
+
+    def __enter__(self):
+        import fcntl
+
+        self.file = open(self.path, "a+")
+        try:
+            fcntl.flock(self.file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            self.file.close()
+            raise CampaignError(f"campaign folder {str(self.path.parent)!r} is in use by "
+                                "another campaign or run; wait for it or choose another "
+                                "--out") from None
+        return self
+
+    def __exit__(self, *exc):
+        self.file.close()   # releases the lock
+        return False
+
+
+def _die_with_parent(parent_pid: int, period: float = 1.0) -> None:
+    """Pool worker initialiser: exit when the campaign process is gone.
+
+    A killed campaign would otherwise leave its workers running cases and writing into
+    its folder.  A daemon thread checks every ``period`` seconds that ``parent_pid``
+    still exists (the pool's own parent may be a fork server, so the check names the
+    campaign process itself).
+    """
+    import threading
+
+    def watch():
+        while True:
+            time.sleep(period)
+            try:
+                os.kill(parent_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except PermissionError:
+                pass
+
+    threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
 
 
 def _record_lost(cases_dir: Path, case: Case, error: str) -> None:

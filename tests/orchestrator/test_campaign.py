@@ -387,3 +387,69 @@ def test_cli_runs_campaign_and_reports_failures_in_exit_status(tmp_path, capsys)
     assert "6 cases: 6 run, 0 already finished, 2 failed" in out
     assert "diverged at 5.0 Hz" in err
     assert (tmp_path / "o/summary.csv").is_file()
+
+
+@pytest.mark.parametrize("damage", ["truncate results", "truncate metrics", "replace metrics",
+                                    "delete results", "no file record"])
+def test_resume_reruns_a_finished_case_whose_files_changed(tmp_path, damage):
+    log = tmp_path / "calls.log"
+    camp = campaign_from_dict(campaign_data(log=log))
+    run_campaign(camp, tmp_path / "out", synthetic_runner, workers=0, progress=False)
+    first = read_sorted(tmp_path / "out/summary.parquet")
+    folder = tmp_path / "out" / "cases" / camp.cases[0].key
+    if damage == "truncate results":
+        data = (folder / "results.parquet").read_bytes()
+        (folder / "results.parquet").write_bytes(data[: len(data) // 2])
+    elif damage == "truncate metrics":
+        data = (folder / "metrics.parquet").read_bytes()
+        (folder / "metrics.parquet").write_bytes(data[:-10])
+    elif damage == "replace metrics":   # same size, other bytes: only the hash sees it
+        other = tmp_path / "out" / "cases" / camp.cases[1].key / "metrics.parquet"
+        a, b = (folder / "metrics.parquet").read_bytes(), other.read_bytes()
+        (folder / "metrics.parquet").write_bytes(b[: len(a)].ljust(len(a), b"\0"))
+    elif damage == "delete results":
+        (folder / "results.parquet").unlink()
+    else:                               # a case.json written before files were recorded
+        st = json.loads((folder / "case.json").read_text())
+        del st["files"]
+        (folder / "case.json").write_text(json.dumps(st))
+    res = run_campaign(camp, tmp_path / "out", synthetic_runner, workers=0, progress=False)
+    assert (res.n_run, res.n_skipped, res.n_failed) == (1, 5, 0)
+    assert len(log.read_text().split()) == 7          # that case, and only it, ran again
+    assert read_sorted(tmp_path / "out/summary.parquet") == first
+
+
+def test_a_busy_campaign_folder_is_refused_at_once(tmp_path):
+    import fcntl
+
+    camp = campaign_from_dict(campaign_data())
+    (tmp_path / "out").mkdir()
+    with open(tmp_path / "out" / ".jitterfmu.lock", "a+") as held:
+        fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)   # another campaign holds it
+        with pytest.raises(CampaignError, match="in use by another campaign or run"):
+            run_campaign(camp, tmp_path / "out", synthetic_runner, workers=0, progress=False)
+    assert not list((tmp_path / "out" / "cases").iterdir())  # nothing touched
+    res = run_campaign(camp, tmp_path / "out", synthetic_runner, workers=0, progress=False)
+    assert res.n_run == 6                                    # free again once released
+
+
+def test_pool_workers_exit_when_the_campaign_process_dies(tmp_path):
+    # the worker initialiser, in a process whose "campaign" parent is killed
+    parent = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    script = textwrap.dedent(f"""
+        import time
+        from orchestrator.campaign import _die_with_parent
+        _die_with_parent({parent.pid}, period=0.05)
+        time.sleep(60)
+    """)
+    worker = subprocess.Popen([sys.executable, "-c", script])
+    try:
+        time.sleep(1.0)
+        assert worker.poll() is None                    # alive while the parent is
+        parent.kill()
+        parent.wait()
+        assert worker.wait(timeout=20) == 1             # gone soon after, not in 60 s
+    finally:
+        for p in (parent, worker):
+            if p.poll() is None:
+                p.kill()

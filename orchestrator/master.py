@@ -58,6 +58,7 @@ __all__ = [
     "OutputError",
     "PARTIAL_DIR",
     "UnconnectedInputWarning",
+    "TimebaseWarning",
     "EarlyEndWarning",
     "FmuInfo",
     "Variable",
@@ -105,6 +106,10 @@ class _TerminationRequested(Exception):
 
 class EarlyEndWarning(UserWarning):
     """An FMU ended the run before the stop time by asking to terminate (not an error)."""
+
+
+class TimebaseWarning(UserWarning):
+    """A run whose tick grid is much finer than its instances need."""
 
 
 class UnconnectedInputWarning(UserWarning):
@@ -337,6 +342,37 @@ def _coerce(value, v: Variable, ref: str):
     raise ScenarioError(f"{ref} has unsupported type {t}")
 
 
+def _warn_slow_timebase(scenario: Scenario, fmus: dict, tb: Timebase) -> None:
+    """Warn when the output interval or a period makes the run far slower than needed."""
+    from fractions import Fraction
+    from math import gcd
+
+    ticks = list(tb.period_ticks.values())
+    common = 0
+    for t in ticks:
+        common = gcd(common, t)
+    if common > 1:   # the output interval alone refines the grid
+        step = float(tb.base * common)
+        warnings.warn(TimebaseWarning(
+            f"output interval {float(scenario.experiment.output_interval)!r} s is not a "
+            f"multiple of the instances' common step {step!r} s, so the base step becomes "
+            f"{float(tb.base)!r} s and the run steps through {common} times as many ticks; "
+            "choose an output interval that is a multiple of it"), stacklevel=3)
+    for inst in scenario.instances:
+        de = getattr(fmus[inst.name].model_description, "defaultExperiment", None)
+        hint = getattr(de, "stepSize", None) if de is not None else None
+        try:
+            hint = float(hint) if hint is not None else None
+        except (TypeError, ValueError):
+            hint = None
+        if hint and Fraction(inst.period) * 100 < Fraction(hint):
+            n = tb.n_ticks // tb.period_ticks[inst.name]
+            warnings.warn(TimebaseWarning(
+                f"instance {inst.name!r} steps every {float(inst.period)!r} s, "
+                f"{hint / float(inst.period):.0f} times finer than its FMU's default step "
+                f"({hint!r} s): {n} steps; check the period"), stacklevel=3)
+
+
 def prepare(scenario: Scenario, fmu_dir=None) -> Plan:
     """Check a scenario against its FMUs' model descriptions; instantiate nothing.
 
@@ -397,6 +433,7 @@ def prepare(scenario: Scenario, fmu_dir=None) -> Plan:
     exp = scenario.experiment
     tb = make_timebase({i.name: i.period for i in scenario.instances}, exp.output_interval,
                        exp.stop, exp.start)
+    _warn_slow_timebase(scenario, fmus, tb)
     acted = set()
     for a in scenario.actions:
         if not exp.start <= a.time <= exp.stop:
@@ -935,19 +972,21 @@ class Simulation:
                 for m in due:
                     states[m] = self.slaves[m].fmu.getFMUstate()
                 prev = big[idx].copy()
+                change = float("nan")
                 for it in range(max_it):
                     for m in due:
                         steps[m](t)
                     new = big[idx]
                     if it > 0 and np.all(np.abs(new - prev) <= tol * (1.0 + np.abs(new))):
                         return
+                    if it > 0:
+                        change = float(np.max(np.abs(new - prev)))
                     prev = new.copy()
                     for m in due:
                         self.slaves[m].fmu.setFMUstate(states[m])
                 raise AlgebraicLoopError(
                     f"algebraic loop {loop.describe()} did not converge in {max_it} "
-                    f"iterations at t = {t!r} s (last change "
-                    f"{float(np.max(np.abs(big[idx] - prev))):.3g})")
+                    f"iterations at t = {t!r} s (last change {change:.3g})")
             finally:
                 for m, st in states.items():
                     try:

@@ -511,10 +511,16 @@ def load_scenario(scenario, base_dir=None) -> Scenario:
         from .ssp import read_ssp
 
         return read_ssp(path)
+    if path.is_dir():
+        raise ScenarioError(f"scenario {str(path)!r} is a folder; expected a TOML scenario "
+                            "file or an SSP archive")
     if not path.is_file():
         raise ScenarioError(f"scenario file {str(path)!r} does not exist")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise ScenarioError(f"scenario file {str(path)!r} is not text (not UTF-8); expected "
+                            "a TOML scenario file or an SSP archive") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
     try:

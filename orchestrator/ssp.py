@@ -220,6 +220,14 @@ def _typed(el, where: str):
     raise ScenarioError(f"{where} has no Real, Integer, Boolean or String value")
 
 
+def _number(text, what: str) -> float:
+    """``float(text)``, or one sentence naming the attribute and the archive."""
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        raise ScenarioError(f"{what} is {text!r}, not a number") from None
+
+
 def _convert(text: str, t: str, where: str):
     try:
         if t == "Real":
@@ -280,7 +288,7 @@ def read_ssp(path) -> Scenario:
             if ann.get("type") == OSP_TYPE:
                 fsa = ann.find("osp:Algorithm/osp:FixedStepAlgorithm", NS)
                 if fsa is not None:
-                    base = to_fraction(float(fsa.get("baseStepSize")), "baseStepSize")
+                    base = to_fraction(_number(fsa.get("baseStepSize"), f"{where}: osp:FixedStepAlgorithm baseStepSize"), "baseStepSize")
             elif ann.get("type") == JF_TYPE:
                 jf = ann.find("jf:Scenario", NS)
     exact_period = {}
@@ -301,7 +309,7 @@ def read_ssp(path) -> Scenario:
         if name in exact_period:
             spec["period"] = exact_period[name]
         elif hint is not None:
-            spec["period"] = float(hint)
+            spec["period"] = _number(hint, f"{where}: osp:StepSizeHint of component {name!r}")
         elif base is not None:
             spec["period"] = base
         else:
@@ -333,12 +341,13 @@ def read_ssp(path) -> Scenario:
                 "to": f"{c.get('endElement')}.{c.get('endConnector')}"}
         lt = c.find("ssc:LinearTransformation", NS)
         if lt is not None:
-            item["gain"] = float(lt.get("factor", "1"))
-            item["offset"] = float(lt.get("offset", "0"))
+            item["gain"] = _number(lt.get("factor", "1"), f"{where}: LinearTransformation factor of {item['to']}")
+            item["offset"] = _number(lt.get("offset", "0"), f"{where}: LinearTransformation offset of {item['to']}")
         connections.append(item)
     if de is None or de.get("stopTime") is None:
         raise ScenarioError(f"{where} has no DefaultExperiment stopTime")
-    experiment = {"start": float(de.get("startTime", "0")), "stop": float(de.get("stopTime"))}
+    experiment = {"start": _number(de.get("startTime", "0"), f"{where}: DefaultExperiment startTime"),
+                  "stop": _number(de.get("stopTime"), f"{where}: DefaultExperiment stopTime")}
     data = {"experiment": experiment, "fmus": fmus, "connections": connections}
     if jf is not None:
         experiment["output_interval"] = jf.get("outputInterval")

@@ -68,8 +68,12 @@ def test_divergent_loop_reports_loop_and_time(fmu_dir):
     d["fmus"]["a"]["parameters"]["k"] = 3.0  # |k1 k2| > 1: fixed-point iteration diverges
     d["fmus"]["b"]["parameters"]["k"] = -1.0
     with pytest.raises(SimulationError, match=r"algebraic loop a\.y -> b\.u, b\.y -> a\.u "
-                                              r"did not converge .* at t = 0\.0 s"):
+                                              r"did not converge .* at t = 0\.0 s") as err:
         run_scenario(d, fmu_dir=fmu_dir)
+    # the change of the last iteration is reported, and it grew (it used to read 0)
+    import re
+    change = float(re.search(r"last change ([^)]+)\)", str(err.value)).group(1))
+    assert change > 1.0
 
 
 # --- failures before any FMU is instantiated ----------------------------------------
@@ -256,3 +260,30 @@ def test_a_non_finite_value_is_blamed_on_the_instance_that_produced_it(fmu_dir):
                        r"initialisation at t = 0\.0 s") as info:
         run_scenario(d, fmu_dir=fmu_dir)
     assert info.value.instance == "g1"
+
+
+def test_needlessly_fine_tick_grids_are_warned_about(fmu_dir, tmp_path):
+    from fmukit.build import FmuSpec, build_fmu
+    from orchestrator.master import TimebaseWarning
+
+    def warned(d):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            prepare(scenario_from_dict(d, fmu_dir), fmu_dir)
+        return [str(w.message) for w in caught if issubclass(w.category, TimebaseWarning)]
+
+    assert warned(base()) == []
+    # a 0.4 ms output interval with 1 ms instances: base step 0.2 ms, five times the ticks
+    d = base()
+    d["experiment"]["output_interval"] = 4e-4
+    (msg,) = warned(d)
+    assert "common step 0.001 s" in msg and "0.0002 s" in msg and "5 times" in msg
+    # a period 10 000 times finer than the FMU's DefaultExperiment step (a typo for 1e-3)
+    fmu = build_fmu(FmuSpec("MtStepped", "mastertest_slaves:Integrator", step_size=1e-3),
+                    tmp_path)
+    import sys
+    sys.modules.pop("mastertest_slaves", None)   # as conftest.py does after its builds
+    d = base(i={"fmu": str(fmu), "period": 1e-7})
+    d["experiment"].update(stop=0.05, output_interval=1e-7)
+    (msg,) = warned(d)
+    assert "'i' steps every 1e-07 s, 10000 times finer" in msg and "500000 steps" in msg

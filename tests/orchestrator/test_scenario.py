@@ -142,3 +142,14 @@ def test_override_values_round_trip(value):
     text = tomli_w.dumps({"v": value})[4:].strip()
     key, parsed = parse_override(f"a.b={text}")
     assert key == "a.b" and parsed == value and type(parsed) is type(value)
+
+
+def test_a_folder_or_a_binary_file_as_scenario_is_named(tmp_path):
+    from orchestrator.scenario import ScenarioError, load_scenario
+
+    with pytest.raises(ScenarioError, match=r"is a folder; expected a TOML scenario file"):
+        load_scenario(tmp_path)
+    binary = tmp_path / "run.toml"
+    binary.write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe\x00binary")
+    with pytest.raises(ScenarioError, match=r"run\.toml' is not text \(not UTF-8\)"):
+        load_scenario(binary)

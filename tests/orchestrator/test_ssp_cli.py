@@ -160,3 +160,27 @@ def test_export_command_and_malformed_ssp(fmu_dir, tmp_path, capsys):
         read_ssp(bad)
     assert main(["run", str(tmp_path / "missing.toml")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("attr, value, named", [
+    ("stopTime", "abc", "DefaultExperiment stopTime is 'abc', not a number"),
+    ("startTime", "x1", "DefaultExperiment startTime is 'x1', not a number"),
+    ("baseStepSize", "fast", "baseStepSize is 'fast', not a number"),
+])
+def test_ssp_with_a_non_numeric_attribute_names_file_and_attribute(fmu_dir, tmp_path, attr,
+                                                                   value, named):
+    import re
+    import zipfile
+
+    ssp = write_ssp(mixed(), tmp_path / "mixed.ssp", fmu_dir=fmu_dir)
+    bad = tmp_path / "bad.ssp"
+    with zipfile.ZipFile(ssp) as zin, zipfile.ZipFile(bad, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "SystemStructure.ssd":
+                data = re.sub(rf'{attr}="[^"]*"'.encode(), f'{attr}="{value}"'.encode(), data,
+                              count=1)
+            zout.writestr(item, data)
+    with pytest.raises(ScenarioError, match=re.escape(f"bad.ssp/SystemStructure.ssd: ") + ".*"
+                       + re.escape(named)):
+        read_ssp(bad)

@@ -233,7 +233,7 @@ def _unpack(data: bytes, archive: Path, into: Path, kind: str) -> dict:
             target.parent.mkdir(parents=True, exist_ok=True)
             try:
                 content = zf.read(info)
-            except (zipfile.BadZipFile, OSError, RuntimeError, EOFError) as exc:
+            except (zipfile.BadZipFile, zlib.error, OSError, RuntimeError, EOFError) as exc:
                 raise CacheError(f"{kind.upper()} file {str(archive)!r} is corrupt: member "
                                  f"{name!r} cannot be read ({exc})") from None
             target.write_bytes(content)

@@ -59,6 +59,7 @@ __all__ = [
     "PARTIAL_DIR",
     "UnconnectedInputWarning",
     "TimebaseWarning",
+    "JacobiLoopWarning",
     "EarlyEndWarning",
     "FmuInfo",
     "Variable",
@@ -110,6 +111,10 @@ class EarlyEndWarning(UserWarning):
 
 class TimebaseWarning(UserWarning):
     """A run whose tick grid is much finer than its instances need."""
+
+
+class JacobiLoopWarning(UserWarning):
+    """An algebraic loop that the Jacobi algorithm leaves unsolved (one step late)."""
 
 
 class UnconnectedInputWarning(UserWarning):
@@ -467,6 +472,12 @@ def prepare(scenario: Scenario, fmu_dir=None) -> Plan:
                     "(an output without direct feedthrough, e.g. a unit delay) or run "
                     "with algorithm 'jacobi'"
                 )
+    else:
+        for loop in loops:
+            warnings.warn(JacobiLoopWarning(
+                f"algebraic loop {loop.describe()} is not solved under algorithm 'jacobi': "
+                "each pass around it reads the previous step's values, so a loop gain above "
+                "1 diverges; run with 'gauss-seidel' to solve it at every step"), stacklevel=2)
     unconnected = []
     for inst in scenario.instances:
         given = set(inst.parameters)

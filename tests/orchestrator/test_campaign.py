@@ -453,3 +453,29 @@ def test_pool_workers_exit_when_the_campaign_process_dies(tmp_path):
         for p in (parent, worker):
             if p.poll() is None:
                 p.kill()
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+_leaf = st.one_of(st.none(), st.booleans(), st.integers(-3, 3), st.floats(allow_nan=True),
+                  st.text(max_size=6))
+_tree = st.recursive(_leaf, lambda inner: st.one_of(
+    st.lists(inner, max_size=3),
+    st.dictionaries(st.sampled_from(["name", "overrides", "kind", "windows", "instrument",
+                                     "axes", "value", "metric", "window", "scenario", "x"]),
+                    inner, max_size=4)), max_leaves=12)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.dictionaries(st.sampled_from(["campaign", "events", "configurations", "sweeps",
+                                        "instruments", "metrics", "requirements", "bogus"]),
+                       _tree, max_size=6))
+def test_any_campaign_layout_is_a_campaign_or_one_clear_error(data):
+    # a mangled campaign file is read into a Campaign or refused with CampaignError
+    # (one sentence), never another exception
+    good = campaign_data()
+    mixed = {**good, **data}
+    try:
+        campaign_from_dict(mixed)
+    except CampaignError as exc:
+        assert "\n" not in str(exc) and len(str(exc)) < 2000

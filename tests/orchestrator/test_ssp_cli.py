@@ -184,3 +184,50 @@ def test_ssp_with_a_non_numeric_attribute_names_file_and_attribute(fmu_dir, tmp_
     with pytest.raises(ScenarioError, match=re.escape(f"bad.ssp/SystemStructure.ssd: ") + ".*"
                        + re.escape(named)):
         read_ssp(bad)
+
+
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def ssp_file(fmu_dir, tmp_path_factory):
+    return write_ssp(mixed(), tmp_path_factory.mktemp("ssp") / "m.ssp", fmu_dir=fmu_dir)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_a_damaged_ssp_archive_is_read_or_refused_in_one_sentence(ssp_file, data):
+    import io
+    import tempfile
+    import zipfile
+    from pathlib import Path
+
+    ssp_bytes = ssp_file.read_bytes()
+    how = data.draw(st.sampled_from(["truncate", "flip", "ssd"]))
+    blob = bytearray(ssp_bytes)
+    if how == "truncate":
+        blob = blob[:data.draw(st.integers(0, len(blob) - 1))]
+    elif how == "flip":
+        for _ in range(data.draw(st.integers(1, 8))):
+            i = data.draw(st.integers(0, len(blob) - 1))
+            blob[i] ^= data.draw(st.integers(1, 255))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "damaged.ssp"
+        if how == "ssd":   # a valid archive whose SystemStructure.ssd is mangled text
+            text = zipfile.ZipFile(io.BytesIO(ssp_bytes)).read(
+                "SystemStructure.ssd").decode()
+            cut = data.draw(st.integers(0, len(text)))
+            junk = data.draw(st.text(max_size=20))
+            with zipfile.ZipFile(io.BytesIO(ssp_bytes)) as zin, \
+                    zipfile.ZipFile(path, "w") as zout:
+                for item in zin.infolist():
+                    body = zin.read(item.filename)
+                    if item.filename == "SystemStructure.ssd":
+                        body = (text[:cut] + junk + text[cut + len(junk):]).encode()
+                    zout.writestr(item.filename, body)
+        else:
+            path.write_bytes(bytes(blob))
+        try:
+            read_ssp(path)
+        except ScenarioError as exc:
+            assert "\n" not in str(exc).strip()

@@ -153,3 +153,25 @@ def test_a_folder_or_a_binary_file_as_scenario_is_named(tmp_path):
     binary.write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe\x00binary")
     with pytest.raises(ScenarioError, match=r"run\.toml' is not text \(not UTF-8\)"):
         load_scenario(binary)
+
+
+_leaf = st.one_of(st.none(), st.booleans(), st.integers(-3, 10**6), st.floats(allow_nan=True),
+                  st.text(max_size=8))
+_tree = st.recursive(_leaf, lambda inner: st.one_of(
+    st.lists(inner, max_size=3),
+    st.dictionaries(st.sampled_from(["fmu", "period", "parameters", "from", "to", "gain",
+                                     "offset", "stop", "start", "output_interval",
+                                     "algorithm", "variables", "time", "set", "x"]),
+                    inner, max_size=4)), max_leaves=12)
+
+
+@given(st.dictionaries(st.sampled_from(["experiment", "fmus", "connections", "record",
+                                        "actions", "bogus"]), _tree, max_size=5))
+def test_any_scenario_layout_is_a_scenario_or_one_clear_error(data):
+    # a mangled scenario file is a Scenario or one ScenarioError sentence, never another
+    # exception (the TOML layout as a dict: what tomllib gives the loader)
+    mixed = {**_base(), **data}
+    try:
+        scenario_from_dict(mixed)
+    except ScenarioError as exc:
+        assert "\n" not in str(exc) and len(str(exc)) < 2000

@@ -56,7 +56,7 @@ def sources_hash() -> str:
     return h.hexdigest()
 
 
-def ensure_fmus(names, fmu_dir="fmus", progress=None) -> dict:
+def ensure_fmus(names, fmu_dir="fmus", progress=None, extra=None) -> dict:
     """Paths of the named FMUs in ``fmu_dir``, building missing or stale ones.
 
     Parameters
@@ -67,6 +67,10 @@ def ensure_fmus(names, fmu_dir="fmus", progress=None) -> dict:
         Folder of built FMUs.
     progress : callable, optional
         Called with one line of text per FMU built.
+    extra : mapping of str to callable, optional
+        FMUs the registry does not know, as ``name -> () -> FmuSpec`` (e.g. a structure
+        built from a variant of a built-in model); stamped and rebuilt like the others,
+        the spec made only when the FMU is missing or stale.
 
     Returns
     -------
@@ -83,8 +87,11 @@ def ensure_fmus(names, fmu_dir="fmus", progress=None) -> dict:
     names = list(dict.fromkeys(names))
     todo = [n for n in names
             if not (fmu_dir / f"{n}.fmu").is_file() or stamps.get(n) != current]
+    extra = dict(extra or {})
     if todo:
-        specs = {s.model_identifier: s for s in collect_specs(todo)}
+        known = [n for n in todo if n not in extra]
+        specs = {s.model_identifier: s for s in collect_specs(known)} if known else {}
+        specs.update({n: extra[n]() for n in todo if n in extra})
         missing = [n for n in todo if n not in specs]
         if missing:
             raise KeyError(f"no FMU named {', '.join(missing)} in the project; run "

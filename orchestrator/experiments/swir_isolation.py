@@ -472,26 +472,14 @@ def damping(plant: Plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
 def ensure_fmus(fmu_dir="fmus") -> Path:
     """Build the FMUs this experiment runs into ``fmu_dir`` (the structure with all legs
     active under ``STRUCTURE``); the folder to pass to the master."""
-    import json
-
-    from fmukit.build import build_fmu
-    from orchestrator.fmucache import ensure_fmus as ensure, sources_hash
+    from orchestrator.fmucache import ensure_fmus as ensure
     from structfmu.fmuspec import spec_from_model
 
     fmu_dir = Path(fmu_dir)
-    ensure(OTHER_FMUS, fmu_dir)
-    stamp_file = fmu_dir / ".sources"
-    stamps = json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
-    current = sources_hash()
-    path = fmu_dir / f"{STRUCTURE}.fmu"
-    if not path.is_file() or stamps.get(STRUCTURE) != current:
-        spec = spec_from_model(structure_model(), STRUCTURE,
-                               "EOS testbed, every SWIR/VNIR mount leg active")
-        build_fmu(spec, fmu_dir)
-        stamps[STRUCTURE] = current
-        tmp = stamp_file.with_suffix(".tmp")
-        tmp.write_text(json.dumps(stamps, indent=1))
-        tmp.replace(stamp_file)
+    paths = ensure(list(OTHER_FMUS) + [STRUCTURE], fmu_dir, extra={
+        STRUCTURE: lambda: spec_from_model(structure_model(), STRUCTURE,
+                                           "EOS testbed, every SWIR/VNIR mount leg active")})
+    path = paths[STRUCTURE]
     fixed = eos_budget._moment_units_fixed(path, fmu_dir / "moment-units")
     return (fixed.parent if fixed is not None else fmu_dir).resolve()
 

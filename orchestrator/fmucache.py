@@ -91,15 +91,14 @@ def ensure_fmus(names, fmu_dir="fmus", progress=None, extra=None) -> dict:
     if todo:
         known = [n for n in todo if n not in extra]
         specs = {s.model_identifier: s for s in collect_specs(known)} if known else {}
-        specs.update({n: extra[n]() for n in todo if n in extra})
-        missing = [n for n in todo if n not in specs]
+        missing = [n for n in known if n not in specs]
         if missing:
             raise KeyError(f"no FMU named {', '.join(missing)} in the project; run "
                            "'jitterfmu build' to list the FMUs it knows")
         for n in todo:
             if progress:
                 progress(f"building {n}.fmu")
-            build_fmu(specs[n], fmu_dir)
+            build_fmu(specs[n] if n in specs else extra[n](), fmu_dir)
             stamps[n] = current
             tmp = stamp_file.with_suffix(".tmp")
             tmp.write_text(json.dumps(stamps, indent=1))

@@ -206,6 +206,11 @@ def build_fmu(spec: FmuSpec, out_dir: str | Path, *, c_loader: bool = True) -> P
             project_files.append(dest)
         options = {k: v == "true" for k, v in CAPABILITIES.items()}
         saved_path = list(sys.path)
+        # An instance of this FMU running in this process (a co-simulation before the
+        # build) has its slave module under the same name in sys.modules; pythonfmu
+        # would inspect that one instead of the staged script and write an FMU without
+        # its Linux binary.  Set it aside for the build, then put it back.
+        running = sys.modules.pop(module_name, None)
         try:
             built = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu",
                                          project_files=project_files, **options)
@@ -215,6 +220,8 @@ def build_fmu(spec: FmuSpec, out_dir: str | Path, *, c_loader: bool = True) -> P
         finally:
             sys.path[:] = saved_path
             sys.modules.pop(module_name, None)
+            if running is not None:
+                sys.modules[module_name] = running
         loader = None
         if c_loader:
             from fmukit.loader import compile_loader

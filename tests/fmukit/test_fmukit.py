@@ -261,3 +261,21 @@ def test_c_host_run_is_clean_under_memcheck(fmu, tmp_path):
     text = log.read_text()
     assert "ERROR SUMMARY" in text  # valgrind ran to the end of the process
     assert _memcheck_errors(text) == []
+
+
+def test_build_while_the_same_fmu_runs_in_this_process(tmp_path):
+    # An instance of the FMU running in this process leaves its slave module in
+    # sys.modules under the name the build stages its script as; the build must still
+    # inspect the staged script and ship the Linux binary, and leave the running one be.
+    import types
+
+    spec = FmuSpec("ToyFilterFmu", "toyslave:ToyFilter", description="toy filter")
+    running = types.ModuleType(spec.module_name)   # stands for the in-process instance's
+    sys.modules[spec.module_name] = running
+    try:
+        path = build_fmu(spec, tmp_path)
+        with zipfile.ZipFile(path) as z:
+            assert "binaries/linux64/ToyFilterFmu.so" in z.namelist()
+        assert sys.modules[spec.module_name] is running
+    finally:
+        sys.modules.pop(spec.module_name, None)

@@ -10,6 +10,8 @@ so that C-only hosts can load the FMU.
 
 from __future__ import annotations
 
+import contextlib
+
 import importlib
 import importlib.util
 import re
@@ -173,8 +175,6 @@ def build_fmu(spec: FmuSpec, out_dir: str | Path, *, c_loader: bool = True) -> P
     BuildError
         If a package, resource or the compiler is missing, or pythonfmu fails.
     """
-    from pythonfmu.builder import FmuBuilder
-
     from fmukit.modeldesc import CAPABILITIES
 
     out_dir = Path(out_dir)
@@ -212,8 +212,9 @@ def build_fmu(spec: FmuSpec, out_dir: str | Path, *, c_loader: bool = True) -> P
         # its Linux binary.  Set it aside for the build, then put it back.
         running = sys.modules.pop(module_name, None)
         try:
-            built = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu",
-                                         project_files=project_files, **options)
+            with _installed_builder() as builder:
+                built = builder.build_FMU(script, dest=tmp / "raw.fmu",
+                                          project_files=project_files, **options)
         except Exception as exc:
             raise BuildError(f"pythonfmu could not build {spec.model_identifier!r}: "
                              f"{exc}") from exc
@@ -229,6 +230,51 @@ def build_fmu(spec: FmuSpec, out_dir: str | Path, *, c_loader: bool = True) -> P
             loader = compile_loader(tmp / "loader.so")
         _rewrite_archive(Path(built), target, spec.model_identifier, loader)
     return target
+
+
+@contextlib.contextmanager
+def _installed_builder():
+    """pythonfmu's ``FmuBuilder`` from the installed distribution, for one build.
+
+    A pythonfmu FMU that ran in this process put its own bundled copy of pythonfmu (pure
+    Python, without the binaries the builder copies into every FMU) in ``sys.modules``;
+    building with that copy writes FMUs without binaries.  For the build the installed
+    package takes its place (its builder recognising the slave base class this project's
+    slaves derive from); afterwards the bundled modules are put back, so running FMUs
+    keep theirs.
+    """
+    import importlib
+    from importlib import metadata
+
+    from fmukit import slave as fmukit_slave
+
+    try:
+        site = Path(metadata.distribution("pythonfmu").locate_file("")).resolve()
+    except metadata.PackageNotFoundError:
+        raise BuildError("pythonfmu is not installed; install the project with its "
+                         "dependencies (make setup)") from None
+    current = sys.modules.get("pythonfmu.builder")
+    if current is not None and Path(current.__file__).resolve().is_relative_to(site):
+        yield current.FmuBuilder
+        return
+
+    def ours(name):
+        return name == "pythonfmu" or name.startswith("pythonfmu.")
+
+    saved = {n: m for n, m in sys.modules.items() if ours(n)}
+    saved_path = list(sys.path)
+    for name in saved:
+        del sys.modules[name]
+    sys.path.insert(0, str(site))
+    try:
+        builder = importlib.import_module("pythonfmu.builder")
+        builder.Fmi2Slave = fmukit_slave.Fmi2Slave   # the base our slave classes have
+        yield builder.FmuBuilder
+    finally:
+        sys.path[:] = saved_path
+        for name in [n for n in sys.modules if ours(n)]:
+            del sys.modules[name]
+        sys.modules.update(saved)
 
 
 def _rewrite_archive(src: Path, dest: Path, model_identifier: str, loader: Path | None) -> None:

@@ -279,3 +279,34 @@ def test_build_while_the_same_fmu_runs_in_this_process(tmp_path):
         assert sys.modules[spec.module_name] is running
     finally:
         sys.modules.pop(spec.module_name, None)
+
+
+def test_build_uses_the_installed_pythonfmu_after_an_fmu_bundled_one_was_loaded(tmp_path):
+    # A pythonfmu FMU that ran in this process leaves its bundled pythonfmu (Python only,
+    # no binaries) in sys.modules; a build must still use the installed one, and give the
+    # running FMU its modules back.
+    import types
+
+    bundled = {n: types.ModuleType(n) for n in ("pythonfmu", "pythonfmu.builder")}
+
+    class FmuBuilder:   # the bundled copy: building with it yields no binaries
+        @staticmethod
+        def build_FMU(*args, **kwargs):
+            raise AssertionError("the bundled pythonfmu was used to build")
+
+    bundled["pythonfmu.builder"].FmuBuilder = FmuBuilder
+    bundled["pythonfmu.builder"].__file__ = str(tmp_path / "fmu" / "pythonfmu" / "builder.py")
+    saved = {n: m for n, m in sys.modules.items() if n.split(".")[0] == "pythonfmu"}
+    for n in saved:
+        del sys.modules[n]
+    sys.modules.update(bundled)
+    try:
+        path = build_fmu(FmuSpec("ToyFilterFmu", "toyslave:ToyFilter", description="toy"),
+                         tmp_path)
+        with zipfile.ZipFile(path) as z:
+            assert "binaries/linux64/ToyFilterFmu.so" in z.namelist()
+        assert sys.modules["pythonfmu.builder"] is bundled["pythonfmu.builder"]
+    finally:
+        for n in [n for n in sys.modules if n.split(".")[0] == "pythonfmu"]:
+            del sys.modules[n]
+        sys.modules.update(saved)

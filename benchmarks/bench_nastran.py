@@ -26,30 +26,12 @@ hand-offs, see benchmarks/README.md).  The lowest eigenvalues of the two paths a
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import resource
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-_MARK = "@@RESULT@@"
-
-
-def _peak_rss_mb() -> float:
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024.0
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # pragma: no cover
-
-
-def _cpu_s() -> float:
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
-
+from _measure import cpu_s, emit, peak_rss_mb, run_worker
 
 def worker(case: str, n_bays: int, section: int, modes: int, deck: str) -> dict:
     """Run one case in this process and return its measurements."""
@@ -57,7 +39,7 @@ def worker(case: str, n_bays: int, section: int, modes: int, deck: str) -> dict:
     from structfmu.models import tower
     from structfmu.reduce import reduce
 
-    cpu0 = _cpu_s()
+    cpu0 = cpu_s()
     t0 = time.perf_counter()
     out = {"case": case}
     bdf, op4 = Path(deck) / "tower.bdf", Path(deck) / "tower.op4"
@@ -71,7 +53,7 @@ def worker(case: str, n_bays: int, section: int, modes: int, deck: str) -> dict:
     elif case == "op4":
         d = nastran.read_deck(bdf, "SI")  # the DOF map needs the grids (cheap next to OP4)
         t0 = time.perf_counter()
-        cpu0 = _cpu_s()
+        cpu0 = cpu_s()
         K, _ = nastran.read_matrices(op4, nastran._gset(d), "SI")
         out["n_dof"] = int(K.shape[0])
     else:
@@ -80,28 +62,21 @@ def worker(case: str, n_bays: int, section: int, modes: int, deck: str) -> dict:
                 for a in truss.active]
         del truss
         t0 = time.perf_counter()
-        cpu0 = _cpu_s()
+        cpu0 = cpu_s()
         model = nastran.import_nastran(bdf, units="SI", op4=op4, n_modes=modes,
                                        actuators=acts, ritz="actuators")
         out["n_dof"] = int(model.meta["n_free"])
     if case in ("native", "import"):
         out.update(n_ritz=model.n_ritz, lam=(model.omega**2).tolist())
-    out.update(wall=time.perf_counter() - t0, cpu=_cpu_s() - cpu0, peak_mb=_peak_rss_mb())
+    out.update(wall=time.perf_counter() - t0, cpu=cpu_s() - cpu0, peak_mb=peak_rss_mb())
     return out
 
 
 def run_case(case, n_bays, section, modes, deck, threads) -> dict:
     """Run ``worker`` for one case in a fresh subprocess."""
-    env = dict(os.environ)
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        env[var] = str(threads)
-    cmd = [sys.executable, __file__, "--worker", case, "--bays", str(n_bays),
-           "--section", str(section), "--modes", str(modes), "--deck", deck]
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    if proc.returncode != 0:
-        raise RuntimeError(f"benchmark case {case!r} failed:\n{proc.stderr[-3000:]}")
-    line = [ln for ln in proc.stdout.splitlines() if ln.startswith(_MARK)][-1]
-    return json.loads(line[len(_MARK):])
+    return run_worker(__file__, ["--worker", case, "--bays", str(n_bays), "--section",
+                                 str(section), "--modes", str(modes), "--deck", deck],
+                      case, threads)
 
 
 def main(argv=None):
@@ -116,7 +91,7 @@ def main(argv=None):
     p.add_argument("--deck", help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.worker:
-        print(_MARK + json.dumps(worker(a.worker, a.bays, a.section, a.modes, a.deck)))
+        emit(worker(a.worker, a.bays, a.section, a.modes, a.deck))
         return
 
     import numpy as np

@@ -32,28 +32,10 @@ small tower are compared (relative difference printed).
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import resource
-import subprocess
-import sys
 import time
 
-_MARK = "@@RESULT@@"
-
-
-def _peak_rss_mb() -> float:
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024.0
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # pragma: no cover
-
-
-def _cpu_s() -> float:
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
-
+from _measure import cpu_s, emit, peak_rss_mb, run_worker
 
 def worker(case: str, n_bays: int, section: int, modes: int, profile: bool) -> dict:
     """Run one case in this process and return its measurements."""
@@ -66,9 +48,9 @@ def worker(case: str, n_bays: int, section: int, modes: int, profile: bool) -> d
 
     out = {"case": case, "n_bays": n_bays}
     if case == "imports":
-        out.update(n_dof=0, cpu=_cpu_s(), peak_mb=_peak_rss_mb())
+        out.update(n_dof=0, cpu=cpu_s(), peak_mb=peak_rss_mb())
         return out
-    cpu0 = _cpu_s()
+    cpu0 = cpu_s()
     t0 = time.perf_counter()
     truss = tower.build(n_bays, section, section)
     t1 = time.perf_counter()
@@ -103,25 +85,15 @@ def worker(case: str, n_bays: int, section: int, modes: int, profile: bool) -> d
             lam = la.eigh(Kd, Md, subset_by_index=[0, modes - 1])[0]
         t4 = time.perf_counter()
         out.update(solve=t4 - t3, n_ritz=0, lam=lam[:modes].tolist())
-    out.update(cpu=_cpu_s() - cpu0, peak_mb=_peak_rss_mb())
+    out.update(cpu=cpu_s() - cpu0, peak_mb=peak_rss_mb())
     return out
 
 
 def run_case(case, n_bays, section, modes, threads=None, profile=False) -> dict:
     """Run ``worker`` for one case in a fresh subprocess (``threads``: BLAS threads)."""
-    env = dict(os.environ)
-    if threads is not None:
-        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-            env[var] = str(threads)
-    cmd = [sys.executable, __file__, "--worker", case, "--bays", str(n_bays),
-           "--section", str(section), "--modes", str(modes)]
-    if profile:
-        cmd.append("--profile")
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    if proc.returncode != 0:
-        raise RuntimeError(f"benchmark case {case!r} failed:\n{proc.stderr[-3000:]}")
-    line = [ln for ln in proc.stdout.splitlines() if ln.startswith(_MARK)][-1]
-    res = json.loads(line[len(_MARK):])
+    args = ["--worker", case, "--bays", str(n_bays), "--section", str(section),
+            "--modes", str(modes)] + (["--profile"] if profile else [])
+    res = run_worker(__file__, args, case, threads)
     res["threads"] = "default" if threads is None else str(threads)
     return res
 
@@ -138,8 +110,7 @@ def main(argv=None):
     p.add_argument("--bays", type=int, help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.worker:
-        res = worker(a.worker, a.bays, a.section, a.modes, a.profile)
-        print(_MARK + json.dumps(res))
+        emit(worker(a.worker, a.bays, a.section, a.modes, a.profile))
         return
 
     from structfmu.models import tower

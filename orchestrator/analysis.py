@@ -167,8 +167,7 @@ def _piezo_block(slave, name, period, h, ft):
 
 
 def _law_block(law, name, period, h, ft, factor=1.0):
-    from ctrlfmu.law import DiscreteLaw  # noqa: F401  (type of ``law``)
-
+    """Block of a ``ctrlfmu.law.DiscreteLaw`` with its command scaled by ``factor``."""
     n_samples = h / law.dt
     k = round(n_samples)
     if k < 1 or abs(n_samples - k) > 1e-9 * max(1.0, n_samples):

@@ -22,10 +22,7 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import re
 import sys
-import zipfile
 from pathlib import Path
 
 NAME = "eos-budget"
@@ -55,58 +52,14 @@ PAPER_ISOLATION = {
 event with active SWIR and VNIR mounts ("significantly lower" SWIR pitch and yaw, SWIR
 roll only 30 %, MISR "also reduced by about 10 percent").  Shown next to our numbers."""
 
-_MOMENT_INPUT = re.compile(
-    r'(<ScalarVariable name="(?:\w+_m[xyz]|acs_t[xyz])"[^>]*causality="input"[^>]*>'
-    r'\s*<Real[^>]*?unit=")N(")')
-_NM_UNIT = ('\t\t<Unit name="N.m">\n\t\t\t<BaseUnit kg="1" m="2" s="-2"/>\n\t\t</Unit>\n'
-            '\t</UnitDefinitions>')
-
-
-def _moment_units_fixed(src: Path, dst_dir: Path) -> Path | None:
-    """Copy of the structure FMU whose moment inputs declare ``N.m``; None if not needed.
-
-    The structure FMU declares every input in ``N``, the moment inputs ``<loc>_mx..mz``
-    and ``acs_tx..tz`` included, so the master refuses the (correct) ``N.m`` connections
-    from the disturbance and ACS FMUs.  Only the unit attributes of modelDescription.xml
-    change; binaries and resources are copied as they are.  Once the FMU declares its
-    moments in ``N.m`` this returns None and the built FMU is used directly.
-    """
-    with zipfile.ZipFile(src) as zin:
-        xml = zin.read("modelDescription.xml").decode()
-        fixed, n = _MOMENT_INPUT.subn(r"\1N.m\2", xml)
-        if n == 0:
-            return None
-        if 'name="N.m"' not in fixed:
-            fixed = fixed.replace("\t</UnitDefinitions>", _NM_UNIT, 1)
-        dst = dst_dir / src.name
-        if dst.is_file() and dst.stat().st_mtime >= src.stat().st_mtime:
-            return dst
-        dst_dir.mkdir(parents=True, exist_ok=True)
-        tmp = dst.with_name(f".{src.stem}-{os.getpid()}.tmp")
-        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zout:
-            for item in zin.infolist():
-                data = fixed.encode() if item.filename == "modelDescription.xml" \
-                    else zin.read(item.filename)
-                zout.writestr(item, data)
-    tmp.replace(dst)
-    return dst
-
-
 def fmu_dir(base="fmus") -> Path:
-    """Build the EOS FMUs if needed; the folder to search first for them.
-
-    Returns ``base`` itself, or ``build/fmus-moment-units`` (next to ``base``) holding
-    the structure FMU with its moment inputs in ``N.m`` (see :func:`_moment_units_fixed`) while the built FMU
-    declares them in ``N``.
-    """
+    """Build the EOS FMUs if needed (the all-legs structure included); ``base`` resolved."""
     from orchestrator.experiments import swir_isolation
     from orchestrator.fmucache import ensure_fmus
 
-    paths = ensure_fmus(FMUS, base)
+    ensure_fmus(FMUS, base)
     swir_isolation.ensure_fmus(base)     # the structure with every mount leg active
-    fixed = _moment_units_fixed(paths[STRUCTURE],
-                                Path(base).resolve().parent / "build" / "fmus-moment-units")
-    return Path(base).resolve() if fixed is None else fixed.parent.resolve()
+    return Path(base).resolve()
 
 
 def run_budget(out_dir, *, workers=2, quick=False, fmu_base="fmus", progress=None,

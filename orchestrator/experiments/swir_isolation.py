@@ -476,12 +476,10 @@ def ensure_fmus(fmu_dir="fmus") -> Path:
     from structfmu.fmuspec import spec_from_model
 
     fmu_dir = Path(fmu_dir)
-    paths = ensure(list(OTHER_FMUS) + [STRUCTURE], fmu_dir, extra={
+    ensure(list(OTHER_FMUS) + [STRUCTURE], fmu_dir, extra={
         STRUCTURE: lambda: spec_from_model(structure_model(), STRUCTURE,
                                            "EOS testbed, every SWIR/VNIR mount leg active")})
-    path = paths[STRUCTURE]
-    fixed = eos_budget._moment_units_fixed(path, fmu_dir / "moment-units")
-    return (fixed.parent if fixed is not None else fmu_dir).resolve()
+    return fmu_dir.resolve()
 
 
 def scenario(stop: float) -> dict:

@@ -140,12 +140,6 @@ int model_inputs_changed(JfInstance *inst) {
 }
 
 int model_state_restored(JfInstance *inst) {
-    int i;
-    for (i = 0; i < 15; i++)
-        if (!isfinite(inst->state[i])) {
-            jf_log(inst, 3, "FMU state rejected: ACS state %d is not finite", i);
-            return JF_ERROR;
-        }
     if (inst->phase == JF_STEPPING) return configure(inst);
     return JF_OK;
 }

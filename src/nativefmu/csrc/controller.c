@@ -220,10 +220,8 @@ int model_inputs_changed(JfInstance *inst) {
 }
 
 int model_state_restored(JfInstance *inst) {
-    size_t i;
-    for (i = 0; i < inst->n_state; i++)
-        if (!isfinite(inst->state[i])) break;
-    if (i < inst->n_state || SK(inst) < 0 || SK(inst) != floor(SK(inst)) ||
+    /* finite: checked with the state bytes */
+    if (SK(inst) < 0 || SK(inst) != floor(SK(inst)) ||
         (SREADY(inst) != 0.0 && SREADY(inst) != 1.0)) {
         jf_log(inst, 3, "FMU state rejected: controller state is not a valid state");
         return JF_ERROR;

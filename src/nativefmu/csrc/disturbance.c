@@ -456,12 +456,6 @@ int model_inputs_changed(JfInstance *inst) {
 }
 
 int model_state_restored(JfInstance *inst) {
-    int i;
-    for (i = 0; i < 3; i++)
-        if (!isfinite(inst->state[i])) {
-            jf_log(inst, 3, "FMU state rejected: disturbance state is not finite");
-            return JF_ERROR;
-        }
     if (inst->phase == JF_STEPPING && DS->chosen == NULL) return choose(inst);
     return JF_OK;
 }

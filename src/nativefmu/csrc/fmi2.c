@@ -518,6 +518,15 @@ static int state_check(JfInstance *inst, const unsigned char *p, size_t n) {
             return 1;
         }
     }
+    for (i = 0; i < inst->n_state; i++, p += 8) {   /* every kernel's state is finite */
+        double x;
+        memcpy(&x, p, 8);
+        if (!isfinite(x)) {
+            jf_log(inst, 3, "FMU state rejected: state value %lu is not finite",
+                   (unsigned long)i);
+            return 1;
+        }
+    }
     return 0;
 }
 

@@ -353,11 +353,8 @@ int model_inputs_changed(JfInstance *inst) {
 }
 
 int model_state_restored(JfInstance *inst) {
-    const double *x = inst->state;
-    int i;
-    for (i = 0; i < 6; i++)
-        if (!isfinite(x[i])) break;
-    if (i < 6 || x[5] < 0 || x[5] != floor(x[5]) || (x[2] != 0 && x[2] != 1) ||
+    const double *x = inst->state;   /* finite: checked with the state bytes */
+    if (x[5] < 0 || x[5] != floor(x[5]) || (x[2] != 0 && x[2] != 1) ||
         (x[3] != 0 && x[3] != 1)) {
         jf_log(inst, 3, "FMU state rejected: actuator state is not a valid state");
         return JF_ERROR;

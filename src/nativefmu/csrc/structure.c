@@ -358,13 +358,6 @@ int model_inputs_changed(JfInstance *inst) {
 }
 
 int model_state_restored(JfInstance *inst) {
-    size_t i;
-    for (i = 0; i < inst->n_state; i++)
-        if (!isfinite(inst->state[i])) {
-            jf_log(inst, 3, "FMU state rejected: structural state %lu is not finite",
-                   (unsigned long)i);
-            return JF_ERROR;
-        }
     update_state_outputs(inst);
     return JF_OK;
 }

@@ -1,0 +1,54 @@
+"""Shared measuring of the benchmarks that run each case in a fresh process.
+
+A benchmark re-runs its own script with ``--worker ...``; the worker measures CPU time
+and peak memory of its process and prints one marked JSON line (:func:`emit`), which
+:func:`run_worker` reads back.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+
+MARK = "@@RESULT@@"
+_BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process (MB)."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # pragma: no cover
+
+
+def cpu_s() -> float:
+    """User + system CPU time of this process (s)."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def emit(result: dict) -> None:
+    """Print a worker's result for :func:`run_worker`."""
+    print(MARK + json.dumps(result))
+
+
+def run_worker(script: str, args: list, case: str, threads: int | None = None) -> dict:
+    """Run ``script --worker ARGS`` in a fresh process; its :func:`emit`-ted result.
+
+    ``threads`` sets the BLAS threads of the worker (default: the library's own).
+    """
+    env = dict(os.environ)
+    if threads is not None:
+        for var in _BLAS_THREADS:
+            env[var] = str(threads)
+    proc = subprocess.run([sys.executable, script, *args], capture_output=True, text=True,
+                          env=env)
+    if proc.returncode != 0:
+        raise RuntimeError(f"benchmark case {case!r} failed:\n{proc.stderr[-3000:]}")
+    line = [ln for ln in proc.stdout.splitlines() if ln.startswith(MARK)][-1]
+    return json.loads(line[len(MARK):])

@@ -82,7 +82,6 @@ import multiprocessing
 import os
 import re
 import shutil
-import sys
 import time
 import tomllib
 import traceback
@@ -99,6 +98,8 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from . import metrics as M
+from .files import atomic_write, sha256_file, write_json_atomic
+from .progress import ProgressBar
 
 __all__ = [
     "ANGLE_UNITS",
@@ -108,7 +109,6 @@ __all__ = [
     "CampaignResult",
     "Case",
     "MasterRunner",
-    "Progress",
     "campaign_from_dict",
     "case_metrics",
     "execute_case",
@@ -639,18 +639,12 @@ def _one_sentence(exc: BaseException) -> str:
 
 
 def _write_json_atomic(path: Path, data) -> None:
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    tmp.write_text(json.dumps(data, indent=1, sort_keys=True, default=str), encoding="utf-8")
-    os.replace(tmp, path)
+    write_json_atomic(path, data, indent=1, sort_keys=True, default=str)
 
 
 def _write_table_atomic(table: pa.Table, path: Path, csv: bool = False) -> None:
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    if csv:
-        pacsv.write_csv(table, tmp)
-    else:
-        pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    atomic_write(path, (lambda tmp: pacsv.write_csv(table, tmp)) if csv
+                 else (lambda tmp: pq.write_table(table, tmp)))
 
 
 def execute_case(case: Case, runner: Callable, cases_dir, instruments, metrics, skip) -> dict:
@@ -703,9 +697,7 @@ _CASE_FILES = ("results.parquet", "metrics.parquet")
 
 
 def _file_record(path: Path) -> dict:
-    from .master import _sha256
-
-    return {"size": path.stat().st_size, "sha256": _sha256(path)}
+    return {"size": path.stat().st_size, "sha256": sha256_file(path)}
 
 
 def _case_verified(cases_dir: Path, key: str) -> bool:
@@ -739,48 +731,6 @@ def _case_status(cases_dir: Path, key: str) -> dict | None:
 
 
 # ----------------------------------------------------------------------------- progress
-
-
-class Progress:
-    """A one-line progress bar on a terminal; silent otherwise.
-
-    Parameters
-    ----------
-    total : int
-        Number of cases.
-    stream : file, optional
-        Where to draw (default ``sys.stderr``).
-    enabled : bool, optional
-        Force on or off; default: on when ``stream`` is a terminal.
-    """
-
-    def __init__(self, total: int, stream=None, enabled: bool | None = None):
-        self.total, self.done, self.failed = total, 0, 0
-        self.stream = stream or sys.stderr
-        isatty = getattr(self.stream, "isatty", lambda: False)()
-        self.enabled = isatty if enabled is None else enabled
-        self.t0 = time.monotonic()
-
-    def update(self, status: str | None = None) -> None:
-        self.done += 1
-        self.failed += status == "failed"
-        if not self.enabled:
-            return
-        width = 30
-        frac = self.done / max(self.total, 1)
-        bar = "#" * int(round(width * frac))
-        el = time.monotonic() - self.t0
-        eta = el / frac - el if frac > 0 else 0.0
-        self.stream.write(
-            f"\r[{bar:<{width}}] {self.done}/{self.total} cases, {self.failed} failed, "
-            f"{el:5.0f} s elapsed, ~{eta:4.0f} s left "
-        )
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.enabled:
-            self.stream.write("\r" + " " * 90 + "\r")
-            self.stream.flush()
 
 
 # ----------------------------------------------------------------------------- engine
@@ -934,7 +884,7 @@ def run_campaign(
                 skipped += 1
             else:
                 todo.append(case)
-        bar = Progress(len(campaign.cases), enabled=progress)
+        bar = ProgressBar(len(campaign.cases), "campaign", "case", enabled=progress)
         for _ in range(skipped):
             bar.update("ok")
         failures = {}

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import ctypes
 import gc
-import hashlib
 import itertools
 import math
 import os
@@ -52,6 +51,7 @@ import numpy as np
 from .graph import AlgebraicLoopError, feedthrough_edges, init_order, step_groups
 from .scenario import Scenario, ScenarioError, closest
 from .timebase import Timebase, make_timebase
+from .files import atomic_write, sha256_file
 
 __all__ = [
     "SimulationError",
@@ -164,14 +164,6 @@ _INFO_CACHE: dict = {}
 _KEEP_LOADED: list = []
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def read_fmu_info(path) -> FmuInfo:
     """Read an FMU's model description and dependency structure (cached per file).
 
@@ -217,7 +209,7 @@ def read_fmu_info(path) -> FmuInfo:
     for n, v in variables.items():
         if v.causality == "output" and n not in feedthrough:
             feedthrough[n] = inputs
-    info = FmuInfo(path, _sha256(path), md.coSimulation.modelIdentifier, md.guid,
+    info = FmuInfo(path, sha256_file(path), md.coSimulation.modelIdentifier, md.guid,
                    variables, feedthrough, bool(md.coSimulation.canGetAndSetFMUstate), md)
     _INFO_CACHE[key] = info
     return info
@@ -1256,9 +1248,7 @@ class _OutputFolder:
         for j, ref in enumerate(sim.plan.scenario.record):
             cols[ref] = sim.rec[self.flushed:rows, j]
         final = self.partial / f"part-{self.parts:06d}.parquet"
-        tmp = self.partial / f".{final.name}.tmp"
-        pq.write_table(pa.table(cols), tmp)
-        os.replace(tmp, final)
+        atomic_write(final, lambda tmp: pq.write_table(pa.table(cols), tmp))
         self.parts += 1
         self.flushed = rows
 
@@ -1390,11 +1380,13 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
 
 def _run_plan(plan, meta, folder, quiet, wall0):
     """Initialise, step, write; the body of :func:`run_scenario`."""
-    from .results import Progress, RunResult
+    from .progress import ProgressBar
+    from .results import RunResult
 
     sc = plan.scenario
     sim = Simulation(plan)
-    progress = Progress(f"jitterfmu run {Path(sc.source).name}", quiet=quiet)
+    progress = ProgressBar(1.0, f"jitterfmu run {Path(sc.source).name}",
+                           enabled=False if quiet else None, delay=3.0)
     guard = _SignalGuard()
 
     def on_progress(fraction):

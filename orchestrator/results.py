@@ -8,18 +8,15 @@ FMU checksums, package versions, wall time, status and error.
 from __future__ import annotations
 
 import json
-import os
 import sys
-import tempfile
-import time
 from dataclasses import dataclass, field
 from importlib import metadata as _md
 from pathlib import Path
 
 import numpy as np
+from .files import atomic_write
 
-__all__ = ["RunResult", "write_table", "read_table", "write_metadata", "package_versions",
-           "Progress"]
+__all__ = ["RunResult", "write_table", "read_table", "write_metadata", "package_versions"]
 
 
 @dataclass(frozen=True)
@@ -58,21 +55,6 @@ class RunResult:
         return pa.table({k: np.asarray(v) for k, v in self.table.items()})
 
 
-def _atomic_write(path: Path, writer) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(fd)
-    try:
-        writer(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
 def write_table(table: dict, path, csv: bool = False) -> Path:
     """Write a column table atomically to Parquet (or CSV) and return the path.
 
@@ -102,7 +84,7 @@ def write_table(table: dict, path, csv: bool = False) -> Path:
 
         def writer(tmp):
             pq.write_table(arrow, tmp)
-    _atomic_write(path, writer)
+    atomic_write(path, writer)
     return path
 
 
@@ -127,7 +109,7 @@ def write_metadata(meta: dict, path) -> Path:
 
     def writer(tmp):
         Path(tmp).write_text(text + "\n", encoding="utf-8")
-    _atomic_write(path, writer)
+    atomic_write(path, writer)
     return path
 
 
@@ -140,52 +122,3 @@ def package_versions() -> dict:
         except _md.PackageNotFoundError:
             out[name] = None
     return out
-
-
-class Progress:
-    """A one-line progress bar on stderr for runs longer than a few seconds.
-
-    Silent when `quiet` or when stderr is not a terminal; it appears only after `delay`
-    seconds and is erased when done.
-
-    Parameters
-    ----------
-    label : str
-    quiet : bool
-    delay : float
-        Seconds before the bar first appears (s).
-    stream : file, optional
-        Default ``sys.stderr``.
-    """
-
-    def __init__(self, label: str = "run", quiet: bool = False, delay: float = 3.0,
-                 stream=None):
-        self.stream = stream or sys.stderr
-        self.enabled = not quiet and getattr(self.stream, "isatty", lambda: False)()
-        self.label = label
-        self.t0 = time.monotonic()
-        self.delay = delay
-        self.shown = False
-        self.last = 0.0
-
-    def __call__(self, fraction: float) -> None:
-        if not self.enabled:
-            return
-        now = time.monotonic()
-        if now - self.t0 < self.delay or (now - self.last < 0.2 and fraction < 1.0):
-            return
-        self.last = now
-        width = 30
-        done = int(round(width * fraction))
-        eta = (now - self.t0) * (1 - fraction) / fraction if fraction > 0 else 0.0
-        self.stream.write(f"\r{self.label} [{'#' * done}{'.' * (width - done)}] "
-                          f"{100 * fraction:5.1f}%  eta {eta:5.0f} s")
-        self.stream.flush()
-        self.shown = True
-
-    def close(self) -> None:
-        """Erase the bar."""
-        if self.shown:
-            self.stream.write("\r" + " " * 70 + "\r")
-            self.stream.flush()
-            self.shown = False

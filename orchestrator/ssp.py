@@ -11,8 +11,6 @@ that other tools ignore.
 
 from __future__ import annotations
 
-import os
-import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 import zipfile
@@ -21,6 +19,7 @@ from pathlib import Path
 
 from .scenario import Scenario, ScenarioError, load_scenario, scenario_from_dict
 from .timebase import make_timebase, to_fraction
+from .files import atomic_write
 
 __all__ = ["write_ssp", "read_ssp", "JacobiExportWarning"]
 
@@ -173,20 +172,15 @@ def write_ssp(scenario, out_path, fmu_dir=None) -> Path:
                                               "value": _value_text(value)})
 
     out_path = Path(out_path)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out_path.name}.", dir=out_path.parent)
-    os.close(fd)
-    try:
+    def write(tmp):
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("SystemStructure.ssd", _xml_bytes(root))
             for name, pset in ssv_files.items():
                 z.writestr(name, _xml_bytes(pset))
             for path, name in fmu_names.items():
                 z.write(path, f"resources/{name}")
-        os.replace(tmp, out_path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+
+    atomic_write(out_path, write)
     return out_path
 
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 import importlib
 import json
 import math
-import os
 from pathlib import Path
+from ..files import write_text_atomic
 
 EXPERIMENTS = {
     "truss-frf": "orchestrator.experiments.truss_frf",
@@ -74,7 +74,5 @@ def _clean(obj):
 def write_json(path, data) -> Path:
     """Write JSON atomically (NaN/Inf become null)."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_clean(data), indent=2) + "\n")
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(_clean(data), indent=2) + "\n")
     return path

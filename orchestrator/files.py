@@ -1,0 +1,68 @@
+"""Files written whole or not at all, and file hashes: the one home for both.
+
+Every result, metrics table, status file and archive the project writes goes through
+:func:`atomic_write`: the content is written to a temporary file in the target folder
+and renamed into place (``os.replace``), so a reader sees the old file or the new one,
+never half of one, and an interrupted write leaves no partial file behind.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+
+def atomic_write(path, writer: Callable[[str], None]) -> Path:
+    """Write ``path`` through ``writer(tmp_name)`` and rename it into place.
+
+    Parameters
+    ----------
+    path : path-like
+        Final file; its folder is created if missing.
+    writer : callable
+        Called with the name of a temporary file in the same folder; it writes the whole
+        content there.  If it raises, the temporary file is removed and the exception
+        propagates, leaving ``path`` as it was.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        writer(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def write_text_atomic(path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns ``path``."""
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+
+
+def write_json_atomic(path, data, **dumps) -> Path:
+    """Write ``json.dumps(data, **dumps)`` to ``path`` atomically; returns ``path``."""
+    return write_text_atomic(path, json.dumps(data, **dumps))
+
+
+def sha256_file(path, chunk: int = 1 << 20) -> str:
+    """Hex SHA-256 of a file's bytes, read in chunks of ``chunk`` bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(chunk), b""):
+            h.update(block)
+    return h.hexdigest()

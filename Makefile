@@ -27,8 +27,8 @@ native-deps:
 demo: setup
 	$(VENV)/bin/jitterfmu reproduce truss-frf --out out/demo
 	$(VENV)/bin/jitterfmu reproduce truss-decay --out out/demo
-	$(PY) -W ignore -m orchestrator.experiments.eos_budget --out out/demo/eos_budget --workers 2
-	$(VENV)/bin/jitterfmu report out/demo/eos_budget/eos-budget-campaign
+	$(VENV)/bin/jitterfmu reproduce eos-budget --out out/demo --workers 2
+	$(VENV)/bin/jitterfmu report out/demo/eos-budget-campaign
 
 test: setup
 	$(PY) -m pytest -q

@@ -94,9 +94,9 @@ def main():
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     from fmukit.build import FmuSpec, build_fmu
-    from orchestrator.master import Simulation, prepare
+    from orchestrator import Simulation, prepare
     from orchestrator.scenario import scenario_from_dict
-    from orchestrator.ssp import write_ssp
+    from orchestrator.scenario import write_ssp
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_master_"))
     for ident, cls in SLAVES.items():
@@ -120,8 +120,8 @@ def main():
                 sim.close()
         print(f"{'jitterfmu master, ' + alg:42s} {1e6 * best / steps:7.2f} us/FMU step "
               f"({best:.3f} s)")
-    ssp = write_ssp(scenario_from_dict(scenario(args.stop, "jacobi")), tmp / "bench.ssp",
-                    fmu_dir=tmp)
+    ssp = write_ssp(prepare(scenario_from_dict(scenario(args.stop, "jacobi")), tmp),
+                    tmp / "bench.ssp")
     best = min(libcosim(ssp, args.stop) for _ in range(args.repeat))
     print(f"{'libcosim (libcosimpy), same SSP':42s} {1e6 * best / steps:7.2f} us/FMU step "
           f"({best:.3f} s)")

@@ -37,7 +37,7 @@ _CHILD = """
 import json, sys, time, warnings
 t0 = time.perf_counter()
 warnings.simplefilter("ignore")
-from orchestrator.master import run_scenario
+from orchestrator import run_scenario
 table, meta = run_scenario(sys.argv[1], sys.argv[2], fmu_dir=sys.argv[3],
                            stop_time=float(sys.argv[4]), overrides=sys.argv[5:])
 print(json.dumps({"seconds": time.perf_counter() - t0, "status": meta["status"]}))

@@ -7,7 +7,7 @@ internal sub-steps, ``f = c h v``, rails and slew limit assumed inactive), the c
 laws of Eq. (11) (the FMU's ``law.npz`` with its ``gain``; controllers assumed on) and
 the attitude controller (PID with its one-sample delay).  Sources (disturbances,
 excitation) become exogenous inputs.  The models are assembled tick by tick with the
-master's Gauss–Seidel rules (:mod:`orchestrator.master`): an instance due at a tick
+master's Gauss–Seidel rules (:mod:`orchestrator.cosim`): an instance due at a tick
 publishes its outputs at ``t_k``, reads its inputs in feedthrough order, then steps;
 between its ticks its outputs hold.  Over one hyperperiod ``T`` of the periods this
 gives an exact linear map ``X(T) = Phi X(0) + Gamma w`` of everything the co-simulation
@@ -718,7 +718,7 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
     Parameters
     ----------
     scenario : path-like, dict or Scenario
-        As :func:`orchestrator.master.run_scenario`.
+        As :func:`orchestrator.run_scenario`.
     overrides : mapping of str to value, optional
         ``{"instance.parameter": value}`` start values.
     fmu_dir : path-like, optional
@@ -730,7 +730,7 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
     """
     import warnings
 
-    from orchestrator.master import prepare
+    from orchestrator import prepare
     from orchestrator.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(overrides or {})

@@ -496,7 +496,7 @@ class MasterRunner:
     ----------
     base_dir : path-like
         Folder against which the FMU names of a case's scenario are resolved (the base
-        scenario's folder), as :func:`orchestrator.master.find_fmu` does for a scenario file.
+        scenario's folder), as :func:`orchestrator.cosim.find_fmu` does for a scenario file.
     fmu_dir : path-like, optional
         Extra folder searched first for FMU names.
 
@@ -517,7 +517,7 @@ class MasterRunner:
 
     def fingerprint(self, scenario: dict) -> str:
         """SHA-256 over the FMU files the scenario uses ("missing" for absent ones)."""
-        from .master import find_fmu
+        from .cosim import find_fmu
 
         sc = self._scenario(scenario)
         h = hashlib.sha256()
@@ -534,7 +534,7 @@ class MasterRunner:
         return h.hexdigest()
 
     def __call__(self, scenario: dict, out_dir) -> Path:
-        from .master import run_scenario
+        from .run import run_scenario
 
         run_scenario(self._scenario(scenario), out_dir, quiet=True, fmu_dir=self.fmu_dir)
         return Path(out_dir) / "results.parquet"

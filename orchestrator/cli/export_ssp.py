@@ -18,11 +18,11 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Export the scenario; return 0."""
-    from orchestrator.ssp import write_ssp
+    from orchestrator import load_scenario, prepare, write_ssp
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        path = write_ssp(args.scenario, args.out, fmu_dir=args.fmu_dir)
+        path = write_ssp(prepare(load_scenario(args.scenario), args.fmu_dir), args.out)
     for w in caught:
         print(f"jitterfmu: warning: {w.message}", file=sys.stderr)
     print(f"wrote {path}")

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import json
+
 COMMAND = "reproduce"
 HELP = "reproduce one of the paper's experiments (writes DIR/NAME.json and figures)"
 
 
 def add_arguments(parser):
+    """Declare the options of ``jitterfmu reproduce``."""
     from orchestrator.experiments import EXPERIMENTS
 
     parser.add_argument("name", help=f"experiment: {', '.join(EXPERIMENTS)}")
@@ -14,20 +17,33 @@ def add_arguments(parser):
     parser.add_argument("--quick", action="store_true",
                         help="shorter runs (what the tests use)")
     parser.add_argument("--fmu-dir", default=None,
-                        help="folder to build the FMUs into (experiments that take one)")
+                        help="folder to build the FMUs into (default: fmus)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="worker processes (eos-budget; default 2)")
+    parser.add_argument("--campaign", default=None,
+                        help="campaign file whose [[requirements]] the budget uses "
+                             "(eos-budget; default: campaigns/eos_budget.toml)")
 
 
 def run(args) -> int:
-    import json
+    """Run the experiment, print its main numbers; 0, or 1 if a campaign case failed."""
+    import importlib
 
+    from orchestrator.experiments import EXPERIMENTS, _clean
     from orchestrator.experiments import run as run_experiment
 
-    result = run_experiment(args.name, args.out, quick=args.quick, fmu_dir=args.fmu_dir)
-    shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict)) or
-             k in ("jitter_reduction_pct", "reduction_pct", "jitter_off_arcsec",
-                   "ideal_ceiling_pct", "rigid_body_share_pct", "open_loop_damping",
-                   "closed_loop_cycles_to_90pct")}
-    from orchestrator.experiments import _clean
-    print(json.dumps(_clean(shown), indent=2))
+    options = {k: v for k, v in (("workers", args.workers), ("campaign", args.campaign))
+               if v is not None}
+    result = run_experiment(args.name, args.out, quick=args.quick, fmu_dir=args.fmu_dir,
+                            **options)
+    module = importlib.import_module(EXPERIMENTS[args.name])
+    if hasattr(module, "summary"):
+        print(module.summary(result))
+    else:
+        shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict)) or
+                 k in ("jitter_reduction_pct", "reduction_pct", "jitter_off_arcsec",
+                       "ideal_ceiling_pct", "rigid_body_share_pct", "open_loop_damping",
+                       "closed_loop_cycles_to_90pct")}
+        print(json.dumps(_clean(shown), indent=2))
     print(f"wrote {args.out}/{args.name}.json")
-    return 0
+    return 1 if result.get("n_failed") else 0

@@ -26,7 +26,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Run the scenario; return 0, or 1 when the run failed part-way."""
-    from orchestrator.master import SimulationError, run_scenario
+    from orchestrator import SimulationError, run_scenario
     from orchestrator.scenario import parse_override
 
     out = Path(args.out) if args.out else Path("runs") / Path(args.scenario).stem

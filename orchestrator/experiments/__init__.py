@@ -1,7 +1,14 @@
 """The paper's experiments, reproduced as commands (``jitterfmu reproduce NAME``).
 
 Each experiment is a module with ``NAME``, ``DESCRIPTION`` and
-``run(out_dir, quick=False) -> dict``; it writes ``out_dir/NAME.json`` and its figures.
+``run(out_dir, quick=False, fmu_dir="fmus", **options) -> dict``; it builds the FMUs it
+runs into ``fmu_dir`` (when missing or stale), writes its figures into ``out_dir``, and
+:func:`run` writes ``out_dir/NAME.json``.  A module may add ``summary(result) -> str``,
+the text ``jitterfmu reproduce`` prints.
+
+The experiments' inputs (scenarios and campaigns) are package data under ``inputs/``
+(:data:`SCENARIOS`, :data:`CAMPAIGNS`); the repository's ``scenarios/`` and
+``campaigns/`` are links to them.  Nothing is written into the package.
 """
 
 from __future__ import annotations
@@ -10,7 +17,13 @@ import importlib
 import json
 import math
 from pathlib import Path
+
 from ..files import write_text_atomic
+
+#: The experiments' input files (package data).
+INPUTS = Path(__file__).resolve().parent / "inputs"
+SCENARIOS = INPUTS / "scenarios"
+CAMPAIGNS = INPUTS / "campaigns"
 
 EXPERIMENTS = {
     "truss-frf": "orchestrator.experiments.truss_frf",
@@ -32,12 +45,26 @@ def available() -> dict:
     return out
 
 
-def run(name: str, out_dir, quick: bool = False, fmu_dir=None) -> dict:
-    """Run one experiment; returns its JSON dict (also written to ``out_dir``).
+def run(name: str, out_dir, quick: bool = False, fmu_dir=None, **options) -> dict:
+    """Run one experiment; returns its JSON dict (also written to ``out_dir/NAME.json``).
 
-    ``fmu_dir`` (optional) is the folder the experiment builds its FMUs into, for those
-    whose ``run`` takes one; default: the experiment's own default.
+    Parameters
+    ----------
+    name : str
+        Experiment name (:data:`EXPERIMENTS`).
+    out_dir : path-like
+        Folder for the JSON and the figures.
+    quick : bool
+        Shorter runs (what the tests use).
+    fmu_dir : path-like, optional
+        Folder the experiment builds its FMUs into (default: ``fmus`` in the current
+        folder).
+    **options
+        Options of that experiment's ``run`` (e.g. ``workers`` for ``eos-budget``); an
+        option it does not take is refused in one sentence.
     """
+    import inspect
+
     avail = available()
     if name not in avail:
         import difflib
@@ -47,14 +74,12 @@ def run(name: str, out_dir, quick: bool = False, fmu_dir=None) -> dict:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     module = importlib.import_module(EXPERIMENTS[name])
-    kwargs = {}
-    if fmu_dir is not None:
-        import inspect
-        if "fmu_dir" not in inspect.signature(module.run).parameters:
-            raise ValueError(f"experiment {name!r} builds its FMUs where it always does; "
-                             "run it without --fmu-dir")
-        kwargs["fmu_dir"] = fmu_dir
-    result = module.run(out_dir, quick=quick, **kwargs)
+    takes = inspect.signature(module.run).parameters
+    for key in options:
+        if key not in takes:
+            raise ValueError(f"experiment {name!r} has no option {key!r}; run it without it")
+    result = module.run(out_dir, quick=quick, fmu_dir="fmus" if fmu_dir is None else fmu_dir,
+                        **options)
     write_json(out_dir / f"{name}.json", result)
     return result
 

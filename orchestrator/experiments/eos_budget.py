@@ -14,27 +14,22 @@ quarter of each instrument's pixel per 1.8 s; the campaign file gives the reason
 
 Command line (what ``make demo`` runs)::
 
-    python -m orchestrator.experiments.eos_budget --out out/demo/eos_budget --workers 2
-    python -m orchestrator.experiments.eos_budget --campaign my_budget.toml ...
+    jitterfmu reproduce eos-budget --out out/demo --workers 2
+    jitterfmu reproduce eos-budget --out DIR --campaign my_budget.toml
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 from pathlib import Path
+
+from . import INPUTS, eos
+from .eos import CAMPAIGN
 
 NAME = "eos-budget"
 DESCRIPTION = "Fig. 8: EOS-class jitter budget (12 events alone, RSS vs requirement), " \
               "isolation off and on"
 
-ROOT = Path(__file__).resolve().parents[2]
-CAMPAIGN = ROOT / "campaigns" / "eos_budget.toml"
-SCENARIO = ROOT / "scenarios" / "eos_budget.toml"
-FMUS = ("eos_testbed_structure", "disturbance", "acs", "piezo_p845_37",
-        "controller_testbed_isolation", "controller_eos_isolation")
-STRUCTURE = "eos_testbed_structure"
 OFF, ON = "isolation off", "isolation on"
 METRIC, WINDOW = "peak_to_peak", 1.8
 QUICK_STOP = 4.0
@@ -52,17 +47,7 @@ PAPER_ISOLATION = {
 event with active SWIR and VNIR mounts ("significantly lower" SWIR pitch and yaw, SWIR
 roll only 30 %, MISR "also reduced by about 10 percent").  Shown next to our numbers."""
 
-def fmu_dir(base="fmus") -> Path:
-    """Build the EOS FMUs if needed (the all-legs structure included); ``base`` resolved."""
-    from orchestrator.experiments import swir_isolation
-    from orchestrator.fmucache import ensure_fmus
-
-    ensure_fmus(FMUS, base)
-    swir_isolation.ensure_fmus(base)     # the structure with every mount leg active
-    return Path(base).resolve()
-
-
-def run_budget(out_dir, *, workers=2, quick=False, fmu_base="fmus", progress=None,
+def run_budget(out_dir, *, workers=2, quick=False, fmu_dir="fmus", progress=None,
                campaign=CAMPAIGN):
     """Run the budget campaign into ``out_dir``; returns (campaign, CampaignResult).
 
@@ -76,8 +61,8 @@ def run_budget(out_dir, *, workers=2, quick=False, fmu_base="fmus", progress=Non
         Worker processes (0 = in this process).
     quick : bool
         Three events (VNIR pointing, SWIR cryocooler, SAD) and ``QUICK_STOP`` s.
-    fmu_base : path-like
-        Folder of the built FMUs.
+    fmu_dir : path-like
+        Folder of the built FMUs (built there when missing or stale).
     progress : bool, optional
         Progress bar on stderr (default: when stderr is a terminal).
     campaign : path-like
@@ -98,7 +83,7 @@ def run_budget(out_dir, *, workers=2, quick=False, fmu_base="fmus", progress=Non
             sc["experiment"] = {**sc["experiment"], "stop": QUICK_STOP}
             cases.append(dataclasses.replace(c, scenario=sc, key=c.key + "-quick"))
         camp = dataclasses.replace(camp, cases=tuple(cases))
-    runner = MasterRunner(camp.scenario_dir, fmu_dir=fmu_dir(fmu_base))
+    runner = MasterRunner(camp.scenario_dir, fmu_dir=eos.ensure_fmus(fmu_dir))
     res = run_campaign(camp, out_dir, runner, workers=workers, progress=progress)
     return camp, res
 
@@ -192,7 +177,7 @@ def format_table(table: list[dict], source: str = "") -> str:
     return "\n".join(lines)
 
 
-def run(out_dir, quick: bool = False, workers: int = 2, fmu_base="fmus",
+def run(out_dir, quick: bool = False, fmu_dir="fmus", *, workers: int = 2,
         campaign=CAMPAIGN) -> dict:
     """Run the budget and return its JSON dict (table also written as text).
 
@@ -202,16 +187,16 @@ def run(out_dir, quick: bool = False, workers: int = 2, fmu_base="fmus",
         Output folder; the campaign goes to ``eos-budget-campaign[-quick]`` inside.
     quick : bool
         Three events and ``QUICK_STOP`` s (see :func:`run_budget`).
+    fmu_dir : path-like
+        Folder of the built FMUs (built there when missing or stale).
     workers : int
         Worker processes.
-    fmu_base : path-like
-        Folder of the built FMUs.
     campaign : path-like
         Campaign file; its ``[[requirements]]`` are the budget's requirements.
     """
     out_dir = Path(out_dir)
     camp_dir = out_dir / ("eos-budget-campaign-quick" if quick else "eos-budget-campaign")
-    camp, res = run_budget(camp_dir, workers=workers, quick=quick, fmu_base=fmu_base,
+    camp, res = run_budget(camp_dir, workers=workers, quick=quick, fmu_dir=fmu_dir,
                            progress=False, campaign=campaign)
     table = budget_table(res.summary)
     source = _requirements_source(campaign)
@@ -245,7 +230,12 @@ def run(out_dir, quick: bool = False, workers: int = 2, fmu_base="fmus",
 
 def _requirements_source(campaign) -> str:
     path = Path(campaign).resolve()
-    shown = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+    if path.is_relative_to(INPUTS):       # a shipped campaign: campaigns/NAME.toml
+        shown = path.relative_to(INPUTS)
+    elif path.is_relative_to(Path.cwd()):
+        shown = path.relative_to(Path.cwd())
+    else:
+        shown = path
     return f"[[requirements]] of {shown} (inputs, not derived from this run)"
 
 
@@ -260,30 +250,9 @@ def _case_seconds(csv_path) -> dict:
     return {"mean": sum(vals) / len(vals), "max": max(vals), "n": len(vals)}
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m orchestrator.experiments.eos_budget",
-                                description=DESCRIPTION)
-    p.add_argument("--out", type=Path, default=Path("out/demo/eos_budget"))
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--quick", action="store_true")
-    p.add_argument("--campaign", type=Path, default=CAMPAIGN,
-                   help="campaign file whose [[requirements]] the budget uses "
-                        "(default: campaigns/eos_budget.toml)")
-    p.add_argument("--fmu-dir", type=Path, default=Path("fmus"),
-                   help="folder of the built FMUs (built there if missing or stale)")
-    args = p.parse_args(argv)
-    from orchestrator.experiments import write_json
-
-    args.out.mkdir(parents=True, exist_ok=True)
-    result = run(args.out, quick=args.quick, workers=args.workers, fmu_base=args.fmu_dir,
-                 campaign=args.campaign)
-    write_json(args.out / f"{NAME}.json", result)
-    print(format_table(result["budget"], _requirements_source(args.campaign)))
-    print(f"cases: {result['n_cases']} ({result['n_failed']} failed), "
-          f"wall per case {result['case_wall_s'].get('mean', float('nan')):.1f} s")
-    print(f"campaign: {result['campaign_dir']}")
-    return 1 if result["n_failed"] else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+def summary(result: dict) -> str:
+    """The budget table and the case count, as ``jitterfmu reproduce`` prints them."""
+    text = format_table(result["budget"], _requirements_source(result["requirements_file"]))
+    wall = result["case_wall_s"].get("mean", float("nan"))
+    return (f"{text}\ncases: {result['n_cases']} ({result['n_failed']} failed), "
+            f"wall per case {wall:.1f} s\ncampaign: {result['campaign_dir']}")

@@ -36,7 +36,8 @@ import numpy as np
 
 from piezofmu.units import ARCSEC, LBF
 
-from . import eos_budget
+from . import eos
+from .eos import mounts_structure_model as structure_model
 
 NAME = "swir-isolation"
 DESCRIPTION = "Fig. 9: SWIR jitter due to VNIR pointing, all SWIR/VNIR mount legs active off/on"
@@ -51,7 +52,7 @@ MOUNTS = ("swir", "vnir")
 LEGS = tuple(f"{m}_mount{k}" for m in MOUNTS for k in range(1, 7))
 FULL_SCALE = 10.0   # force factor testbed -> EOS AM-1 (scenario loads x 0.1)
 LOAD_SCALE = 0.1
-STRUCTURE = "eos_testbed_mounts_structure"
+STRUCTURE = eos.MOUNTS_STRUCTURE
 OTHER_FMUS = ("disturbance", "acs", "piezo_p845_37", "controller_eos_isolation")
 ACS_INERTIA = (378.0, 827.0, 1123.0)   # as scenarios/eos_budget.toml
 PAPER = {"reduction_pct": {"roll": 30, "pitch": ">= 50 (Fig. 9: 'significantly')",
@@ -63,13 +64,6 @@ TARGET = {"pitch": 50.0, "yaw": 50.0, "roll": (15.0, 45.0), "misr": (3.0, 20.0),
 
 
 # -- the model ------------------------------------------------------------------------------
-def structure_model():
-    """Reduced EOS testbed with every SWIR/VNIR mount leg active (``ReducedModel``)."""
-    from structfmu.models import eos_testbed
-
-    return eos_testbed.reduced(truss=eos_testbed.build(active_legs="all"))
-
-
 def law(gain: float = GAIN):
     """The mount law: ``eos_isolation`` defaults times ``gain`` (``DiscreteLaw``)."""
     from ctrlfmu.designs import design
@@ -472,20 +466,13 @@ def damping(plant: Plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
 def ensure_fmus(fmu_dir="fmus") -> Path:
     """Build the FMUs this experiment runs into ``fmu_dir`` (the structure with all legs
     active under ``STRUCTURE``); the folder to pass to the master."""
-    from orchestrator.fmucache import ensure_fmus as ensure
-    from structfmu.fmuspec import spec_from_model
-
-    fmu_dir = Path(fmu_dir)
-    ensure(list(OTHER_FMUS) + [STRUCTURE], fmu_dir, extra={
-        STRUCTURE: lambda: spec_from_model(structure_model(), STRUCTURE,
-                                           "EOS testbed, every SWIR/VNIR mount leg active")})
-    return fmu_dir.resolve()
+    return eos.ensure_fmus(fmu_dir, OTHER_FMUS)
 
 
 def scenario(stop: float) -> dict:
     """Scenario dict: ``scenarios/eos_budget.toml``'s structure rate, ACS and VNIR
     disturbance, the structure with all mount legs active, one stack + law per leg."""
-    base = tomllib.loads(eos_budget.SCENARIO.read_text())
+    base = tomllib.loads(eos.SCENARIO.read_text())
     fmus = {"structure": {**base["fmus"]["structure"], "fmu": STRUCTURE},
             "acs": base["fmus"]["acs"],
             "dist_vnir": {**base["fmus"]["dist_vnir"],
@@ -513,7 +500,7 @@ def cosim(fmu_dir, gain: float, stop: float) -> dict:
     """Co-simulate with every leg's law at ``gain``; the recorded table."""
     import warnings
 
-    from orchestrator.master import UnconnectedInputWarning, run_scenario
+    from orchestrator import UnconnectedInputWarning, run_scenario
 
     ov = {f"ctrl_{leg}.gain": gain for leg in LEGS}
     with warnings.catch_warnings():

@@ -31,12 +31,11 @@ and the discrete law with its Eq. (11) delay (``delayed=False`` in
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from . import eos_budget
+from . import eos
 
 NAME = "testbed-isolation"
 DESCRIPTION = "Figs. 13-16: MISR active isolator struts against a 22 Hz SWIR-location " \
@@ -68,7 +67,7 @@ def linear_model(fmu_dir="fmus"):
 
     from structfmu.reduced import ReducedModel
 
-    fmu = Path(eos_budget.fmu_dir(fmu_dir)) / f"{eos_budget.STRUCTURE}.fmu"
+    fmu = eos.ensure_fmus(fmu_dir) / f"{eos.STRUCTURE}.fmu"
     with zipfile.ZipFile(fmu) as z, tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "model.npz"
         path.write_bytes(z.read("resources/model.npz"))
@@ -329,13 +328,13 @@ def frequency_responses(Gf, mounts, gain, freqs=FREQS):
 
 # -- co-simulation -----------------------------------------------------------------------
 def _cosim(fmu_dir, mounts, gain, stop):
-    from orchestrator.master import run_scenario
+    from orchestrator import run_scenario
 
     ov = {"dist_swir.preset": "swir_cryocooler"}
     for i in (1, 2, 3):
         ov[f"ctrl_iso{i}.gain"] = gain if i in mounts else 0.0
         ov[f"ctrl_iso{i}.t_on"] = T_ON
-    return run_scenario(eos_budget.SCENARIO, stop_time=stop, overrides=ov,
+    return run_scenario(eos.SCENARIO, stop_time=stop, overrides=ov,
                         fmu_dir=fmu_dir).table
 
 
@@ -355,7 +354,7 @@ def boresight_rms(t, roll, pitch, t0, t1):
 
 def compute(quick=False, fmu_dir="fmus"):
     """Linear design numbers and the two co-simulations (mount #3, all mounts)."""
-    fdir = eos_budget.fmu_dir(fmu_dir)
+    fdir = eos.ensure_fmus(fmu_dir)
     model = linear_model(fmu_dir)
     plant = linear_plant(model)
     Gh = plant_frf(plant, list(HARMONICS))
@@ -515,13 +514,3 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
         "note": note,
         "transmissibility": {"freq_hz": FREQS, "mount3": data["ratio"]},
     }
-
-
-if __name__ == "__main__":  # python -m orchestrator.experiments.testbed_isolation OUT [BASE]
-    import sys
-
-    out = Path(sys.argv[1])
-    out.mkdir(parents=True, exist_ok=True)
-    res = run(out, quick="--quick" in sys.argv,
-              fmu_dir=next((a for a in sys.argv[2:] if not a.startswith("--")), "fmus"))
-    print(json.dumps({k: v for k, v in res.items() if k != "transmissibility"}, indent=1))

@@ -20,10 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from . import SCENARIOS
+
 NAME = "truss-decay"
 DESCRIPTION = "Figs. 5-6: ten-bay truss open-loop decay and 250 Hz strain-feedback control"
 
-SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "truss10_closed_loop.toml"
+SCENARIO = SCENARIOS / "truss10_closed_loop.toml"
 FMUS = ("truss10_structure", "piezo_p243_40", "piezo_p243_30",
         "controller_truss10_strain_diag", "controller_truss10_strain_long", "excitation")
 T_EXC = 4.5
@@ -253,7 +255,7 @@ def linear_prediction(fmu_dir="fmus") -> dict:
 
 
 def _run(fmu_dir, stop: float, gain: float):
-    from orchestrator.master import run_scenario
+    from orchestrator import run_scenario
 
     res = run_scenario(SCENARIO, stop_time=stop, fmu_dir=fmu_dir,
                        overrides={"ctrl_diag.gain": gain, "ctrl_long.gain": gain})

@@ -94,7 +94,19 @@ def plot(data, path):
     plt.close(fig)
 
 
-def run(out_dir, quick: bool = False) -> dict:
+def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
+    """Compute the FRFs, draw the figure into ``out_dir``; returns the JSON dict.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Folder for the figure.
+    quick : bool
+        800 frequencies instead of 3000.
+    fmu_dir : path-like
+        Not used: the FRFs come from the finite-element and reduced models, no FMU runs;
+        taken so that every experiment is called alike.
+    """
     data = compute(800 if quick else 3000)
     plot(data, out_dir / f"{NAME}.png")
     keys = ("modes_hz", "zero_hz_full", "zero_hz_ritz", "zero_hz_modal",

@@ -10,7 +10,6 @@ from acsfmu.design import pid_gains_for
 from acsfmu.fmuspec import specs
 from acsfmu.pid import AcsConfig, PidGains, acs_advance, acs_outputs, initial_state
 from acsfmu.slave import AcsSlave
-from fmukit.build import build_fmu
 from fmukit.modeldesc import check_model_description
 
 INPUTS = ["roll", "pitch", "yaw", "rate_x", "rate_y", "rate_z"]
@@ -77,10 +76,10 @@ def test_bandwidth_too_high_for_the_rate_names_the_instance():
 
 
 @pytest.fixture(scope="module")
-def fmu(tmp_path_factory):
+def fmu(suite_fmus):
     (spec,) = specs(None)
     assert spec.model_identifier == "acs"
-    return build_fmu(spec, tmp_path_factory.mktemp("fmus"))
+    return suite_fmus("acs")["acs"]
 
 
 @pytest.mark.slow

@@ -16,10 +16,10 @@ N = 120
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ctrl_fmus")
-    built = {s.model_identifier: build_fmu(s, out) for s in specs(None)}
-    built["direct"] = build_fmu(law_spec(direct_law(), "controller_direct_test"), out)
+def fmus(tmp_path_factory, suite_fmus):
+    built = dict(suite_fmus(*[s.model_identifier for s in specs(None)]))
+    built["direct"] = build_fmu(law_spec(direct_law(), "controller_direct_test"),
+                                tmp_path_factory.mktemp("ctrl_fmus"))
     return built
 
 

@@ -99,11 +99,11 @@ def test_unknown_preset_is_a_clear_error():
 
 # ---------------------------------------------------------------- built FMUs
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
+def fmus(tmp_path_factory, suite_fmus):
     out = tmp_path_factory.mktemp("fmus")
     (spec,) = specs(["disturbance"])
     assert spec.model_identifier == "disturbance"
-    real = build_fmu(spec, out)
+    real = suite_fmus("disturbance")["disturbance"]
     # the test hosts set Real parameters only: a variant whose String/Boolean defaults
     # select the input-driven wheel exercises the same slave class in every host
     variant = build_fmu(FmuSpec("disturbance_rwa_test", spec.slave_class,

@@ -31,19 +31,18 @@ RTOL = 1e-12
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
+def fmus(tmp_path_factory, suite_fmus, suite_fmu_dir):
     """{"py": folder of Python FMUs, "native": folder of native FMUs}."""
-    from fmukit.build import build_fmu
     from fmukit.registry import collect_specs
 
     from nativefmu import build_native
 
-    root = tmp_path_factory.mktemp("native_fmus")
-    py, native = root / "py", root / "native"
-    for spec in collect_specs(list(MODELS) + list(EOS_MODELS)):
-        built = build_fmu(spec, py)
-        build_native(spec, native, python_fmu=built, windows=False)  # win64: its own test
-    return {"py": py, "native": native}
+    specs = collect_specs(list(MODELS) + list(EOS_MODELS))
+    built = suite_fmus(*[s.model_identifier for s in specs])
+    native = tmp_path_factory.mktemp("native_fmus")
+    for spec in specs:  # win64: its own test
+        build_native(spec, native, python_fmu=built[spec.model_identifier], windows=False)
+    return {"py": suite_fmu_dir, "native": native}
 
 
 def _md(path):
@@ -331,7 +330,7 @@ def test_invalid_parameters_fail_initialisation(fmus, model, params):
 ])
 def test_ten_bay_scenarios_give_the_same_table(fmus, tmp_path, scenario, stop, overrides):
     """The shipped ten-bay scenarios, run with each flavour: same table."""
-    from orchestrator.master import run_scenario
+    from orchestrator import run_scenario
 
     tables = {}
     for flavour in ("py", "native"):
@@ -355,7 +354,7 @@ def test_eos_budget_scenario_gives_the_same_table(fmus, tmp_path):
     """scenarios/eos_budget.toml (21 instances: EOS testbed structure with accelerometer
     low-pass and 59 Ritz vectors, nine disturbances, ACS, five isolation loops) with
     four events and isolation on: same table both ways."""
-    from orchestrator.master import run_scenario
+    from orchestrator import run_scenario
 
     overrides = ["dist_swir.preset=swir_cryocooler", "dist_rwa.preset=rwa",
                  "dist_vnir.preset=vnir_pointing", "dist_ceres.preset=ceres_scan",

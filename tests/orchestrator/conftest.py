@@ -1,6 +1,5 @@
 """Test FMUs for the master, built once per session with fmukit."""
 
-import shutil
 import sys
 import zipfile
 from pathlib import Path

@@ -17,13 +17,11 @@ SCENARIO = "scenarios/truss10_closed_loop.toml"
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
+def fmus(suite_fmus, suite_fmu_dir):
     from orchestrator.experiments.truss_decay import FMUS
-    from orchestrator.fmucache import ensure_fmus
 
-    out = tmp_path_factory.mktemp("analysis_fmus")
-    ensure_fmus(list(FMUS) + ["piezo_p845_37"], out)
-    return out
+    suite_fmus(*FMUS, "piezo_p845_37")
+    return suite_fmu_dir
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +69,7 @@ def test_hand_solved_loop_poles_and_margins(gain_loop):
 
 @pytest.fixture(scope="module")
 def truss_run(fmus):
-    from orchestrator.master import run_scenario
+    from orchestrator import run_scenario
 
     with open(SCENARIO, "rb") as f:
         sc = tomllib.load(f)

@@ -11,7 +11,7 @@ import pytest
 import tomli_w
 
 from orchestrator.cli import main
-from orchestrator.master import EarlyEndWarning, SimulationError, run_scenario
+from orchestrator import EarlyEndWarning, SimulationError, run_scenario
 from orchestrator.results import read_table
 
 HERE = Path(__file__).parent
@@ -192,22 +192,21 @@ def test_fmu_that_fails_to_initialise_gives_its_reason_and_no_crash(init_fails, 
     assert json.loads((tmp_path / "o/run.json").read_text())["status"] == "error"
 
 
-def test_ten_bay_run_with_a_piezo_that_cannot_initialise_exits_cleanly(tmp_path):
+def test_ten_bay_run_with_a_piezo_that_cannot_initialise_exits_cleanly(tmp_path, suite_fmus,
+                                                                       suite_fmu_dir):
     """Issue 12: ``--set piezo_diag.internal_step=0`` on the ten-bay scenario printed
     the error line, then died with a segfault (exit 139) without saying why."""
     import sys
     import tomllib
 
-    from orchestrator.fmucache import ensure_fmus
-
     root = HERE.parents[1]
     scen = root / "scenarios/truss10_closed_loop.toml"
     names = [spec["fmu"] for spec in tomllib.loads(scen.read_text())["fmus"].values()]
-    ensure_fmus(names, tmp_path / "fmus")
+    suite_fmus(*names)
     proc = subprocess.run(
         [sys.executable, "-c", "import sys; from orchestrator.cli import main; "
          "sys.exit(main(sys.argv[1:]))", "run", str(scen), "--set", "piezo_diag.internal_step=0",
-         "--out", str(tmp_path / "o"), "--fmu-dir", str(tmp_path / "fmus"), "--quiet",
+         "--out", str(tmp_path / "o"), "--fmu-dir", str(suite_fmu_dir), "--quiet",
          "--stop-time", "0.1"],
         capture_output=True, text=True, timeout=600, cwd=root)
     assert proc.returncode == 1, (proc.returncode, proc.stderr)

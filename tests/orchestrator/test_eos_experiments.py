@@ -36,8 +36,8 @@ def _requirements_by_instrument(path):
     return reqs
 
 
-def test_eos_budget(out, tmp_path):
-    res = run_experiment("eos-budget", out, quick=True)
+def test_eos_budget(out, tmp_path, suite_fmu_dir):
+    res = run_experiment("eos-budget", out, quick=True, fmu_dir=suite_fmu_dir)
     assert res["n_failed"] == 0
     table = res["budget"]
     # five instruments x three axes, each with a finite RSS off and on and a requirement
@@ -89,7 +89,7 @@ def test_eos_budget(out, tmp_path):
     assert changed.count("value = 5.0") == 1
     mine = tmp_path / "my_budget.toml"
     mine.write_text(changed, encoding="utf-8")
-    res2 = eos_budget.run(out, quick=True, campaign=mine)
+    res2 = eos_budget.run(out, quick=True, fmu_dir=suite_fmu_dir, campaign=mine)
     assert res2["n_run"] == 0 and res2["n_skipped"] == res["n_cases"]
     before = {(r["instrument"], r["axis"]): r for r in table}
     for r in res2["budget"]:
@@ -105,8 +105,8 @@ def test_eos_budget(out, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def testbed(out):
-    return run_experiment("testbed-isolation", out, quick=True)
+def testbed(out, suite_fmu_dir):
+    return run_experiment("testbed-isolation", out, quick=True, fmu_dir=suite_fmu_dir)
 
 
 def test_testbed_isolation(testbed, out):
@@ -142,9 +142,8 @@ def test_testbed_isolation_reaches_the_papers_attenuation(testbed):
 
 
 @pytest.fixture(scope="module")
-def swir(out):
-    # its own FMU folder: the experiment builds a structure FMU of its own
-    return run_experiment("swir-isolation", out, quick=True, fmu_dir=out / "swir-fmus")
+def swir(out, suite_fmu_dir):
+    return run_experiment("swir-isolation", out, quick=True, fmu_dir=suite_fmu_dir)
 
 
 def test_swir_isolation(swir, out):

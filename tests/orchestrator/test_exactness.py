@@ -6,10 +6,10 @@ input ``r1``, excitation).  The loop is kept linear: small excitation (1 V), no 
 slew limit reached (checked), no hysteresis, no gauge noise (the FMU defaults).  Every
 signal is compared relative to its own peak, to 1e-9.
 
-Timing of one tick ``t_k`` in the master (:mod:`orchestrator.master`, Gauss–Seidel)
+Timing of one tick ``t_k`` in the master (:mod:`orchestrator.cosim`, Gauss–Seidel)
 ------------------------------------------------------------------------------------
 * Step order is the topological order of the direct-feedthrough graph
-  (:func:`orchestrator.graph.step_groups`).  Only the controller outputs ``u1`` have
+  (:func:`orchestrator.cosim.graph.step_groups`).  Only the controller outputs ``u1`` have
   feedthrough (from ``r1``), so the edges are ``ctrl_* -> piezo_*``: each controller
   steps before its amplifier.  Strain, elongation, force and the excitation have none.
 * An input fed by an output *without* feedthrough reads the source's value at ``t_k``:
@@ -45,7 +45,7 @@ import tomli_w
 from ctrlfmu import law as lawmod
 from ctrlfmu.designs import design
 from distfmu.excitation import sine_burst
-from orchestrator.master import run_scenario
+from orchestrator import run_scenario
 from piezofmu import actuator as ac
 from piezofmu.amplifier import AmplifierState
 from structfmu import discrete
@@ -71,12 +71,9 @@ SIGNALS = [r for r in RECORD if ".sat_" not in r]
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(tmp_path_factory):
-    from orchestrator.fmucache import ensure_fmus
-
-    out = tmp_path_factory.mktemp("truss10_fmus")
-    ensure_fmus(FMUS, out)
-    return out
+def fmu_dir(suite_fmus, suite_fmu_dir):
+    suite_fmus(*FMUS)
+    return suite_fmu_dir
 
 
 def closed_loop(*, stop, t_on, one_rate=None, output_interval=1e-3):

@@ -32,8 +32,8 @@ def test_cycles_to_ninety_percent_of_a_known_decay():
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("fmus")
+def fmu_dir(suite_fmu_dir):
+    return suite_fmu_dir
 
 
 def test_truss_decay_through_the_cosimulation(tmp_path, fmu_dir, monkeypatch):

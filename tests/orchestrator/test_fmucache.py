@@ -16,7 +16,7 @@ import tomli_w
 from orchestrator import fmucache
 from orchestrator.fmucache import MANIFEST, CacheError, cache_root, extract_cached
 from orchestrator.scenario import ScenarioError
-from orchestrator.ssp import read_ssp
+from orchestrator.scenario import read_ssp
 
 ROOT = Path(__file__).resolve().parents[2]
 

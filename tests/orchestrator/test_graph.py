@@ -2,7 +2,7 @@
 
 from itertools import permutations
 
-from orchestrator.graph import feedthrough_edges, step_groups, strongly_connected
+from orchestrator.cosim.graph import feedthrough_edges, step_groups, strongly_connected
 from orchestrator.scenario import Connection
 
 

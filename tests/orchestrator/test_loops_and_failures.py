@@ -7,14 +7,14 @@ import warnings
 import numpy as np
 import pytest
 
-from orchestrator.graph import AlgebraicLoopError
-from orchestrator.master import SimulationError, UnconnectedInputWarning, prepare, run_scenario
+from orchestrator.cosim import AlgebraicLoopError
+from orchestrator import SimulationError, UnconnectedInputWarning, prepare, run_scenario
 from orchestrator.results import read_table
 from orchestrator.scenario import ScenarioError, scenario_from_dict
 from orchestrator.timebase import TimebaseError
 
 pytestmark = [pytest.mark.slow,
-              pytest.mark.filterwarnings("ignore::orchestrator.master.UnconnectedInputWarning")]
+              pytest.mark.filterwarnings("ignore::orchestrator.cosim.UnconnectedInputWarning")]
 
 K1, B1, K2, B2 = 0.5, 1.0, -0.4, 2.0
 
@@ -56,7 +56,7 @@ def test_loop_without_state_rollback_is_named_before_instantiation(fmu_dir):
 
 
 def test_jacobi_has_no_algebraic_loop(fmu_dir):
-    from orchestrator.master import JacobiLoopWarning
+    from orchestrator import JacobiLoopWarning
 
     # the loop is not solved, and the run says so (a loop gain above 1 would diverge)
     with pytest.warns(JacobiLoopWarning, match=r"algebraic loop a\.y -> b\.u, b\.y -> a\.u "
@@ -142,11 +142,11 @@ def conn(a, b, **kw):
     ],
 )
 def test_failures_before_instantiation(fmu_dir, edit, error, match, monkeypatch):
-    import orchestrator.master as master
+    import orchestrator.cosim.simulation as simulation
 
     def no_instantiation(*a, **k):  # prove that nothing was instantiated
         raise AssertionError("an FMU was instantiated")
-    monkeypatch.setattr(master, "_Slave", no_instantiation)
+    monkeypatch.setattr(simulation, "FmuInstance", no_instantiation)
     d = base()
     edit(d)
     with pytest.raises(error, match=match):
@@ -201,7 +201,7 @@ def test_failure_mid_run_keeps_rows_so_far(fmu_dir, tmp_path, mode, match):
 def test_python_slave_whose_step_returns_false_ends_the_run_normally(fmu_dir, tmp_path):
     """pythonfmu 0.7 turns ``do_step() -> False`` into fmi2Discard with fmi2Terminated
     true: the FMU asks to end the simulation, which FMI 2.0 makes a normal end."""
-    from orchestrator.master import EarlyEndWarning
+    from orchestrator import EarlyEndWarning
 
     d = base(i={"fmu": "MtIntegrator", "period": 1e-3, "parameters": {"u": 1.0}},
              bad={"fmu": "MtFaulty", "period": 2e-3,
@@ -269,7 +269,7 @@ def test_a_non_finite_value_is_blamed_on_the_instance_that_produced_it(fmu_dir):
 
 def test_needlessly_fine_tick_grids_are_warned_about(fmu_dir, tmp_path):
     from fmukit.build import FmuSpec, build_fmu
-    from orchestrator.master import TimebaseWarning
+    from orchestrator import TimebaseWarning
 
     def warned(d):
         with warnings.catch_warnings(record=True) as caught:

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from orchestrator.master import run_scenario
+from orchestrator import run_scenario
 
 pytestmark = [pytest.mark.slow,
-              pytest.mark.filterwarnings("ignore::orchestrator.master.UnconnectedInputWarning")]
+              pytest.mark.filterwarnings("ignore::orchestrator.cosim.UnconnectedInputWarning")]
 
 H = 1e-3          # integrator period (s)
 CTRL = 4e-3       # controller period (s)

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 import tomli_w
 
-from orchestrator.master import PARTIAL_DIR, OutputError, SimulationError, run_scenario
+from orchestrator import OutputError, SimulationError, run_scenario
+from orchestrator.run import PARTIAL_DIR
 from orchestrator.results import read_table
 
 pytestmark = [pytest.mark.slow,
-              pytest.mark.filterwarnings("ignore::orchestrator.master.UnconnectedInputWarning")]
+              pytest.mark.filterwarnings("ignore::orchestrator.cosim.UnconnectedInputWarning")]
 
 ROOT = Path(__file__).resolve().parents[2]
 CLI = ("import sys; from orchestrator.cli import main; sys.exit(main(sys.argv[1:]))")

@@ -6,14 +6,13 @@ import numpy as np
 import pytest
 import tomli_w
 
+from orchestrator import load_scenario, prepare, run_scenario
 from orchestrator.cli import main
-from orchestrator.master import run_scenario
 from orchestrator.results import read_table
-from orchestrator.scenario import ScenarioError
-from orchestrator.ssp import JacobiExportWarning, read_ssp, write_ssp
+from orchestrator.scenario import JacobiExportWarning, ScenarioError, read_ssp, write_ssp
 
 pytestmark = [pytest.mark.slow,
-              pytest.mark.filterwarnings("ignore::orchestrator.master.UnconnectedInputWarning")]
+              pytest.mark.filterwarnings("ignore::orchestrator.cosim.UnconnectedInputWarning")]
 
 
 def mixed(algorithm="jacobi", stop=0.2):
@@ -65,7 +64,7 @@ def run_libcosim(ssp, record, n_steps):
 
 
 def test_ssp_round_trip_restores_the_scenario(fmu_dir, tmp_path):
-    ssp = write_ssp(mixed(), tmp_path / "mixed.ssp", fmu_dir=fmu_dir)
+    ssp = write_ssp(prepare(load_scenario(mixed()), fmu_dir), tmp_path / "mixed.ssp")
     sc = read_ssp(ssp)
     assert [i.name for i in sc.instances] == list(mixed()["fmus"])
     assert {i.name: float(i.period) for i in sc.instances} == {
@@ -83,7 +82,7 @@ def test_ssp_round_trip_restores_the_scenario(fmu_dir, tmp_path):
 
 
 def test_libcosim_runs_the_exported_ssp_like_jacobi(fmu_dir, tmp_path):
-    ssp = write_ssp(mixed(), tmp_path / "mixed.ssp", fmu_dir=fmu_dir)
+    ssp = write_ssp(prepare(load_scenario(mixed()), fmu_dir), tmp_path / "mixed.ssp")
     ours = run_scenario(ssp)          # the archive itself, parsed back
     record = list(ours.table)[1:]
     theirs = run_libcosim(ssp, record, n_steps=len(ours.time) - 1)
@@ -104,14 +103,15 @@ def test_export_of_a_gauss_seidel_scenario_warns_about_jacobi_masters(fmu_dir, t
     # step late
     with pytest.warns(JacobiExportWarning, match=r"2 direct-feedthrough connection\(s\) "
                                                  r"\(ctrl\.y -> plant\.u, g2\.y -> sink\.u\)"):
-        ssp = write_ssp(mixed("gauss-seidel"), tmp_path / "gs.ssp", fmu_dir=fmu_dir)
+        ssp = write_ssp(prepare(load_scenario(mixed("gauss-seidel")), fmu_dir),
+                        tmp_path / "gs.ssp")
     assert read_ssp(ssp).experiment.algorithm == "gauss-seidel"   # recorded in the archive
     # the same scenario stepped Jacobi, or one without feedthrough, exports silently
-    write_ssp(mixed("jacobi"), tmp_path / "j.ssp", fmu_dir=fmu_dir)
+    write_ssp(prepare(load_scenario(mixed("jacobi")), fmu_dir), tmp_path / "j.ssp")
     no_ft = mixed("gauss-seidel")
     no_ft["connections"] = [c for c in no_ft["connections"]
                             if c["from"] not in ("ctrl.y", "g2.y")]
-    write_ssp(no_ft, tmp_path / "noft.ssp", fmu_dir=fmu_dir)
+    write_ssp(prepare(load_scenario(no_ft), fmu_dir), tmp_path / "noft.ssp")
     assert not [w for w in recwarn if issubclass(w.category, JacobiExportWarning)]
 
 
@@ -172,7 +172,7 @@ def test_ssp_with_a_non_numeric_attribute_names_file_and_attribute(fmu_dir, tmp_
     import re
     import zipfile
 
-    ssp = write_ssp(mixed(), tmp_path / "mixed.ssp", fmu_dir=fmu_dir)
+    ssp = write_ssp(prepare(load_scenario(mixed()), fmu_dir), tmp_path / "mixed.ssp")
     bad = tmp_path / "bad.ssp"
     with zipfile.ZipFile(ssp) as zin, zipfile.ZipFile(bad, "w") as zout:
         for item in zin.infolist():
@@ -191,7 +191,8 @@ from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E
 
 @pytest.fixture(scope="module")
 def ssp_file(fmu_dir, tmp_path_factory):
-    return write_ssp(mixed(), tmp_path_factory.mktemp("ssp") / "m.ssp", fmu_dir=fmu_dir)
+    return write_ssp(prepare(load_scenario(mixed()), fmu_dir),
+                     tmp_path_factory.mktemp("ssp") / "m.ssp")
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -20,11 +20,9 @@ AXES = ("roll", "pitch", "yaw")
 
 
 @pytest.fixture(scope="module")
-def campaign_out(tmp_path_factory):
-    from orchestrator.fmucache import ensure_fmus
-
-    fmu_dir = tmp_path_factory.mktemp("truss10_fmus")
-    ensure_fmus(FMUS, fmu_dir)
+def campaign_out(tmp_path_factory, suite_fmus, suite_fmu_dir):
+    suite_fmus(*FMUS)
+    fmu_dir = suite_fmu_dir
     camp = load_campaign(CAMPAIGN)
     out = tmp_path_factory.mktemp("truss10_quick")
     result = run_campaign(camp, out, MasterRunner(camp.scenario_dir, fmu_dir=fmu_dir),

@@ -8,7 +8,6 @@ import sys
 import numpy as np
 import pytest
 
-from fmukit.build import build_fmu
 from piezofmu import actuator as ac
 from piezofmu.fmuspec import MODELS, specs
 
@@ -21,9 +20,8 @@ OUTPUTS = ["force", "voltage", "current", "free_stroke", "strain", "sat_voltage"
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    out = tmp_path_factory.mktemp("piezo_fmus")
-    return {s.model_identifier: build_fmu(s, out) for s in specs(None)}
+def fmus(suite_fmus):
+    return suite_fmus(*[s.model_identifier for s in specs(None)])
 
 
 def commands(model):

@@ -9,12 +9,9 @@ pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
-def structure_fmu(tmp_path_factory, truss10_reduced):
-    from fmukit.build import build_fmu
-    from structfmu.fmuspec import spec_from_model
+def structure_fmu(suite_fmus, truss10_reduced):
     model, _ = truss10_reduced
-    out = tmp_path_factory.mktemp("fmu")
-    return build_fmu(spec_from_model(model, "truss10_structure"), out), model
+    return suite_fmus("truss10_structure")["truss10_structure"], model
 
 
 def _inputs(n):

@@ -386,15 +386,14 @@ RECORD = ["structure.strain_diag", "structure.strain_long", "ctrl_diag.u1", "ctr
 
 
 @pytest.mark.slow
-@pytest.mark.filterwarnings("ignore::orchestrator.master.UnconnectedInputWarning")  # as shipped
-def test_imported_structure_fmu_runs_the_closed_loop(deck, tmp_path_factory):
+@pytest.mark.filterwarnings("ignore::orchestrator.cosim.UnconnectedInputWarning")  # as shipped
+def test_imported_structure_fmu_runs_the_closed_loop(deck, tmp_path_factory, suite_fmus,
+                                                     suite_fmu_dir):
     """scenarios/truss10_closed_loop.toml as shipped (12 s: burst to 4.5 s, then control)."""
     from orchestrator.cli import main
-    from orchestrator.fmucache import ensure_fmus
-    from orchestrator.master import run_scenario
+    from orchestrator import run_scenario
 
-    native_dir = tmp_path_factory.mktemp("native_fmus")
-    others = ensure_fmus((*FMUS, "truss10_structure"), native_dir)
+    others = suite_fmus(*FMUS, "truss10_structure")
     imported_dir = tmp_path_factory.mktemp("imported_fmus")
     for n in FMUS:
         shutil.copy(others[n], imported_dir / f"{n}.fmu")
@@ -408,7 +407,7 @@ def test_imported_structure_fmu_runs_the_closed_loop(deck, tmp_path_factory):
     scenario = ROOT / "scenarios" / "truss10_closed_loop.toml"
     assert tomllib.loads(scenario.read_text())["fmus"]["structure"]["fmu"] == "truss10_structure"
     runs = {}
-    for label, d in (("native", native_dir), ("imported", imported_dir)):
+    for label, d in (("native", suite_fmu_dir), ("imported", imported_dir)):
         res = run_scenario(scenario, tmp_path_factory.mktemp(label),
                            fmu_dir=d, quiet=True)
         runs[label] = res.table

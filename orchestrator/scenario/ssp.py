@@ -17,9 +17,11 @@ import zipfile
 from fractions import Fraction
 from pathlib import Path
 
-from .scenario import Scenario, ScenarioError, load_scenario, scenario_from_dict
-from .timebase import make_timebase, to_fraction
-from .files import atomic_write
+from ..files import atomic_write
+from ..fmucache import CacheError, extract_cached
+from ..timebase import make_timebase, to_fraction
+from .model import Scenario, ScenarioError
+from .toml import scenario_from_dict
 
 __all__ = ["write_ssp", "read_ssp", "JacobiExportWarning"]
 
@@ -66,25 +68,23 @@ class JacobiExportWarning(UserWarning):
     """An exported Gauss-Seidel scenario computes something else under a Jacobi master."""
 
 
-def write_ssp(scenario, out_path, fmu_dir=None) -> Path:
-    """Export a scenario as an SSP 1.0 archive (libcosim-compatible).
+def write_ssp(plan, out_path) -> Path:
+    """Export a prepared scenario as an SSP 1.0 archive (libcosim-compatible).
 
     Parameters
     ----------
-    scenario : path-like, dict or Scenario
+    plan : orchestrator.cosim.Plan
+        The scenario checked against its FMUs (:func:`orchestrator.cosim.prepare`):
+        the archive carries those FMU files, and its rates come from the plan's
+        timebase.
     out_path : path-like
         The ``.ssp`` file to write (atomically).
-    fmu_dir : path-like, optional
-        Extra folder searched first for FMU names.
 
     Returns
     -------
     Path
     """
-    from .master import prepare
-
-    sc = load_scenario(scenario)
-    plan = prepare(sc, fmu_dir)
+    sc = plan.scenario
     if sc.experiment.algorithm == "gauss-seidel" and plan.feedthrough_edges:
         edges = [f"{c.start} -> {c.end}" for c in plan.feedthrough_edges]
         shown = ", ".join(edges[:3]) + (f" and {len(edges) - 3} more" if len(edges) > 3 else "")
@@ -237,8 +237,6 @@ def _convert(text: str, t: str, where: str):
 
 def _extract(path: Path) -> Path:
     """Unpack an archive once per content hash into the private extraction cache."""
-    from orchestrator.fmucache import CacheError, extract_cached
-
     try:
         return extract_cached(path, kind="ssp", required="SystemStructure.ssd")
     except CacheError as exc:

@@ -1,0 +1,148 @@
+"""What the master reads from an FMU without instantiating it, and where FMUs are found."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..files import sha256_file
+from ..scenario import Scenario, ScenarioError, closest
+
+__all__ = ["Variable", "FmuInfo", "read_fmu_info", "find_fmu"]
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One scalar variable of an FMU's model description."""
+
+    name: str
+    vr: int
+    type: str
+    causality: str
+    variability: str
+    unit: str | None
+    start: object = None
+
+
+@dataclass(frozen=True)
+class FmuInfo:
+    """What the master needs from an FMU without instantiating it.
+
+    Attributes
+    ----------
+    path : Path
+    sha256 : str
+    model_identifier, guid : str
+    variables : dict of str to Variable
+    feedthrough : dict of str to frozenset of str
+        Each output's direct input dependencies.
+    can_get_set_state : bool
+    """
+
+    path: Path
+    sha256: str
+    model_identifier: str
+    guid: str
+    variables: dict
+    feedthrough: dict
+    can_get_set_state: bool
+    model_description: object = field(repr=False, compare=False, default=None)
+
+
+_INFO_CACHE: dict = {}
+
+
+def read_fmu_info(path) -> FmuInfo:
+    """Read an FMU's model description and dependency structure (cached per file).
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.fmu`` file.
+
+    Returns
+    -------
+    FmuInfo
+    """
+    from fmpy import read_model_description
+
+    path = Path(path).resolve()
+    st = path.stat()
+    key = (str(path), st.st_mtime_ns, st.st_size)
+    if key in _INFO_CACHE:
+        return _INFO_CACHE[key]
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception as exc:
+        raise ScenarioError(f"FMU {str(path)!r} has no readable modelDescription.xml: {exc}")
+    if md.fmiVersion != "2.0" or md.coSimulation is None:
+        raise ScenarioError(
+            f"FMU {str(path)!r} is FMI {md.fmiVersion} "
+            f"{'co-simulation' if md.coSimulation else 'model exchange only'}; "
+            "expected FMI 2.0 co-simulation"
+        )
+    variables = {}
+    for v in md.modelVariables:
+        unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+        variables[v.name] = Variable(v.name, int(v.valueReference), v.type, v.causality,
+                                     v.variability, unit, v.start)
+    inputs = frozenset(n for n, v in variables.items() if v.causality == "input")
+    feedthrough = {}
+    for u in md.outputs:
+        if u.dependencies is None:  # FMI 2.0: no attribute means "depends on all inputs"
+            feedthrough[u.variable.name] = inputs
+        else:
+            feedthrough[u.variable.name] = frozenset(
+                d.name for d in u.dependencies if d.name in inputs)
+    for n, v in variables.items():
+        if v.causality == "output" and n not in feedthrough:
+            feedthrough[n] = inputs
+    info = FmuInfo(path, sha256_file(path), md.coSimulation.modelIdentifier, md.guid,
+                   variables, feedthrough, bool(md.coSimulation.canGetAndSetFMUstate), md)
+    _INFO_CACHE[key] = info
+    return info
+
+
+def _search_dirs(scenario: Scenario, fmu_dir=None) -> list:
+    dirs = []
+    if fmu_dir is not None:
+        dirs.append(Path(fmu_dir))
+    if scenario.base_dir is not None:
+        base = Path(scenario.base_dir)
+        dirs += [base / "fmus", base, base.parent / "fmus"]
+    dirs += [Path.cwd() / "fmus", Path.cwd()]
+    seen, out = set(), []
+    for d in dirs:
+        r = d.resolve()
+        if r not in seen:
+            seen.add(r)
+            out.append(d)
+    return out
+
+
+def find_fmu(name: str, scenario: Scenario, fmu_dir=None) -> Path:
+    """Resolve an FMU name or path of a scenario to an existing ``.fmu`` file.
+
+    A bare name ``x`` is looked up as ``x.fmu`` in `fmu_dir`, then in ``fmus/`` next to
+    the scenario file, next to it, in ``fmus/`` of its parent folder, and in ``fmus/`` of
+    the current folder.  A name with a suffix or a folder is a path (relative to the
+    scenario folder, then the current folder).
+    """
+    p = Path(name)
+    if p.suffix.lower() == ".fmu" or len(p.parts) > 1:
+        for cand in ([p] if p.is_absolute() else
+                     [(scenario.base_dir or Path.cwd()) / p, Path.cwd() / p]):
+            if cand.is_file():
+                return cand
+        raise ScenarioError(f"FMU file {name!r} does not exist")
+    dirs = _search_dirs(scenario, fmu_dir)
+    for d in dirs:
+        cand = d / f"{name}.fmu"
+        if cand.is_file():
+            return cand
+    known = sorted({f.stem for d in dirs if d.is_dir() for f in d.glob("*.fmu")})
+    where = ", ".join(str(d) for d in dirs)
+    raise ScenarioError(
+        f"unknown FMU {name!r}: no {name}.fmu in {where}{closest(name, known)}"
+        + ("" if known else "; build the FMUs first (jitterfmu build) or pass --fmu-dir")
+    )

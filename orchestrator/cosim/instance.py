@@ -1,0 +1,146 @@
+"""One instantiated FMU bound to fmpy's raw FMI functions, and the process-wide logger."""
+
+from __future__ import annotations
+
+import ctypes
+import itertools
+
+import fmpy.fmi2 as f2
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated
+
+from ..fmucache import extract_cached
+from .fmuinfo import FmuInfo
+
+__all__ = ["FmuInstance", "extracted"]
+
+#: FMU objects whose shared libraries stay loaded for the life of the process.
+_KEEP_LOADED: list = []
+
+
+_LOG_KEYS = itertools.count(1)
+_LOG_SINKS: dict[int, list] = {}
+_LOG_BY_NAME: dict[str, list] = {}  # the latest instance of each name
+_LOGGER = []
+
+
+def _shared_logger(logger_type):
+    """The one FMI logger callback of the process (created once, never freed)."""
+    if not _LOGGER:
+        def log(env, inst, status, category, message):
+            sink = _LOG_SINKS.get(env or 0)
+            if sink is None:  # an FMU that does not hand back its componentEnvironment
+                sink = _LOG_BY_NAME.get(inst.decode("utf-8", "replace") if inst else "")
+            if sink is None:
+                return
+            text = message.decode("utf-8", "replace") if message else ""
+            sink.append((status, text))
+            del sink[:-20]
+
+        _LOGGER.append(logger_type(log))
+    return _LOGGER[0]
+
+
+class FmuInstance:
+    """One instantiated FMU with raw FMI function handles and precomputed arrays."""
+
+    def __init__(self, name, info, unzipdir, instance_spec, timebase):
+        self.name = name
+        self.info = info
+        self.messages = []
+        self.period_ticks = timebase.period_ticks[name]
+        p = instance_spec.period * 1  # Fraction
+        self.h = p.numerator / p.denominator
+        self.fmu = FMU2Slave(guid=info.guid, unzipDirectory=unzipdir,
+                             modelIdentifier=info.model_identifier, instanceName=name)
+
+        # fmpy's variadic-formatting proxy keeps one logger per process, so every
+        # instance logs through one callback that finds the instance's message list by
+        # the componentEnvironment the FMU hands back
+        self._log_key = next(_LOG_KEYS)
+        _LOG_SINKS[self._log_key] = _LOG_BY_NAME[name] = self.messages
+        cb = fmi2CallbackFunctions()
+        cb.logger = _shared_logger(fmi2CallbackLoggerTYPE)
+        cb.allocateMemory = f2.defaultCallbacks.allocateMemory
+        cb.freeMemory = f2.defaultCallbacks.freeMemory
+        cb.componentEnvironment = ctypes.c_void_p(self._log_key)
+        try:
+            from fmpy.logging import addLoggerProxy
+
+            addLoggerProxy(ctypes.byref(cb))
+        except Exception:  # pragma: no cover - formatting proxy is optional
+            pass
+        self._log = None  # the shared logger lives in _LOGGER
+        self._cb = cb
+        self.instantiated = False
+        self.fatal = False
+        self.fmu.instantiate(callbacks=cb, loggingOn=True)
+        self.instantiated = True
+        self.comp = self.fmu.component
+        fn = self.fmu._functions
+        self.getReal = fn["fmi2GetReal"]
+        self.setReal = fn["fmi2SetReal"]
+        self.getInteger = fn["fmi2GetInteger"]
+        self.setInteger = fn["fmi2SetInteger"]
+        self.getBoolean = fn["fmi2GetBoolean"]
+        self.setBoolean = fn["fmi2SetBoolean"]
+        self.doStep = fn["fmi2DoStep"]
+        self._getBooleanStatus = fn["fmi2GetBooleanStatus"]
+
+    def asks_to_terminate(self) -> bool:
+        """True if ``fmi2GetBooleanStatus(fmi2Terminated)`` answers fmi2OK and true.
+
+        FMI 2.0 (4.2.3): after fmi2DoStep returned fmi2Discard, a slave that wants the
+        simulation to end reports fmi2Terminated = true; any other answer (including
+        an error from a slave that does not support the inquiry) means a failed step.
+        """
+        value = ctypes.c_int(0)
+        try:
+            st = self._getBooleanStatus(self.comp, fmi2Terminated, ctypes.byref(value))
+        except Exception:
+            return False
+        return st == 0 and bool(value.value)
+
+    def last_message(self) -> str:
+        bad = [m for s, m in self.messages if s >= 1 and m]
+        return bad[-1] if bad else (self.messages[-1][1] if self.messages else "")
+
+    def set_values(self, values):
+        """Set typed values given as [(Variable, value)] (slow path, not per step)."""
+        for v, value in values:
+            vr = [v.vr]
+            if v.type == "Real":
+                self.fmu.setReal(vr, [float(value)])
+            elif v.type in ("Integer", "Enumeration"):
+                self.fmu.setInteger(vr, [int(value)])
+            elif v.type == "Boolean":
+                self.fmu.setBoolean(vr, [bool(value)])
+            else:
+                self.fmu.setString(vr, [str(value)])
+
+    def close(self):
+        if self.instantiated and self.fatal:
+            _KEEP_LOADED.append((self.fmu, self._cb, self._log))
+            self.instantiated = False
+        if self.instantiated:
+            try:
+                self.fmu.terminate()
+            except Exception:
+                pass
+            try:
+                # free the instance but keep the shared library loaded: a pythonfmu FMU
+                # leaves Python objects behind whose code lives in that library, and
+                # unloading it makes a later garbage collection crash the process
+                self.fmu.fmi2FreeInstance(self.comp)
+            except Exception:
+                pass
+            # keep the callbacks alive for the slave's leftovers collected later
+            _KEEP_LOADED.append((self.fmu, self._cb, self._log))
+            self.instantiated = False
+
+
+def extracted(info: FmuInfo) -> str:
+    """Folder of the FMU unpacked in the private cache, checked against its hash.
+
+    Runs in one process reuse the folder, so the FMU's shared library is loaded once.
+    """
+    return str(extract_cached(info.path, info.sha256, kind="fmu"))

@@ -1,0 +1,246 @@
+"""Instantiate, initialise and step a prepared scenario; the master's run loop."""
+
+from __future__ import annotations
+
+import gc
+import math
+
+import numpy as np
+
+from .bus import Bus
+from .errors import STATUS, SimulationError, TerminationRequested
+from .graph import AlgebraicLoopError, init_order
+from .instance import FmuInstance, extracted
+from .plan import Plan
+from .schedule import Schedule
+
+__all__ = ["Simulation"]
+
+
+class Simulation:
+    """Instantiate, initialise and step a prepared scenario.
+
+    Parameters
+    ----------
+    plan : Plan
+        From :func:`orchestrator.cosim.prepare`.
+    max_iterations : int
+        Fixed-point iterations allowed per algebraic-loop solve.
+    loop_tolerance : float
+        Convergence test ``|x_new - x_old| <= tol * (1 + |x_new|)`` on loop signals.
+
+    Examples
+    --------
+    >>> sim = Simulation(prepare(scenario))  # doctest: +SKIP
+    >>> try:
+    ...     sim.initialize(); sim.run()
+    ... finally:
+    ...     sim.close()
+    >>> table = sim.table()
+    """
+
+    def __init__(self, plan: Plan, max_iterations: int = 100, loop_tolerance: float = 1e-12):
+        self.plan = plan
+        self.max_iterations = max_iterations
+        self.loop_tolerance = loop_tolerance
+        self.slaves = {}
+        self.rows = 0
+        self.tick = 0
+        #: ``(instance, time, message)`` when an FMU ended the run early (fmi2Terminated)
+        self.terminated = None
+        self.bus = Bus(plan)
+        tb = plan.timebase
+        self.n_rows = tb.n_ticks // tb.output_ticks + 1
+        self.rec = np.full((self.n_rows, len(plan.scenario.record)), np.nan)
+        self.times = np.array(
+            [tb.time(r * tb.output_ticks) for r in range(self.n_rows)], dtype=float)
+
+    # -- lifecycle -----------------------------------------------------------------
+
+    def _fail(self, slave, what, t, status=None, exc=None):
+        msg = f"instance {slave.name!r} failed in {what} at t = {t!r} s"
+        if status is None and isinstance(getattr(exc, "status", None), int):
+            status = exc.status  # fmpy's FMICallException carries the FMI status
+        if status == 4 or any(st == 4 for st, _ in slave.messages):
+            slave.fatal = True  # FMI 2.0: after fmi2Fatal no further call is allowed
+        if status is not None:
+            msg += f" with status {STATUS[status] if status < len(STATUS) else status}"
+        detail = slave.last_message() or (str(exc) if exc else "")
+        if detail:
+            msg += ": " + " ".join(detail.split())
+        return SimulationError(msg, slave.name, t)
+
+    def _load(self):
+        plan, sc = self.plan, self.plan.scenario
+        unzipped = {}
+        for inst in sc.instances:
+            info = plan.fmus[inst.name]
+            key = str(info.path)
+            if key not in unzipped:
+                unzipped[key] = extracted(info)
+            try:
+                self.slaves[inst.name] = FmuInstance(inst.name, info, unzipped[key], inst,
+                                                     plan.timebase)
+            except Exception as exc:
+                raise SimulationError(
+                    f"instance {inst.name!r} could not be loaded from {info.path.name}: {exc}",
+                    inst.name, float(sc.experiment.start)) from exc
+
+    def initialize(self):
+        """Instantiate every FMU, set start values and initialise in dependency order."""
+        plan, sc = self.plan, self.plan.scenario
+        self._load()
+        t0 = float(sc.experiment.start)
+        t1 = float(sc.experiment.stop)
+        order = init_order([i.name for i in sc.instances], sc.connections,
+                           {i.name: plan.fmus[i.name].feedthrough for i in sc.instances})
+        for inst in sc.instances:
+            s = self.slaves[inst.name]
+            info = plan.fmus[inst.name]
+            try:
+                s.fmu.setupExperiment(startTime=t0, stopTime=t1)
+                s.set_values([(info.variables[k], v) for k, v in inst.parameters.items()])
+                s.fmu.enterInitializationMode()
+            except Exception as exc:
+                raise self._fail(s, "initialisation", t0, exc=exc) from exc
+        bus = self.bus
+        bus.compile(self.slaves, self._fail, self._now)
+        for name in order:  # sources first: a sink's inputs see initialised outputs
+            s = self.slaves[name]
+            try:
+                self._read_all(order)
+                bus.snapshot[:] = bus.latest
+                bus.writers[name]()
+                s.fmu.exitInitializationMode()
+            except SimulationError:
+                raise
+            except Exception as exc:
+                raise self._fail(s, "initialisation", t0, exc=exc) from exc
+        self._read_all(order)
+        bus.snapshot[:] = bus.latest
+        for name in order:
+            bus.writers[name]()
+        self._check_finite(t0, order, "initialisation")
+
+    def _read_all(self, order):
+        for name in order:
+            self.bus.readers[name]()
+
+    def _check_finite(self, t, names, during="its step"):
+        """Raise SimulationError naming the first instance, in ``names`` order, whose
+        outputs (or outputs read before stepping) are not finite.
+
+        ``names`` is the order in which the instances ran (sources before the sinks
+        that read them), so a NaN that spread through connections within one tick is
+        blamed on the instance that produced it, not on the first one in the table.
+        """
+        bus = self.bus
+        n = bus.n
+        if math.isfinite(float(bus.watched.sum())):
+            return
+        for name in names:
+            for (inst, var), i in bus.slots_of(name):
+                for region in (n, 2 * n):
+                    x = float(bus.values[region + i])
+                    if not math.isfinite(x):
+                        raise SimulationError(
+                            f"instance {inst!r} produced {x!r} for {var} in {during} at "
+                            f"t = {t!r} s (the FMI call itself returned OK)", inst, t)
+
+    def _now(self):
+        return self.plan.timebase.time(self.tick)
+
+    # -- stepping ------------------------------------------------------------------
+
+    def run(self, progress=None):
+        """Step from start to stop, recording rows; raise SimulationError on failure.
+
+        An FMU that asks to terminate (fmi2DoStep returns Discard and
+        fmi2Terminated is true) ends the run normally at that communication point:
+        the rows up to it are kept and :attr:`terminated` names the instance.
+
+        Parameters
+        ----------
+        progress : callable, optional
+            Called as ``progress(fraction)`` about every 2048 ticks.
+        """
+        plan = self.plan
+        tb = plan.timebase
+        bus = self.bus
+        schedule = Schedule(plan, bus, self.slaves, self._fail, self.max_iterations,
+                            self.loop_tolerance).pattern()
+        values = bus.values
+        cur, watched, snap = bus.latest, bus.watched, bus.snapshot
+        rec, rec_idx = self.rec, bus.record_idx
+        out_ticks = tb.output_ticks
+        t0 = tb.start + 0 * tb.base
+        # time(k) = (a + k*b) / d exactly rounded (Python int true division)
+        d = t0.denominator * tb.base.denominator
+        a = t0.numerator * tb.base.denominator
+        b = tb.base.numerator * t0.denominator
+        actions = self._actions()
+        n_ticks = tb.n_ticks
+        isfinite = math.isfinite
+        order = [m for g in plan.groups for m in g]
+        k = 0
+        try:
+            for k in range(n_ticks + 1):
+                self.tick = k
+                t = (a + k * b) / d
+                snap_idx, first, then, settle = schedule(k)
+                if snap_idx is None:
+                    snap[:] = cur
+                elif len(snap_idx):
+                    snap[snap_idx] = cur[snap_idx]
+                if k in actions:
+                    for s, vals in actions[k]:
+                        s.set_values(vals)
+                for call in (settle if k == n_ticks else first):
+                    call(t)
+                if k % out_ticks == 0:
+                    self.rows = k // out_ticks + 1
+                    if len(rec_idx):
+                        rec[self.rows - 1] = values[rec_idx]
+                if k == n_ticks:
+                    break
+                for call in then:
+                    call(t)
+                if not isfinite(float(watched.sum())):
+                    self._check_finite(t, order)
+                if progress is not None and not k & 2047:
+                    progress(k / n_ticks)
+        except SimulationError:
+            raise
+        except AlgebraicLoopError as exc:
+            raise SimulationError(str(exc), None, (a + k * b) / d) from exc
+        except TerminationRequested as req:
+            self.terminated = (req.instance, req.time, req.message)
+        if progress is not None:
+            progress(1.0)
+
+    def _actions(self):
+        plan, sc = self.plan, self.plan.scenario
+        out = {}
+        for act in sc.actions:
+            k = plan.timebase.ticks_of(act.time)
+            per = {}
+            for (inst, var), value in act.values.items():
+                per.setdefault(inst, []).append((plan.fmus[inst].variables[var], value))
+            out.setdefault(k, []).extend((self.slaves[i], vals) for i, vals in per.items())
+        return out
+
+    # -- results ---------------------------------------------------------------------
+
+    def table(self) -> dict:
+        """Recorded rows so far as ``{"time": array, "inst.var": array, ...}``."""
+        out = {"time": self.times[: self.rows].copy()}
+        for j, ref in enumerate(self.plan.scenario.record):
+            out[ref] = self.rec[: self.rows, j].copy()
+        return out
+
+    def close(self):
+        """Terminate and free every instance."""
+        for s in self.slaves.values():
+            s.close()
+        self.slaves = {}
+        gc.collect()  # free the slaves' Python leftovers while their callbacks exist

@@ -1,0 +1,27 @@
+"""Fixtures shared by the whole suite.
+
+``suite_fmus(*names)`` gives the suite's FMUs from one folder for the whole session:
+each FMU of the registry (and the EOS all-legs structure, through the experiments'
+own ``ensure_fmus``) is built there at most once, however many tests use it.  Tests
+that check building itself, or that change an FMU, build into their own folders.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.fixture(scope="session")
+def suite_fmu_dir(tmp_path_factory):
+    """The session's folder of built suite FMUs (filled on demand)."""
+    return tmp_path_factory.mktemp("suite_fmus")
+
+
+@pytest.fixture(scope="session")
+def suite_fmus(suite_fmu_dir):
+    """``suite_fmus(*names) -> {name: path}``: the named registry FMUs, built once."""
+    from orchestrator.fmucache import ensure_fmus
+
+    def get(*names):
+        return ensure_fmus(names, suite_fmu_dir)
+    return get

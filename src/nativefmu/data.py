@@ -96,7 +96,7 @@ STRUCTURE_STEPS = (1e-3, 4e-3)
 
 def _structure(spec: FmuSpec, vrs: Mapping[str, int],
                steps: tuple[float, ...] = STRUCTURE_STEPS) -> dict:
-    from structfmu.discrete import Stepper, discretize
+    from structfmu.discrete import ZohStepper, discretize
     from structfmu.reduced import ReducedModel
     from structfmu.statespace import first_order
 
@@ -104,7 +104,7 @@ def _structure(spec: FmuSpec, vrs: Mapping[str, int],
         path = Path(tmp) / "model.npz"
         path.write_bytes(_resource_bytes(spec, "model.npz"))
         model = ReducedModel.load(path)
-    stepper = Stepper(model)
+    stepper = ZohStepper(model)
     n_m, n_r, ns = model.n_modes, model.n_ritz, model.n_struct_states
     out = {
         "n_m": n_m, "n_r": n_r, "n_in": model.n_inputs, "n_out": model.n_outputs,

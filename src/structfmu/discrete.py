@@ -233,7 +233,7 @@ def simulate(model: ReducedModel, h: float, u, x0=None):
     return y, x
 
 
-class Stepper:
+class ZohStepper:
     """Allocation-free stepping of a reduced model, one discretisation per step size.
 
     Holds the state ``x`` (layout of :class:`DiscreteModel`), caches

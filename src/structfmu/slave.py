@@ -13,13 +13,13 @@ from __future__ import annotations
 import numpy as np
 
 from fmukit.slave import FmuSlave
-from structfmu.discrete import Stepper
+from structfmu.discrete import ZohStepper
 from structfmu.fem import UNITS
 from structfmu.reduced import ReducedModel
 
 
 class StructureSlave(FmuSlave):
-    """FMI slave over :class:`structfmu.discrete.Stepper` (model in ``model.npz``)."""
+    """FMI slave over :class:`structfmu.discrete.ZohStepper` (model in ``model.npz``)."""
 
     state_attributes = ("_x",)
     model_file = "model.npz"
@@ -27,7 +27,7 @@ class StructureSlave(FmuSlave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         model = ReducedModel.load(self.resource_path(self.model_file))
-        self.stepper = Stepper(model)
+        self.stepper = ZohStepper(model)
         self._x = self.stepper.x  # the state vector (restored in place by set-state)
         units = model.meta.get("input_units") or ["N"] * model.n_inputs
         self.u = self.add_real_block(

@@ -1,6 +1,6 @@
 /* Structure kernel: a reduced model stepped with its exact ZOH discretisation.
  *
- * Same equations and state layout as structfmu.discrete.Stepper:
+ * Same equations and state layout as structfmu.discrete.ZohStepper:
  *   x = [q_e (n_m), v_e (n_m), q_o (n_r), v_o (n_r), x_f (n_f)]
  * Each mode q'' + c q' + w^2 q = B_e u is advanced with closed-form 2x2 blocks
  * (underdamped with w h >= 1e-2, or rigid), otherwise with the exponential of its 3x3

@@ -170,3 +170,30 @@ def test_bad_capacitance_and_command_raise():
         amp.step(a, 0.0, amp.initial_state(a), 1.0, 1e-3)
     with pytest.raises(AmplifierError, match="v_cmd"):
         amp.step(a, C, amp.initial_state(a), math.nan, 1e-3)
+
+
+def test_own_matrix_exponential_matches_scipy():
+    """The amplifier's Taylor scaling-and-squaring expm (kept so that the FMU need not
+    import scipy) against scipy.linalg.expm, entry by entry, and the coefficients of the
+    second-order amplifier against scipy's expm of the unscaled system."""
+    from scipy.linalg import expm
+
+    from piezofmu.amplifier import Amplifier, _coefficients, _expm
+
+    rng = np.random.default_rng(11)
+    for n, scale in ((2, 0.1), (3, 1.0), (3, 3.0), (5, 20.0)):
+        a = rng.standard_normal((n, n)) * scale
+        want = expm(a)
+        np.testing.assert_allclose(_expm(a), want, rtol=0, atol=1e-12 * np.abs(want).max())
+    # the amplifier's discretisation, from the default regime (w h = 0.13) to a sub-step
+    # ten times the period (w h = 63): every coefficient to 1e-13 of its natural size
+    # (1 for volts per volt, 1/w for volts per V/s, w for V/s per volt)
+    for bw, z, h in ((2e3, 0.7, 1e-5), (500.0, 0.6, 1e-5), (2e3, 0.7, 1e-4),
+                     (2e3, 0.7, 1e-3), (1e4, 1.0, 1e-3)):
+        w = 2 * np.pi * bw
+        amp = Amplifier(name="t", bandwidth=bw, order=2, damping=z, internal_step=h)
+        e = expm(h * np.array([[0.0, 1.0, 0.0], [-w * w, -2 * z * w, w * w], [0, 0, 0.0]]))
+        want = np.array([e[0, 0], e[0, 1], e[1, 0], e[1, 1], e[0, 2], e[1, 2]])
+        scale = np.array([1.0, 1 / w, w, 1.0, 1.0, w])
+        got = np.array(_coefficients(amp, h))
+        assert np.all(np.abs(got - want) <= 1e-13 * scale), (bw, h, (got - want) / scale)

@@ -204,21 +204,22 @@ static long advance(JfInstance *inst, const Params *q, double u, double dt) {
     if (first) {
         a = exp(-q->w * hsub);
     } else {
-        double m[9], e[9];
-        m[0] = 0.0 * hsub;
-        m[1] = 1.0 * hsub;
-        m[2] = 0.0 * hsub;
-        m[3] = -q->w * q->w * hsub;
-        m[4] = -2.0 * q->zeta * q->w * hsub;
-        m[5] = q->w * q->w * hsub;
-        m[6] = m[7] = m[8] = 0.0;
+        /* as piezofmu.amplifier._coefficients: the scaled state (v, r / w) */
+        double m[9], e[9], wh = q->w * hsub;
+        m[0] = wh * 0.0;
+        m[1] = wh * 1.0;
+        m[2] = wh * 0.0;
+        m[3] = wh * -1.0;
+        m[4] = wh * (-2.0 * q->zeta);
+        m[5] = wh * 1.0;
+        m[6] = m[7] = m[8] = wh * 0.0;
         expm3(m, e);
         a11 = e[0];
-        a12 = e[1];
-        a21 = e[3];
+        a12 = e[1] / q->w;
+        a21 = e[3] * q->w;
         a22 = e[4];
         b1 = e[2];
-        b2 = e[5];
+        b2 = e[5] * q->w;
     }
     s_max = q->i_max / P->capacitance;
     dv_max = s_max * hsub;

@@ -10,10 +10,10 @@ frequencies 1 Hz - 2 kHz log-spaced, 0.5 % damping, a dense Ritz block at 3-5 kH
 32 angle, 4 rate and 4 acceleration outputs, so that inputs feed through) is stepped
 ``--steps`` times with ``h = 1 ms`` and seeded random inputs by:
 
-* ``numpy Stepper``: the work the FMU slave does per step, in a Python loop:
-  :meth:`~structfmu.discrete.Stepper.outputs` after the new inputs (feedthrough),
-  :meth:`~structfmu.discrete.Stepper.step`,
-  :meth:`~structfmu.discrete.Stepper.update_state_outputs`, ``outputs``;
+* ``numpy ZohStepper``: the work the FMU slave does per step, in a Python loop:
+  :meth:`~structfmu.discrete.ZohStepper.outputs` after the new inputs (feedthrough),
+  :meth:`~structfmu.discrete.ZohStepper.step`,
+  :meth:`~structfmu.discrete.ZohStepper.update_state_outputs`, ``outputs``;
 * ``FMU (fmpy FMU2Slave)``: the FMU built by :func:`fmukit.build.build_fmu`, loaded in
   this process by fmpy; per step ``setReal`` of all inputs, ``doStep``, ``getReal`` of
   all outputs (what :func:`fmukit.testing.run_fmpy` does);
@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from structfmu.discrete import Stepper
+from structfmu.discrete import ZohStepper
 from structfmu.reduced import ReducedModel
 
 H = 1e-3
@@ -82,7 +82,7 @@ def synthetic_model(n_modes=1000, n_ritz=4, n_in=40, n_out=40, seed=0) -> Reduce
 
 def run_numpy(model, U):
     """The slave's per-step numerics in a Python loop; outputs after each step."""
-    st = Stepper(model)
+    st = ZohStepper(model)
     u = np.zeros(model.n_inputs)
     y = np.zeros(model.n_outputs)
     Y = np.empty((len(U), model.n_outputs))
@@ -99,8 +99,8 @@ def run_numpy(model, U):
 
 
 def dense_system(model):
-    """The discrete model as dense ``(A, B, C, D)`` (state layout of the Stepper)."""
-    st = Stepper(model)
+    """The discrete model as dense ``(A, B, C, D)`` (state layout of the ZohStepper)."""
+    st = ZohStepper(model)
     dm = st.discrete(H)
     n_m, n_x = model.n_modes, model.n_states
     A = np.zeros((n_x, n_x))
@@ -271,7 +271,7 @@ def main(argv=None):
     head = f"{'path':<26} {'us/step':>9} {'vs numpy':>9} {'dlsim / path':>13}"
     print(head)
     print("-" * len(head))
-    for name, t in (("numpy Stepper", t_np), ("FMU (fmpy FMU2Slave)", t_fmu),
+    for name, t in (("numpy ZohStepper", t_np), ("FMU (fmpy FMU2Slave)", t_fmu),
                     ("FMU (raw ctypes)", t_raw), ("scipy dlsim (dense)", t_dl)):
         print(f"{name:<26} {t / n * 1e6:9.1f} {t / t_np:8.2f}x {t_dl / t:12.1f}x")
     print(f"goal FMU <= 2x numpy: {'met' if t_fmu <= 2 * t_np else 'NOT met'} "

@@ -150,7 +150,7 @@ class _SignalGuard:
 
 
 def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algorithm=None,
-                 quiet=True, csv=False, fmu_dir=None):
+                 quiet=True, csv=False, fmu_dir=None, fmu_kind=None):
     """Run a scenario and return (and optionally write) its recorded results.
 
     Parameters
@@ -177,6 +177,8 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
         Write CSV instead of Parquet.
     fmu_dir : path-like, optional
         Extra folder searched first for FMU names.
+    fmu_kind : {"native", "python"}, optional
+        Overrides ``experiment.fmu_kind``: which build of the suite's FMUs to run.
 
     Returns
     -------
@@ -197,12 +199,14 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
     """
     wall0 = _time.perf_counter()
     sc = load_scenario(scenario)
-    sc = sc.with_overrides(overrides).with_experiment(stop=stop_time, algorithm=algorithm)
+    sc = sc.with_overrides(overrides).with_experiment(stop=stop_time, algorithm=algorithm,
+                                                      fmu_kind=fmu_kind)
     plan = prepare(sc, fmu_dir)
     meta = {
         "scenario": sc.source,
         "scenario_sha256": sc.digest(),
         "algorithm": sc.experiment.algorithm,
+        "fmu_kind": sc.experiment.fmu_kind,
         "start": float(sc.experiment.start),
         "stop": float(sc.experiment.stop),
         "base_step": str(plan.timebase.base),

@@ -21,6 +21,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--algorithm", choices=["gauss-seidel", "jacobi"], default=None)
     parser.add_argument("--csv", action="store_true", help="write results.csv instead")
     parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
+    parser.add_argument("--python-fmus", action="store_const", const="python",
+                        dest="fmu_kind", default=None,
+                        help="run the Python build of the suite's FMUs (FMU_DIR/python/) "
+                             "instead of the native ones")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -36,7 +40,8 @@ def run(args) -> int:
         try:
             result = run_scenario(args.scenario, out, stop_time=args.stop_time,
                                   overrides=overrides, algorithm=args.algorithm,
-                                  quiet=args.quiet, csv=args.csv, fmu_dir=args.fmu_dir)
+                                  quiet=args.quiet, csv=args.csv, fmu_dir=args.fmu_dir,
+                                  fmu_kind=args.fmu_kind)
         except SimulationError as exc:
             _warn(caught)
             rows = len(exc.result.table["time"]) if exc.result else 0

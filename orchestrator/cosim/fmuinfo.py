@@ -125,8 +125,23 @@ def find_fmu(name: str, scenario: Scenario, fmu_dir=None) -> Path:
 
     A bare name ``x`` is looked up as ``x.fmu`` in `fmu_dir`, then in ``fmus/`` next to
     the scenario file, next to it, in ``fmus/`` of its parent folder, and in ``fmus/`` of
-    the current folder.  A name with a suffix or a folder is a path (relative to the
-    scenario folder, then the current folder).
+    the current folder.  Under ``fmu_kind = "python"`` each folder's ``python/``
+    subfolder (where the Python build of the suite's FMUs lives) is tried before the
+    folder itself.  A name with a suffix or a folder is a path (relative to the scenario
+    folder, then the current folder).
+
+    Parameters
+    ----------
+    name : str
+        FMU name or path, as the scenario's ``[fmus.X] fmu`` gives it.
+    scenario : Scenario
+        Gives the scenario's folder and ``experiment.fmu_kind``.
+    fmu_dir : path-like, optional
+        Folder searched first.
+
+    Returns
+    -------
+    Path
     """
     p = Path(name)
     if p.suffix.lower() == ".fmu" or len(p.parts) > 1:
@@ -136,10 +151,17 @@ def find_fmu(name: str, scenario: Scenario, fmu_dir=None) -> Path:
                 return cand
         raise ScenarioError(f"FMU file {name!r} does not exist")
     dirs = _search_dirs(scenario, fmu_dir)
+    python = scenario.experiment.fmu_kind == "python"
     for d in dirs:
-        cand = d / f"{name}.fmu"
-        if cand.is_file():
-            return cand
+        for cand in ((d / "python" / f"{name}.fmu",) if python else ()) + (d / f"{name}.fmu",):
+            if cand.is_file():
+                return cand
+    other = next((d for d in dirs if (d / "python" / f"{name}.fmu").is_file()), None)
+    if other is not None:
+        raise ScenarioError(
+            f"FMU {name!r} has only a Python build (in {other / 'python'}); build the native "
+            "FMUs (jitterfmu build) or run with the Python ones (--python-fmus, or "
+            "fmu_kind = \"python\" in [experiment])")
     known = sorted({f.stem for d in dirs if d.is_dir() for f in d.glob("*.fmu")})
     where = ", ".join(str(d) for d in dirs)
     raise ScenarioError(

@@ -11,6 +11,7 @@ Format::
     stop = 10.0                   # s
     output_interval = 1e-3        # s
     algorithm = "gauss-seidel"    # or "jacobi"
+    fmu_kind = "native"           # or "python": which build of the suite's FMUs
 
     [fmus.structure]
     fmu = "truss10_structure"     # fmus/<name>.fmu, or a path to an .fmu

@@ -32,6 +32,9 @@ __all__ = [
 ]
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
+#: Which build of the suite's FMUs a scenario runs: the self-contained C FMUs, or the
+#: Python (pythonfmu) ones, kept in the ``python/`` subfolder of an FMU folder.
+FMU_KINDS = ("native", "python")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -65,12 +68,16 @@ class Experiment:
         ``"gauss-seidel"`` or ``"jacobi"``.
     start : Fraction
         Start time (s).
+    fmu_kind : str
+        ``"native"`` (default): FMU names resolve to the native C FMUs of an FMU folder;
+        ``"python"``: to the Python FMUs in its ``python/`` subfolder first.
     """
 
     stop: Fraction
     output_interval: Fraction
     algorithm: str = "gauss-seidel"
     start: Fraction = Fraction(0)
+    fmu_kind: str = "native"
 
 
 @dataclass(frozen=True)
@@ -203,6 +210,8 @@ class Scenario:
         changes = {k: v for k, v in changes.items() if v is not None}
         if "algorithm" in changes:
             changes["algorithm"] = _algorithm(changes["algorithm"])
+        if "fmu_kind" in changes:
+            changes["fmu_kind"] = _fmu_kind(changes["fmu_kind"])
         new = replace(exp, **changes)
         _check_experiment(new)
         return replace(self, experiment=new)
@@ -216,6 +225,7 @@ class Scenario:
                 "stop": _fstr(exp.stop),
                 "output_interval": _fstr(exp.output_interval),
                 "algorithm": exp.algorithm,
+                **({} if exp.fmu_kind == "native" else {"fmu_kind": exp.fmu_kind}),
             },
             "fmus": {
                 i.name: {"fmu": i.fmu, "period": _fstr(i.period), "parameters": dict(i.parameters)}
@@ -271,6 +281,14 @@ def _algorithm(value) -> str:
             f"{closest(alg, ALGORITHMS)}"
         )
     return alg
+
+
+def _fmu_kind(value) -> str:
+    kind = str(value).strip().lower()
+    if kind not in FMU_KINDS:
+        raise ScenarioError(f"fmu_kind {value!r} is unknown; expected one of "
+                            f"{', '.join(FMU_KINDS)}{closest(kind, FMU_KINDS)}")
+    return kind
 
 
 def _check_experiment(exp: Experiment) -> None:

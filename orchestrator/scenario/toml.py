@@ -17,6 +17,7 @@ from .model import (
     _algorithm,
     _check_experiment,
     _expect_table,
+    _fmu_kind,
     _freeze,
     _split_ref,
     _time,
@@ -121,7 +122,8 @@ def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Sce
     data = _expect_table(data, "scenario")
     check_keys(data, ("experiment", "fmus", "connections", "actions", "record"), source)
     exp = _expect_table(data.get("experiment", {}), "[experiment]")
-    check_keys(exp, ("start", "stop", "output_interval", "algorithm"), "[experiment]")
+    check_keys(exp, ("start", "stop", "output_interval", "algorithm", "fmu_kind"),
+               "[experiment]")
     for key in ("stop", "output_interval"):
         if key not in exp:
             raise ScenarioError(f"[experiment] has no '{key}' (s)")
@@ -130,6 +132,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Sce
         output_interval=_time(exp["output_interval"], "experiment.output_interval"),
         algorithm=_algorithm(exp.get("algorithm", "gauss-seidel")),
         start=_time(exp.get("start", 0), "experiment.start"),
+        fmu_kind=_fmu_kind(exp.get("fmu_kind", "native")),
     )
     _check_experiment(experiment)
     fmus = _expect_table(data.get("fmus", {}), "[fmus]")

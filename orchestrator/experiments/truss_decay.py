@@ -153,7 +153,7 @@ def forced_tip_jitter(camp, laws=None) -> float:
     Per tip axis, the peak-to-peak steady-state response of each event, RSS over the
     two events; the worst axis.
     """
-    from piezofmu.units import ARCSEC
+    from fmukit.units import ARCSEC
 
     for name, law in (laws or {}).items():
         camp = camp.with_law(name, law)

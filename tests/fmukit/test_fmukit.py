@@ -12,7 +12,8 @@ sys.path.insert(0, str(Path(__file__).parent))  # toyslave.py
 from toyslave import ToyFilter  # noqa: E402
 
 from fmukit.build import FmuSpec, build_fmu  # noqa: E402
-from fmukit.modeldesc import ARCSEC_PER_RAD, check_model_description  # noqa: E402
+from fmukit.modeldesc import check_model_description  # noqa: E402
+from fmukit.units import ARCSEC_PER_RAD  # noqa: E402
 from fmukit.slave import DeclarationError, FmuSlave, FmuStateError  # noqa: E402
 
 OUTPUTS = ["y_state", "y_ft", "angle[1]", "angle[2]"]

@@ -93,7 +93,7 @@ def main():
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
     warnings.simplefilter("ignore")
-    from fmukit.build import FmuSpec, build_fmu
+    from fmutools.build import FmuSpec, build_fmu
     from orchestrator.master import Simulation, prepare
     from orchestrator.scenario import scenario_from_dict
     from orchestrator.ssp import write_ssp

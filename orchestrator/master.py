@@ -1157,7 +1157,7 @@ def _extracted(info: FmuInfo) -> str:
 
     Runs in one process reuse the folder, so the FMU's shared library is loaded once.
     """
-    from orchestrator.fmucache import extract_cached
+    from fmutools.fmucache import extract_cached
 
     return str(extract_cached(info.path, info.sha256, kind="fmu"))
 

@@ -237,7 +237,7 @@ def _convert(text: str, t: str, where: str):
 
 def _extract(path: Path) -> Path:
     """Unpack an archive once per content hash into the private extraction cache."""
-    from orchestrator.fmucache import CacheError, extract_cached
+    from fmutools.fmucache import CacheError, extract_cached
 
     try:
         return extract_cached(path, kind="ssp", required="SystemStructure.ssd")

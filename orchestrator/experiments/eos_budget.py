@@ -55,7 +55,7 @@ roll only 30 %, MISR "also reduced by about 10 percent").  Shown next to our num
 def fmu_dir(base="fmus") -> Path:
     """Build the EOS FMUs if needed (the all-legs structure included); ``base`` resolved."""
     from orchestrator.experiments import swir_isolation
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     ensure_fmus(FMUS, base)
     swir_isolation.ensure_fmus(base)     # the structure with every mount leg active

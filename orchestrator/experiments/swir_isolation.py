@@ -472,7 +472,7 @@ def damping(plant: Plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
 def ensure_fmus(fmu_dir="fmus") -> Path:
     """Build the FMUs this experiment runs into ``fmu_dir`` (the structure with all legs
     active under ``STRUCTURE``); the folder to pass to the master."""
-    from orchestrator.fmucache import ensure_fmus as ensure
+    from fmutools.registry import ensure_fmus as ensure
     from structfmu.fmuspec import spec_from_model
 
     fmu_dir = Path(fmu_dir)

@@ -190,7 +190,7 @@ def tune(fmu_dir="fmus", maxfev=250):
 
     from ctrlfmu.designs import truss10_strain_diag, truss10_strain_long
     from orchestrator.analysis import linearize
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     ensure_fmus(FMUS, fmu_dir)
     lin = linearize(SCENARIO, fmu_dir=fmu_dir)
@@ -261,7 +261,7 @@ def _run(fmu_dir, stop: float, gain: float):
 
 
 def compute(fmu_dir="fmus", quick=False):
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     ensure_fmus(FMUS, fmu_dir)
     ol = _run(fmu_dir, 20.0 if quick else 40.0, 0.0)

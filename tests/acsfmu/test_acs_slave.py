@@ -10,7 +10,7 @@ from acsfmu.design import pid_gains_for
 from acsfmu.fmuspec import specs
 from acsfmu.pid import AcsConfig, PidGains, acs_advance, acs_outputs, initial_state
 from acsfmu.slave import AcsSlave
-from fmukit.build import build_fmu
+from fmutools.build import build_fmu
 from fmukit.modeldesc import check_model_description
 
 INPUTS = ["roll", "pitch", "yaw", "rate_x", "rate_y", "rate_z"]
@@ -85,8 +85,8 @@ def fmu(tmp_path_factory):
 
 @pytest.mark.slow
 def test_fmu_validates_and_three_hosts_agree(fmu):
-    from fmukit.testing import run_c_host, run_fmpy, run_libcosim
-    from fmukit.validate import validate_fmu
+    from tests.support.hosts import run_c_host, run_fmpy, run_libcosim
+    from fmutools.validate import validate_fmu
 
     assert validate_fmu(fmu) == []
     u = _inputs()
@@ -103,7 +103,7 @@ def test_fmu_validates_and_three_hosts_agree(fmu):
 
 @pytest.mark.slow
 def test_fmu_sub_steps_at_its_own_rate(fmu):
-    from fmukit.testing import run_fmpy
+    from tests.support.hosts import run_fmpy
 
     u = _inputs()[:40]
     u2 = np.repeat(u, 2, axis=0)  # same held inputs, communication step 0.05 s

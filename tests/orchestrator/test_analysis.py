@@ -19,7 +19,7 @@ SCENARIO = "scenarios/truss10_closed_loop.toml"
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory):
     from orchestrator.experiments.truss_decay import FMUS
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     out = tmp_path_factory.mktemp("analysis_fmus")
     ensure_fmus(list(FMUS) + ["piezo_p845_37"], out)
@@ -30,7 +30,7 @@ def fmus(tmp_path_factory):
 def gain_loop(fmus):
     """A P-845.37 amplifier whose voltage a pure-gain delayed law feeds back."""
     from ctrlfmu.law import DiscreteLaw, save_law
-    from fmukit.build import FmuSpec, build_fmu
+    from fmutools.build import FmuSpec, build_fmu
 
     g0 = 0.5
     law = DiscreteLaw(np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1)), [[g0]], 1e-3,

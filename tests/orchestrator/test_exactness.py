@@ -72,7 +72,7 @@ SIGNALS = [r for r in RECORD if ".sat_" not in r]
 
 @pytest.fixture(scope="module")
 def fmu_dir(tmp_path_factory):
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     out = tmp_path_factory.mktemp("truss10_fmus")
     ensure_fmus(FMUS, out)

@@ -21,7 +21,7 @@ AXES = ("roll", "pitch", "yaw")
 
 @pytest.fixture(scope="module")
 def campaign_out(tmp_path_factory):
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     fmu_dir = tmp_path_factory.mktemp("truss10_fmus")
     ensure_fmus(FMUS, fmu_dir)

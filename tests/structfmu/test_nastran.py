@@ -390,7 +390,7 @@ RECORD = ["structure.strain_diag", "structure.strain_long", "ctrl_diag.u1", "ctr
 def test_imported_structure_fmu_runs_the_closed_loop(deck, tmp_path_factory):
     """scenarios/truss10_closed_loop.toml as shipped (12 s: burst to 4.5 s, then control)."""
     from orchestrator.cli import main
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
     from orchestrator.master import run_scenario
 
     native_dir = tmp_path_factory.mktemp("native_fmus")

@@ -1,6 +1,6 @@
 """Master overhead per FMU step: the Python master (fmpy) beside libcosim, same SSP.
 
-Builds the master's test FMUs (tests/orchestrator/fmus) into a temporary folder, runs a
+Builds two small FMUs (bench_master_slaves.py) into a temporary folder, runs a
 six-instance mixed-rate scenario (1, 2 and 4 ms; gains, a feedback loop) with both
 algorithms of the Python master, exports it as SSP and runs that in libcosim, and
 reports wall time per FMU step.  A bare fmpy loop (set/doStep/get on one FMU, no
@@ -12,17 +12,14 @@ Run:  .venv/bin/python benchmarks/bench_master.py [--stop 2.0]
 from __future__ import annotations
 
 import argparse
-import ctypes
 import sys
 import tempfile
 import time
 import warnings
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests" / "orchestrator" / "fmus"))
-
-SLAVES = {"MtIntegrator": "mastertest_slaves:Integrator", "MtGain": "mastertest_slaves:Gain"}
+SLAVES = {"MtIntegrator": "bench_master_slaves:Integrator",
+          "MtGain": "bench_master_slaves:Gain"}
 
 
 def scenario(stop, algorithm):
@@ -93,7 +90,7 @@ def main():
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
     warnings.simplefilter("ignore")
-    from fmukit.build import FmuSpec, build_fmu
+    from fmutools.build import FmuSpec, build_fmu
     from orchestrator import Simulation, prepare
     from orchestrator.scenario import scenario_from_dict
     from orchestrator.scenario import write_ssp
@@ -101,7 +98,7 @@ def main():
     tmp = Path(tempfile.mkdtemp(prefix="bench_master_"))
     for ident, cls in SLAVES.items():
         build_fmu(FmuSpec(model_identifier=ident, slave_class=cls), tmp)
-        sys.modules.pop("mastertest_slaves", None)
+        sys.modules.pop("bench_master_slaves", None)
     steps = fmu_steps(args.stop)
     print(f"scenario: 6 instances at 1/2/4 ms, {args.stop} s simulated, "
           f"{steps} FMU steps, {round(args.stop / 1e-3)} base ticks")

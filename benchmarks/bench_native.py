@@ -46,8 +46,8 @@ print(json.dumps({"seconds": time.perf_counter() - t0, "status": meta["status"]}
 
 def build(models, folder: Path) -> dict[str, Path]:
     """Python FMUs in folder/py, native twins (from those) in folder/native."""
-    from fmukit.build import build_fmu
-    from fmukit.registry import collect_specs
+    from fmutools.build import build_fmu
+    from fmutools.registry import collect_specs
 
     from nativefmu import build_native
 

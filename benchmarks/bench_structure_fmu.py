@@ -14,9 +14,9 @@ frequencies 1 Hz - 2 kHz log-spaced, 0.5 % damping, a dense Ritz block at 3-5 kH
   :meth:`~structfmu.discrete.ZohStepper.outputs` after the new inputs (feedthrough),
   :meth:`~structfmu.discrete.ZohStepper.step`,
   :meth:`~structfmu.discrete.ZohStepper.update_state_outputs`, ``outputs``;
-* ``FMU (fmpy FMU2Slave)``: the FMU built by :func:`fmukit.build.build_fmu`, loaded in
+* ``FMU (fmpy FMU2Slave)``: the FMU built by :func:`fmutools.build.build_fmu`, loaded in
   this process by fmpy; per step ``setReal`` of all inputs, ``doStep``, ``getReal`` of
-  all outputs (what :func:`fmukit.testing.run_fmpy` does);
+  all outputs (what :func:`tests.support.hosts.run_fmpy` does);
 * ``FMU (raw ctypes)``: the same FMU and calls, but through fmpy's bound C functions with
   ctypes arrays allocated once (host-side overhead removed);
 * ``scipy dlsim (dense)``: :func:`scipy.signal.dlsim` on the same discrete model as a
@@ -239,7 +239,7 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=3)
     a = p.parse_args(argv)
 
-    from fmukit.build import build_fmu
+    from fmutools.build import build_fmu
     from structfmu.fmuspec import spec_from_model
 
     model = synthetic_model(a.modes, a.ritz, a.inputs, a.outputs)

@@ -97,6 +97,8 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
+from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD
+
 from . import metrics as M
 from .files import atomic_write, sha256_file, write_json_atomic
 from .progress import ProgressBar
@@ -124,8 +126,8 @@ ANGLE_UNITS = {
     "rad": 1.0,
     "mrad": 1e3,
     "urad": 1e6,
-    "deg": 180.0 / math.pi,
-    "arcsec": 180.0 / math.pi * 3600.0,
+    "deg": DEG_PER_RAD,
+    "arcsec": ARCSEC_PER_RAD,
 }
 #: Metric kinds and what their ``windows`` mean.
 METRIC_KINDS = {

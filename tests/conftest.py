@@ -20,7 +20,7 @@ def suite_fmu_dir(tmp_path_factory):
 @pytest.fixture(scope="session")
 def suite_fmus(suite_fmu_dir):
     """``suite_fmus(*names) -> {name: path}``: the named registry FMUs, built once."""
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     def get(*names):
         return ensure_fmus(names, suite_fmu_dir)

@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fmukit.registry import build_all
+    from fmutools.registry import build_all
 
     if args.native:
         return _run_native(args)

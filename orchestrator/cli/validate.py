@@ -18,7 +18,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print one line per problem; return 1 if any FMU fails, else 0."""
-    from fmukit.validate import check_fmu
+    from fmutools.validate import check_fmu
 
     bad = 0
     for path in args.fmus:

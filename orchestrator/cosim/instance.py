@@ -8,7 +8,7 @@ import itertools
 import fmpy.fmi2 as f2
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated
 
-from ..fmucache import extract_cached
+from fmutools.fmucache import extract_cached
 from .fmuinfo import FmuInfo
 
 __all__ = ["FmuInstance", "extracted"]

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from piezofmu.units import ARCSEC, LBF
+from fmukit.units import ARCSEC, LBF
 
 from . import eos
 from .eos import mounts_structure_model as structure_model

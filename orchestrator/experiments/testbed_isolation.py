@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fmukit.units import ARCSEC_PER_RAD
+
 from . import eos
 
 NAME = "testbed-isolation"
@@ -53,7 +55,6 @@ HARMONICS = {22.0: 0.5, 44.0: 0.15, 66.0: 0.05}
 HP_HZ = 5.0
 FREQS = np.geomspace(5.0, 300.0, 160)
 PAPER = {"mount3": 80.0, "all_mounts": (50.0, 80.0), "bandwidth_hz": 45.0}
-RAD2ARCSEC = 180 / np.pi * 3600
 _SENSORS = [f"acc_{s}_iso{i}" for i in (1, 2, 3) for s in ("pay", "bus")]
 _OUT = _SENSORS + ["los_misr_roll", "los_misr_pitch", "acc_pay_iso3"]
 _IN = ["fc_iso1", "fc_iso2", "fc_iso3", "swir_fz"]
@@ -379,12 +380,12 @@ def compute(quick=False, fmu_dir="fmus"):
         r, p = tab["structure.los_misr_roll"], tab["structure.los_misr_pitch"]
         b = boresight_rms(t, r, p, T_ON - 1.2, T_ON)
         a = boresight_rms(t, r, p, stop - 1.2, stop)
-        before_after[k] = {"before_arcsec_rms": b * RAD2ARCSEC,
-                           "after_arcsec_rms": a * RAD2ARCSEC,
+        before_after[k] = {"before_arcsec_rms": b * ARCSEC_PER_RAD,
+                           "after_arcsec_rms": a * ARCSEC_PER_RAD,
                            "before_after_reduction_pct": 100.0 * (1.0 - a / b)}
         red[k] = 100.0 * (1.0 - a / ref)
         vmax[k] = float(max(np.abs(tab[f"piezo_iso{i}.voltage"]).max() for i in (1, 2, 3)))
-    before_after["off"] = {"after_arcsec_rms": ref * RAD2ARCSEC}
+    before_after["off"] = {"after_arcsec_rms": ref * ARCSEC_PER_RAD}
     return {"runs": runs, "off": off, "stop": stop, "reduction": red, "before_after": before_after,
             "max_voltage": vmax, "linear": lin, "frf": frf, "ratio": ratio,
             "bandwidth": bw, "loop_shape": shape}
@@ -427,9 +428,9 @@ def plot(data, out_dir):
         p = _highpassed(t, tab["structure.los_misr_pitch"])
         ms = np.convolve(r**2 + p**2, kernel, "same")
         ms[: n // 2], ms[-(n // 2):] = np.nan, np.nan  # partial windows at the ends
-        return np.sqrt(ms) * RAD2ARCSEC
+        return np.sqrt(ms) * ARCSEC_PER_RAD
 
-    pitch3 = _highpassed(t, data["runs"]["mount3"]["structure.los_misr_pitch"]) * RAD2ARCSEC
+    pitch3 = _highpassed(t, data["runs"]["mount3"]["structure.los_misr_pitch"]) * ARCSEC_PER_RAD
     ax.plot(t, pitch3, lw=0.3, color="C1", alpha=0.5, label="pitch, mount #3")
     ax.plot(t, moving_rms(data["off"]), color="0.3", label="RMS, isolation off")
     for k, c in (("mount3", "C1"), ("all_mounts", "C2")):
@@ -445,8 +446,8 @@ def plot(data, out_dir):
     last = t >= data["stop"] - 1.2
     for tab, label in ((data["off"], "without isolation"),
                        (data["runs"]["mount3"], "with isolation (mount #3)")):
-        r = _highpassed(t, tab["structure.los_misr_roll"]) * RAD2ARCSEC
-        p = _highpassed(t, tab["structure.los_misr_pitch"]) * RAD2ARCSEC
+        r = _highpassed(t, tab["structure.los_misr_roll"]) * ARCSEC_PER_RAD
+        p = _highpassed(t, tab["structure.los_misr_pitch"]) * ARCSEC_PER_RAD
         ax.plot(r[last], p[last], ".", ms=2, label=f"{label}, last 1.2 s")
     ax.set_xlabel("roll (arcsec)")
     ax.set_ylabel("pitch (arcsec)")

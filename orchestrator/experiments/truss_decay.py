@@ -155,7 +155,7 @@ def forced_tip_jitter(camp, laws=None) -> float:
     Per tip axis, the peak-to-peak steady-state response of each event, RSS over the
     two events; the worst axis.
     """
-    from piezofmu.units import ARCSEC
+    from fmukit.units import ARCSEC
 
     for name, law in (laws or {}).items():
         camp = camp.with_law(name, law)
@@ -192,7 +192,7 @@ def tune(fmu_dir="fmus", maxfev=250):
 
     from ctrlfmu.designs import truss10_strain_diag, truss10_strain_long
     from orchestrator.analysis import linearize
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     ensure_fmus(FMUS, fmu_dir)
     lin = linearize(SCENARIO, fmu_dir=fmu_dir)
@@ -263,7 +263,7 @@ def _run(fmu_dir, stop: float, gain: float):
 
 
 def compute(fmu_dir="fmus", quick=False):
-    from orchestrator.fmucache import ensure_fmus
+    from fmutools.registry import ensure_fmus
 
     ensure_fmus(FMUS, fmu_dir)
     ol = _run(fmu_dir, 20.0 if quick else 40.0, 0.0)

@@ -18,7 +18,7 @@ from fractions import Fraction
 from pathlib import Path
 
 from ..files import atomic_write
-from ..fmucache import CacheError, extract_cached
+from fmutools.fmucache import CacheError, extract_cached
 from ..timebase import make_timebase, to_fraction
 from .model import Scenario, ScenarioError
 from .toml import scenario_from_dict

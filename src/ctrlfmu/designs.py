@@ -32,6 +32,8 @@ import control
 import numpy as np
 from scipy import signal
 
+from fmukit.units import INCH
+
 from ctrlfmu.analysis import optimise_gain
 from ctrlfmu.law import DiscreteLaw, save_law
 
@@ -60,7 +62,6 @@ ISOLATION_RATE_HZ = 1000.0
 # of the stack over the member length, negative because the series strut is compressed
 # when the stack extends against the truss.  Diagonal: P-243.40, 60 um / 1000 V over a
 # 10 in * sqrt(2) member; longeron: P-243.30, 40 um / 1000 V over a 10 in member.
-_INCH = 0.0254
 # Static voltage-to-strain gains of the ten-bay truss pairs, from
 # structfmu.models.truss10.plant(...) (6 modes + 2 Ritz vectors).  The sign is that of
 # the mode's residue, not of the DC gain: the Ritz-captured zero near 5.6 Hz lies
@@ -84,7 +85,7 @@ TRUSS10_LONG = {"tuning": 1.8, "zeta": 0.9, "loop_gain": 0.16}
 TESTBED_ISOLATION_GAINS = (-9.6, 45.4)
 # Table 2 (P-845.37): free stroke per volt (m/V) and assumed active stack length (m).
 ISOLATOR_STROKE_PER_VOLT = 40e-6 / 100.0
-ISOLATOR_LENGTH = 1.6 * _INCH
+ISOLATOR_LENGTH = 1.6 * INCH
 
 
 def _tustin(sys: control.StateSpace, dt: float, prewarp_hz: float | None = None):

@@ -14,7 +14,7 @@ parameter; per-law FMUs keep each of them exact.
 
 from __future__ import annotations
 
-from fmukit.build import FmuSpec
+from fmutools.build import FmuSpec
 
 from ctrlfmu.law import DiscreteLaw, law_bytes
 
@@ -67,7 +67,7 @@ def specs(models: list[str] | None = None) -> list[FmuSpec]:
     ----------
     models : list of str or None
         Model identifiers wanted; None for all of :data:`MODELS`.  Names this package
-        does not own are ignored, as the registry (:mod:`fmukit.registry`) asks every
+        does not own are ignored, as the registry (:mod:`fmutools.registry`) asks every
         package with the full list.
 
     Returns

@@ -1,4 +1,4 @@
-"""Shared FMU plumbing bundled into every FMU of the project.
+"""Shared FMU runtime bundled into every FMU of the project.
 
 - :mod:`fmukit.slave`: :class:`~fmukit.slave.FmuSlave`, the slave base class
   (typed, unit-aware, array-backed variables; full FMU state save/restore).
@@ -6,9 +6,9 @@
   (no pickle), validated on restore.
 - :mod:`fmukit.modeldesc`: units, exact ModelStructure and capability flags in
   modelDescription.xml; the project's own checks.
-- :mod:`fmukit.build`: :class:`~fmukit.build.FmuSpec` and :func:`~fmukit.build.build_fmu`.
-- :mod:`fmukit.loader`: the C loader that lets C-only hosts run the FMUs.
+- :mod:`fmukit.units`: the unit constants of the whole suite (inch, lbf, arcsec, ...).
 
 This package must stay importable inside an FMU: it imports numpy and pythonfmu
-only, never fmpy (except in :mod:`fmukit.testing` and :mod:`fmukit.registry`).
+only, never fmpy.  Building, validating and testing FMUs is :mod:`fmutools`' job
+(never bundled).
 """

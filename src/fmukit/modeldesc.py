@@ -13,8 +13,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from xml.etree.ElementTree import Element, SubElement
 
+from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD, LBF, MICRO_G
+
 __all__ = [
-    "ARCSEC_PER_RAD",
     "UNITS",
     "UnitDef",
     "UnitError",
@@ -22,9 +23,6 @@ __all__ = [
     "check_model_description",
     "CAPABILITIES",
 ]
-
-#: Display factor rad -> arcsec (180 * 3600 / pi).
-ARCSEC_PER_RAD = 206264.80624709636
 
 #: Capability flags written to ``<CoSimulation>``.
 CAPABILITIES = {
@@ -54,7 +52,7 @@ class UnitDef:
     display: dict[str, float] = field(default_factory=dict)
 
 
-_ANGLE_DISPLAY = {"arcsec": ARCSEC_PER_RAD, "deg": 57.29577951308232}
+_ANGLE_DISPLAY = {"arcsec": ARCSEC_PER_RAD, "deg": DEG_PER_RAD}
 
 #: Units the project uses.  Add an entry here before using a new unit.
 UNITS: dict[str, UnitDef] = {
@@ -63,12 +61,12 @@ UNITS: dict[str, UnitDef] = {
     "Hz": UnitDef({"s": -1}),
     "m": UnitDef({"m": 1}, {"um": 1e6, "mm": 1e3}),
     "m/s": UnitDef({"m": 1, "s": -1}),
-    "m/s2": UnitDef({"m": 1, "s": -2}, {"ug": 1.0 / 9.80665e-6}),
+    "m/s2": UnitDef({"m": 1, "s": -2}, {"ug": 1.0 / MICRO_G}),
     "kg": UnitDef({"kg": 1}),
     "rad": UnitDef({"rad": 1}, _ANGLE_DISPLAY),
-    "rad/s": UnitDef({"rad": 1, "s": -1}, {"arcsec/s": ARCSEC_PER_RAD, "deg/s": 57.29577951308232}),
+    "rad/s": UnitDef({"rad": 1, "s": -1}, {"arcsec/s": ARCSEC_PER_RAD, "deg/s": DEG_PER_RAD}),
     "rad/s2": UnitDef({"rad": 1, "s": -2}, {"arcsec/s2": ARCSEC_PER_RAD}),
-    "N": UnitDef({"kg": 1, "m": 1, "s": -2}, {"lbf": 1.0 / 4.4482216152605}),
+    "N": UnitDef({"kg": 1, "m": 1, "s": -2}, {"lbf": 1.0 / LBF}),
     "N.m": UnitDef({"kg": 1, "m": 2, "s": -2}),
     "N.m.s": UnitDef({"kg": 1, "m": 2, "s": -1}),
     "N/m": UnitDef({"kg": 1, "s": -2}),

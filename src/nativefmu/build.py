@@ -1,6 +1,6 @@
 """Build native (C99) FMUs that swap in place for the project's Python FMUs.
 
-:func:`build_native` builds the Python FMU of a spec (with :func:`fmukit.build.build_fmu`)
+:func:`build_native` builds the Python FMU of a spec (with :func:`fmutools.build.build_fmu`)
 only to read its ``modelDescription.xml``, then writes an FMU with the same file name,
 modelIdentifier, variables, value references, units, causality, variability and
 ModelStructure, whose model code is the C of ``nativefmu/csrc`` plus a generated
@@ -26,9 +26,13 @@ from importlib import resources as _res
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from fmukit.build import FmuSpec
+from fmutools.build import FmuSpec, build_fmu
+from fmutools.registry import collect_specs
+from fmutools.validate import validate_fmu
 
-from nativefmu.data import kernel_of, model_data
+from structfmu.fmuspec import build_structure_fmu, spec_from_npz
+
+from nativefmu.data import KERNELS, kernel_of, model_data
 
 __all__ = ["CFLAGS", "NativeBuildError", "NativeReport", "build_native", "build_all_native",
            "build_native_structure",
@@ -191,8 +195,6 @@ def _from_python_fmu(spec: FmuSpec, python_fmu: Path | None) -> tuple[FmuSpec, b
     changed since the Python FMU was built.
     """
     if python_fmu is None:
-        from fmukit.build import build_fmu
-
         with tempfile.TemporaryDirectory(prefix="nativefmu_py_") as tmp:
             return _from_python_fmu(spec, build_fmu(spec, tmp, c_loader=False))
     with zipfile.ZipFile(python_fmu) as z:
@@ -303,11 +305,6 @@ def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *
     NativeReport
         Built FMUs, models without a C kernel (skipped, named) and validation problems.
     """
-    from fmukit.registry import collect_specs
-    from fmukit.validate import validate_fmu
-
-    from nativefmu.data import KERNELS
-
     specs = collect_specs(models)
     fmus, skipped, problems = [], [], []
     for i, spec in enumerate(specs, start=1):
@@ -348,9 +345,6 @@ def build_native_structure(npz: str | Path, out_dir: str | Path,
     NativeReport
         The FMU path and its validation problems.
     """
-    from fmukit.validate import validate_fmu
-    from structfmu.fmuspec import build_structure_fmu, spec_from_npz
-
     with tempfile.TemporaryDirectory(prefix="nativefmu_py_") as tmp:
         python_fmu = build_structure_fmu(npz, tmp, model_identifier).fmus[0]
         spec = spec_from_npz(npz, python_fmu.stem)

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmukit.build import FmuSpec
+from fmutools.build import FmuSpec
 
 __all__ = ["KERNELS", "NativeUnsupportedError", "encode", "kernel_of", "model_data"]
 

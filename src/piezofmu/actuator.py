@@ -31,7 +31,7 @@ from piezofmu import hysteresis as hyst_mod
 from piezofmu.amplifier import Amplifier, AmplifierState, amplifier_preset
 from piezofmu.hysteresis import BoucWen
 from piezofmu.stack import PiezoStack, preset
-from piezofmu.units import INCH
+from fmukit.units import INCH
 
 __all__ = [
     "ACTUATORS",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fmukit.build import FmuSpec
+from fmutools.build import FmuSpec
 
 __all__ = ["MODELS", "UnknownModelError", "specs"]
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from piezofmu.units import INCH, LBF, LBF_PER_IN
+from fmukit.units import INCH, LBF, LBF_PER_IN
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-from fmukit.build import FmuSpec
+from fmutools.build import BuildReport, FmuSpec, build_fmu
+from fmutools.validate import validate_fmu
 from structfmu.reduced import ReducedModel
 
 MODELS = ("truss10", "eos_testbed")
@@ -44,14 +45,10 @@ def build_structure_fmu(npz, out_dir, model_identifier: str | None = None):
 
     Returns
     -------
-    fmukit.registry.BuildReport
+    fmutools.build.BuildReport
         The FMU path and its validation problems (one line each).
     """
     import re
-
-    from fmukit.build import build_fmu
-    from fmukit.registry import BuildReport
-    from fmukit.validate import validate_fmu
 
     npz = Path(npz)
     ident = model_identifier or re.sub(r"\W", "_", npz.stem) + "_structure"

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from piezofmu.units import INCH, LBF, MM
+from fmukit.units import INCH, LBF, MM
 from structfmu.errors import DimensionError, ModelError, ReductionError
 from structfmu.reduce import Damping, reduce_matrices, reduced_from_basis
 from structfmu.reduced import ReducedModel

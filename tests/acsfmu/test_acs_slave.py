@@ -84,8 +84,8 @@ def fmu(suite_fmus):
 
 @pytest.mark.slow
 def test_fmu_validates_and_three_hosts_agree(fmu):
-    from fmukit.testing import run_c_host, run_fmpy, run_libcosim
-    from fmukit.validate import validate_fmu
+    from tests.support.hosts import run_c_host, run_fmpy, run_libcosim
+    from fmutools.validate import validate_fmu
 
     assert validate_fmu(fmu) == []
     u = _inputs()
@@ -102,7 +102,7 @@ def test_fmu_validates_and_three_hosts_agree(fmu):
 
 @pytest.mark.slow
 def test_fmu_sub_steps_at_its_own_rate(fmu):
-    from fmukit.testing import run_fmpy
+    from tests.support.hosts import run_fmpy
 
     u = _inputs()[:40]
     u2 = np.repeat(u, 2, axis=0)  # same held inputs, communication step 0.05 s

@@ -8,7 +8,7 @@ import pytest
 from ctrlfmu.designs import design
 from ctrlfmu.fmuspec import MODELS, law_spec, specs
 from ctrlfmu.law import DiscreteLaw, simulate
-from fmukit.build import build_fmu
+from fmutools.build import build_fmu
 
 pytestmark = pytest.mark.slow
 
@@ -44,7 +44,7 @@ def test_specs_cover_the_named_designs():
     # The registry asks every package with the full list: foreign names are ignored.
     assert [s.model_identifier for s in specs(["piezo_p243_30", "controller_eos_isolation"])] \
         == ["controller_eos_isolation"]
-    from fmukit.registry import collect_specs
+    from fmutools.registry import collect_specs
 
     assert [s.model_identifier for s in collect_specs(["controller_eos_isolation"])] == \
         ["controller_eos_isolation"]
@@ -54,7 +54,7 @@ def test_specs_cover_the_named_designs():
 def test_fmu_validates_without_messages(fmus, model):
     from fmpy.validation import validate_fmu
 
-    from fmukit.validate import validate_fmu as project_validate
+    from fmutools.validate import validate_fmu as project_validate
 
     assert validate_fmu(str(fmus[model])) == []
     assert project_validate(fmus[model]) == []
@@ -81,7 +81,7 @@ def test_model_structure_is_exact(fmus):
 
 
 def test_additive_command_is_added_after_the_law(fmus):
-    from fmukit.testing import run_fmpy
+    from tests.support.hosts import run_fmpy
 
     law = design(MODELS["controller_truss10_strain_diag"])
     y = measurements(law)
@@ -97,7 +97,7 @@ def test_additive_command_is_added_after_the_law(fmus):
 
 @pytest.mark.parametrize("model", list(MODELS))
 def test_fmpy_run_equals_the_pure_law(fmus, model):
-    from fmukit.testing import run_fmpy
+    from tests.support.hosts import run_fmpy
 
     law = design(MODELS[model])
     y = measurements(law)
@@ -111,7 +111,7 @@ def test_fmpy_run_equals_the_pure_law(fmus, model):
 
 
 def test_fmpy_non_delayed_fmu_equals_the_pure_law(fmus):
-    from fmukit.testing import run_fmpy
+    from tests.support.hosts import run_fmpy
 
     law = direct_law()
     y = measurements(law)
@@ -131,15 +131,15 @@ def test_fmpy_non_delayed_fmu_equals_the_pure_law(fmus):
 @pytest.mark.parametrize("model", ["controller_testbed_isolation",
                                    "controller_truss10_strain_diag"])
 def test_c_host_and_libcosim_match_fmpy(fmus, model, tmp_path):
-    from fmukit import testing
+    from tests.support import hosts
 
     law = design(MODELS[model])
     y = measurements(law)
     kw = dict(inputs={f"y{j + 1}": y[:, j] for j in range(law.n_inputs)}, outputs=["u1"],
               step_size=law.dt, n_steps=N, parameters={"u_max": 20.0, "t_on": 5 * law.dt})
-    ref = testing.run_fmpy(fmus[model], **kw)
-    c_host = testing.run_c_host(fmus[model], **kw, host=testing.compile_c_host(tmp_path / "h"))
-    cosim = testing.run_libcosim(fmus[model], **kw)
+    ref = hosts.run_fmpy(fmus[model], **kw)
+    c_host = hosts.run_c_host(fmus[model], **kw, host=hosts.compile_c_host(tmp_path / "h"))
+    cosim = hosts.run_libcosim(fmus[model], **kw)
     np.testing.assert_array_equal(c_host, ref)
     np.testing.assert_array_equal(cosim, ref)
     assert np.ptp(ref) > 0 and ref.max() <= 20.0

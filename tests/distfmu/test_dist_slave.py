@@ -10,7 +10,7 @@ from distfmu.fmuspec import specs
 from distfmu.presets import PRESETS, get_preset, randomized
 from distfmu.slave import DisturbanceSlave
 from distfmu.sources import WRENCH_NAMES
-from fmukit.build import FmuSpec, build_fmu
+from fmutools.build import FmuSpec, build_fmu
 from fmukit.modeldesc import check_model_description
 
 H = 1e-3
@@ -114,7 +114,7 @@ def fmus(tmp_path_factory, suite_fmus):
 
 @pytest.mark.slow
 def test_built_fmus_validate_without_message(fmus):
-    from fmukit.validate import validate_fmu
+    from fmutools.validate import validate_fmu
 
     for fmu in fmus:
         assert validate_fmu(fmu) == []
@@ -156,7 +156,7 @@ def test_fmpy_string_parameter_selects_the_preset(fmus):
 
 @pytest.mark.slow
 def test_three_hosts_give_identical_outputs(fmus):
-    from fmukit.testing import run_c_host, run_fmpy, run_libcosim
+    from tests.support.hosts import run_c_host, run_fmpy, run_libcosim
 
     rng = np.random.default_rng(11)
     speed = 100.0 + np.cumsum(rng.normal(size=N))

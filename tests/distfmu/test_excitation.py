@@ -19,8 +19,8 @@ def test_excitation_fmu(tmp_path):
     from fmpy.validation import validate_fmu
 
     from distfmu.fmuspec import specs
-    from fmukit.build import build_fmu
-    from fmukit.testing import run_c_host, run_fmpy
+    from fmutools.build import build_fmu
+    from tests.support.hosts import run_c_host, run_fmpy
     fmu = build_fmu(specs(["excitation"])[0], tmp_path)
     assert validate_fmu(str(fmu)) == []
     kw = dict(outputs=["v1", "v2"], step_size=1e-3, n_steps=300,

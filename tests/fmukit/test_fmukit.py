@@ -11,8 +11,9 @@ sys.path.insert(0, str(Path(__file__).parent))  # toyslave.py
 
 from toyslave import ToyFilter  # noqa: E402
 
-from fmukit.build import FmuSpec, build_fmu  # noqa: E402
-from fmukit.modeldesc import ARCSEC_PER_RAD, check_model_description  # noqa: E402
+from fmutools.build import FmuSpec, build_fmu  # noqa: E402
+from fmukit.modeldesc import check_model_description  # noqa: E402
+from fmukit.units import ARCSEC_PER_RAD  # noqa: E402
 from fmukit.slave import DeclarationError, FmuSlave, FmuStateError  # noqa: E402
 
 OUTPUTS = ["y_state", "y_ft", "angle[1]", "angle[2]"]
@@ -128,7 +129,7 @@ def fmu(tmp_path_factory):
 
 @pytest.mark.slow
 def test_built_fmu_validates_without_message(fmu):
-    from fmukit.validate import validate_fmu
+    from fmutools.validate import validate_fmu
 
     assert validate_fmu(fmu) == []
     with zipfile.ZipFile(fmu) as zf:
@@ -140,7 +141,7 @@ def test_built_fmu_validates_without_message(fmu):
 
 @pytest.mark.slow
 def test_fmpy_run_matches_the_recurrence(fmu):
-    from fmukit.testing import run_fmpy
+    from tests.support.hosts import run_fmpy
 
     y = run_fmpy(fmu, inputs=_inputs(), outputs=OUTPUTS, step_size=H, n_steps=N,
                  parameters={"a": 0.8})
@@ -217,7 +218,7 @@ def test_crafted_state_bytes_through_fmpy_run_nothing_and_fail_cleanly(fmu, tmp_
 
 @pytest.mark.slow
 def test_c_host_and_libcosim_reproduce_fmpy(fmu):
-    from fmukit.testing import run_c_host, run_fmpy, run_libcosim
+    from tests.support.hosts import run_c_host, run_fmpy, run_libcosim
 
     kw = dict(inputs=_inputs(), outputs=OUTPUTS, step_size=H, n_steps=N,
               parameters={"b": 0.2})
@@ -251,7 +252,7 @@ def test_c_host_run_is_clean_under_memcheck(fmu, tmp_path):
     library destructor) and so wrote to freed memory; the C host aborted now and then
     with "free(): corrupted unsorted chunks".  The loader releases the state first.
     """
-    from fmukit.testing import run_c_host, run_fmpy
+    from tests.support.hosts import run_c_host, run_fmpy
 
     log = tmp_path / "memcheck.txt"
     kw = dict(inputs=_inputs(), outputs=OUTPUTS, step_size=H, n_steps=N, parameters={"b": 0.2})

@@ -33,7 +33,7 @@ RTOL = 1e-12
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory, suite_fmus, suite_fmu_dir):
     """{"py": folder of Python FMUs, "native": folder of native FMUs}."""
-    from fmukit.registry import collect_specs
+    from fmutools.registry import collect_specs
 
     from nativefmu import build_native
 
@@ -152,7 +152,7 @@ def test_model_description_matches_python_fmu(fmus, model):
 def test_fmpy_validation_and_project_checks_are_clean(fmus, model):
     from fmpy.validation import validate_fmu as fmpy_validate
 
-    from fmukit.validate import validate_fmu
+    from fmutools.validate import validate_fmu
 
     path = fmus["native"] / f"{model}.fmu"
     assert fmpy_validate(str(path)) == []
@@ -473,9 +473,9 @@ def test_binaries_hold_no_build_path_and_no_libpython(fmus):
 
 
 def test_runs_in_a_plain_c_host_under_a_clean_environment(fmus, tmp_path):
-    """The C host of tests/fmukit (no libpython) with only PATH and LANG set, on a copy
+    """The C host of tests/support (no libpython) with only PATH and LANG set, on a copy
     of the FMU in a fresh folder: the same outputs as fmpy."""
-    from fmukit.testing import compile_c_host, run_c_host
+    from tests.support.hosts import compile_c_host, run_c_host
 
     host = compile_c_host(tmp_path / "host")
     copy = tmp_path / "copy" / "piezo_p243_40.fmu"
@@ -498,7 +498,7 @@ def test_windows_dll_is_built_when_mingw_is_installed(fmus, tmp_path):
     if mingw_compiler() is None:
         pytest.skip("x86_64-w64-mingw32-gcc is not installed (Debian: gcc-mingw-w64-x86-64, "
                     "`make native-deps`); the win64 binaries cannot be built here")
-    from fmukit.registry import collect_specs
+    from fmutools.registry import collect_specs
 
     from nativefmu import build_native
 
@@ -584,7 +584,7 @@ def test_feedthrough_outputs_follow_inputs_in_initialisation_mode(fmus):
 
 
 def test_runs_in_libcosim_like_in_fmpy(fmus):
-    from fmukit.testing import run_libcosim
+    from tests.support.hosts import run_libcosim
 
     kw = dict(outputs=["u1"], step_size=4e-3, n_steps=300,
               inputs={"y1": 1e-5 * np.sin(2 * np.pi * 8.4 * T[:300] * 4)},

@@ -19,7 +19,7 @@ SLAVES = {
 @pytest.fixture(scope="session")
 def fmu_dir(tmp_path_factory):
     """Folder with MtIntegrator.fmu, MtGain.fmu, MtFaulty.fmu and MtGainNoState.fmu."""
-    from fmukit.build import FmuSpec, build_fmu
+    from fmutools.build import FmuSpec, build_fmu
 
     out = tmp_path_factory.mktemp("master_fmus")
     for ident, cls in SLAVES.items():

@@ -28,7 +28,7 @@ def fmus(suite_fmus, suite_fmu_dir):
 def gain_loop(fmus):
     """A P-845.37 amplifier whose voltage a pure-gain delayed law feeds back."""
     from ctrlfmu.law import DiscreteLaw, save_law
-    from fmukit.build import FmuSpec, build_fmu
+    from fmutools.build import FmuSpec, build_fmu
 
     g0 = 0.5
     law = DiscreteLaw(np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1)), [[g0]], 1e-3,

@@ -136,8 +136,8 @@ def test_validate_still_fails_fmi_errors(stair, tmp_path, capsys):
 
 
 def test_library_validation_is_strict_by_default_as_for_the_build(stair):
-    """fmukit.registry builds the project's FMUs and calls validate_fmu(path, strict=True)."""
-    from fmukit.validate import check_fmu, validate_fmu
+    """fmutools.registry builds the project's FMUs and calls validate_fmu(path, strict=True)."""
+    from fmutools.validate import check_fmu, validate_fmu
 
     errors, conventions = check_fmu(stair)
     assert errors == () and len(conventions) == 2
@@ -152,7 +152,7 @@ def init_fails(tmp_path_factory, fmu_dir):
     import shutil
     import sys
 
-    from fmukit.build import FmuSpec, build_fmu
+    from fmutools.build import FmuSpec, build_fmu
 
     out = tmp_path_factory.mktemp("init_fails")
     for f in fmu_dir.glob("*.fmu"):

@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 import tomli_w
 
-from orchestrator import fmucache
-from orchestrator.fmucache import MANIFEST, CacheError, cache_root, extract_cached
+from fmutools import fmucache
+from fmutools.fmucache import MANIFEST, CacheError, cache_root, extract_cached
 from orchestrator.scenario import ScenarioError
 from orchestrator.scenario import read_ssp
 

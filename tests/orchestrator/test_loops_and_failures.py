@@ -268,7 +268,7 @@ def test_a_non_finite_value_is_blamed_on_the_instance_that_produced_it(fmu_dir):
 
 
 def test_needlessly_fine_tick_grids_are_warned_about(fmu_dir, tmp_path):
-    from fmukit.build import FmuSpec, build_fmu
+    from fmutools.build import FmuSpec, build_fmu
     from orchestrator import TimebaseWarning
 
     def warned(d):

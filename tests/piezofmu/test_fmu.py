@@ -38,7 +38,7 @@ def test_fmu_validates_without_messages(fmus, model):
     from fmpy.validation import validate_fmu
 
     assert validate_fmu(str(fmus[model])) == []
-    from fmukit.validate import validate_fmu as project_validate
+    from fmutools.validate import validate_fmu as project_validate
 
     assert project_validate(fmus[model]) == []
 
@@ -69,11 +69,11 @@ def test_model_structure_is_exact(fmus):
 
 @pytest.mark.parametrize("model", list(MODELS))
 def test_fmpy_run_equals_the_pure_model(fmus, model):
-    from fmukit import testing
+    from tests.support import hosts
     cmd, elong = commands(model)
     params = {"noise_std": 1e-7}
-    y = testing.run_fmpy(fmus[model], inputs={"v_cmd": cmd, "elongation": elong},
-                         outputs=OUTPUTS, step_size=DT, n_steps=N, parameters=params)
+    y = hosts.run_fmpy(fmus[model], inputs={"v_cmd": cmd, "elongation": elong},
+                       outputs=OUTPUTS, step_size=DT, n_steps=N, parameters=params)
     act = ac.actuator_preset(MODELS[model]).replace(
         gauge=ac.actuator_preset(MODELS[model]).gauge.replace(noise_std=1e-7))
     state = ac.initial_state(act)
@@ -88,14 +88,14 @@ def test_fmpy_run_equals_the_pure_model(fmus, model):
 
 @pytest.mark.parametrize("model", ["piezo_p243_40", "piezo_p845_37"])
 def test_c_host_and_libcosim_match_fmpy(fmus, model, tmp_path):
-    from fmukit import testing
+    from tests.support import hosts
     cmd, elong = commands(model)
     kw = dict(inputs={"v_cmd": cmd, "elongation": elong}, outputs=OUTPUTS, step_size=DT,
               n_steps=N, parameters={"noise_std": 1e-7, "stroke_limit": 15e-6})
-    ref = testing.run_fmpy(fmus[model], **kw)
-    c_host = testing.run_c_host(fmus[model], **kw,
-                                host=testing.compile_c_host(tmp_path / "host"))
-    cosim = testing.run_libcosim(fmus[model], **kw)
+    ref = hosts.run_fmpy(fmus[model], **kw)
+    c_host = hosts.run_c_host(fmus[model], **kw,
+                              host=hosts.compile_c_host(tmp_path / "host"))
+    cosim = hosts.run_libcosim(fmus[model], **kw)
     scale = np.maximum(np.abs(ref).max(axis=0), 1e-300)
     np.testing.assert_allclose(c_host / scale, ref / scale, rtol=0, atol=1e-12)
     np.testing.assert_allclose(cosim / scale, ref / scale, rtol=0, atol=1e-12)

@@ -271,7 +271,7 @@ def test_load_ritz_vectors_fix_the_22_hz_swir_response(truss, red):
 def test_structure_fmu_builds_and_validates(tmp_path):
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
-    from fmukit.build import build_fmu
+    from fmutools.build import build_fmu
     from structfmu.fmuspec import specs
 
     (spec,) = specs(["eos_testbed_structure"])

@@ -24,7 +24,7 @@ OUTS = ["strain_diag", "elong_long", "acc_tip_x", "los_tip_pitch"]
 
 def test_fmu_validates_with_no_message(structure_fmu):
     from fmpy.validation import validate_fmu
-    from fmukit.validate import validate_fmu as ours
+    from fmutools.validate import validate_fmu as ours
     fmu, _ = structure_fmu
     assert validate_fmu(str(fmu)) == []
     assert ours(fmu) == []
@@ -42,7 +42,7 @@ def test_dependencies_exact(structure_fmu):
 
 
 def test_fmpy_matches_the_numerics_and_other_hosts(structure_fmu):
-    from fmukit.testing import run_c_host, run_fmpy, run_libcosim
+    from tests.support.hosts import run_c_host, run_fmpy, run_libcosim
     fmu, model = structure_fmu
     n = 200
     kw = dict(inputs=_inputs(n), outputs=OUTS, step_size=1e-3, n_steps=n)
@@ -101,8 +101,8 @@ def test_state_round_trip_is_bit_exact(structure_fmu):
 
 def test_analytic_step_force_response_through_the_fmu(tmp_path):
     # single undamped mode: q = F/w^2 (1 - cos w t), exact at the communication points
-    from fmukit.build import build_fmu
-    from fmukit.testing import run_fmpy
+    from fmutools.build import build_fmu
+    from tests.support.hosts import run_fmpy
     from structfmu.fmuspec import spec_from_model
     from structfmu.reduced import ReducedModel
     w, F = 2 * np.pi * 5.0, 2.0
@@ -120,7 +120,7 @@ def test_analytic_step_force_response_through_the_fmu(tmp_path):
 def test_torque_inputs_are_declared_in_newton_metres(tmp_path):
     from fmpy import read_model_description
 
-    from fmukit.build import build_fmu
+    from fmutools.build import build_fmu
     from structfmu.fmuspec import spec_from_model
     from structfmu.models import eos_testbed
     fmu = build_fmu(spec_from_model(eos_testbed.reduced(), "eos_units_structure"), tmp_path)

@@ -27,7 +27,7 @@ import pytest
 import scipy.linalg
 import scipy.sparse as sp
 
-from piezofmu.units import INCH, LBF
+from fmukit.units import INCH, LBF
 from structfmu import nastran as nas
 from structfmu.models import truss10
 from structfmu.reduced import ReducedModel

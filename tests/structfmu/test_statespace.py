@@ -120,10 +120,10 @@ def test_filtered_accel_discretisation_matches_cont2discrete(h):
     ref = (Ad @ x + Bd @ u)[perm]
     np.testing.assert_allclose(ours, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
     np.testing.assert_allclose(output(model, x[perm], u), C @ x + D @ u, rtol=1e-12)
-    # the Stepper (used by the FMU) agrees with the pure step and has no feedthrough
-    from structfmu.discrete import Stepper
+    # the ZohStepper (used by the FMU) agrees with the pure step and has no feedthrough
+    from structfmu.discrete import ZohStepper
 
-    st = Stepper(model)
+    st = ZohStepper(model)
     st.x[:] = x[perm]
     st.step(u, h)
     np.testing.assert_allclose(st.x, ours, rtol=1e-12, atol=1e-15 * np.abs(ours).max())

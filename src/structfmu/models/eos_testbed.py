@@ -124,7 +124,7 @@ from dataclasses import replace
 import numpy as np
 
 from piezofmu import preset
-from piezofmu.units import INCH
+from fmukit.units import G0, INCH
 from structfmu.errors import ModelError
 from structfmu.fem import ActiveMember, Channel, Spring, Truss, assemble, transverse_link
 from structfmu.reduce import Damping, eigenpairs, reduce
@@ -134,7 +134,6 @@ BAY = 10 * INCH
 NX, NY, NZ = 16, 2, 2
 E_AL = 70e9
 RHO_AL = 2700.0
-G0 = 9.80665
 TUBE_AREA = np.pi / 4 * ((0.75 * INCH) ** 2 - (0.652 * INCH) ** 2)
 ROD_D = 0.5 * INCH
 ROD_AREA = np.pi / 4 * ROD_D**2

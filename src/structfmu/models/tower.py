@@ -53,6 +53,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fmukit.units import INCH
+
 from piezofmu import preset
 from structfmu.errors import ModelError
 from structfmu.fem import ActiveMember, Truss, transverse_link
@@ -60,7 +62,7 @@ from structfmu.fem import ActiveMember, Truss, transverse_link
 BAY = 0.5  # m
 E_AL = 70e9  # Pa
 RHO_AL = 2700.0  # kg/m^3
-TUBE_OD, TUBE_ID = 0.0254, 0.0221  # m: 1.0 in tube, 0.065 in wall
+TUBE_OD, TUBE_ID = 1.0 * INCH, 0.0221  # m: 1.0 in tube, 0.065 in wall
 TUBE_AREA = np.pi / 4 * (TUBE_OD**2 - TUBE_ID**2)  # m^2
 TUBE_I = np.pi / 64 * (TUBE_OD**4 - TUBE_ID**4)  # m^4
 NODE_MASS = 0.15  # kg

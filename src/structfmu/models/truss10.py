@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from piezofmu import preset
-from piezofmu.units import INCH, LB
+from fmukit.units import INCH, LB
 from structfmu.fem import ActiveMember, Truss, transverse_link
 from structfmu.reduce import Damping, reduce
 

@@ -9,23 +9,31 @@ an array of shape ``(n_steps, n_outputs)``, so a test compares them directly::
 Inputs are held constant over each step (value ``inputs[name][k]`` during step
 ``k``); Real parameters are set before initialisation.  Time is ``k * step_size``
 (never accumulated).  These helpers are for tests: they need fmpy, gcc and
-libcosimpy, which the FMUs themselves do not.
+libcosimpy, which the FMUs themselves do not.  The C host is ``c_host/host.c`` beside
+this module.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
 
 __all__ = ["run_fmpy", "run_c_host", "run_libcosim", "compile_c_host", "clean_env",
            "HostError"]
+
+#: Source of the plain C host (no libpython).
+C_HOST_SOURCE = Path(__file__).with_name("c_host") / "host.c"
 
 
 class HostError(RuntimeError):
@@ -43,8 +51,6 @@ def _input_matrix(inputs: Mapping[str, object] | None, n_steps: int) -> tuple[li
 
 
 def _variables(fmu: str | Path):
-    from fmpy import read_model_description
-
     md = read_model_description(str(fmu))
     return md, {v.name: v for v in md.modelVariables}
 
@@ -80,9 +86,6 @@ def run_fmpy(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n_ste
     -------
     numpy.ndarray, shape (n_steps, len(outputs))
     """
-    from fmpy import extract
-    from fmpy.fmi2 import FMU2Slave
-
     md, variables = _variables(fmu)
     in_names, u = _input_matrix(inputs, n_steps)
     in_vrs, out_vrs = _vrs(variables, in_names, fmu), _vrs(variables, outputs, fmu)
@@ -117,23 +120,21 @@ def clean_env() -> dict[str, str]:
 
 
 def compile_c_host(out: str | Path, source: str | Path | None = None) -> Path:
-    """Compile the C host ``tests/fmukit/c_host/host.c`` with gcc.
+    """Compile the C host ``tests/support/c_host/host.c`` with gcc.
 
     Parameters
     ----------
     out : str or Path
         Executable to write.
     source : str or Path, optional
-        Host source; default: ``tests/fmukit/c_host/host.c`` of the repository.
+        Host source; default: :data:`C_HOST_SOURCE`.
 
     Returns
     -------
     Path
         ``out``.
     """
-    if source is None:
-        source = Path(__file__).resolve().parents[2] / "tests" / "fmukit" / "c_host" / "host.c"
-    source = Path(source)
+    source = C_HOST_SOURCE if source is None else Path(source)
     if not source.is_file():
         raise FileNotFoundError(f"C host source {source} not found; pass source=")
     out = Path(out)
@@ -170,7 +171,7 @@ def run_c_host(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n_s
     in_vrs, out_vrs = _vrs(variables, in_names, fmu), _vrs(variables, outputs, fmu)
     par = dict(parameters or {})
     par_vrs = _vrs(variables, list(par), fmu)
-    with tempfile.TemporaryDirectory(prefix="fmukit_chost_") as tmp:
+    with tempfile.TemporaryDirectory(prefix="c_host_") as tmp:
         tmp = Path(tmp)
         exe = Path(host) if host is not None else compile_c_host(tmp / "host")
         unzip = tmp / "fmu"
@@ -211,9 +212,6 @@ def run_libcosim(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n
     -------
     numpy.ndarray, shape (n_steps, len(outputs))
     """
-    import json
-    import sys
-
     in_names, u = _input_matrix(inputs, n_steps)
     with tempfile.TemporaryDirectory(prefix="libcosim_run_") as tmp:
         job = Path(tmp) / "job.npz"
@@ -222,7 +220,7 @@ def run_libcosim(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n
             "fmu": str(Path(fmu).resolve()), "outputs": list(outputs), "step_size": step_size,
             "n_steps": n_steps, "in_names": in_names, "parameters": dict(parameters or {}),
             "out": str(out)})))
-        proc = subprocess.run([sys.executable, "-m", "fmukit.testing", str(job)],
+        proc = subprocess.run([sys.executable, __file__, str(job)],
                               capture_output=True, text=True, timeout=600)
         if proc.returncode != 0 or not out.is_file():
             raise HostError(f"libcosim run of {Path(fmu).name} failed (exit "
@@ -232,6 +230,7 @@ def run_libcosim(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n
 
 def _run_libcosim_here(fmu, *, outputs, step_size, n_steps, inputs=None, parameters=None):
     """Body of :func:`run_libcosim`, run in the child process."""
+    # libcosimpy is an optional test dependency, imported only in the child process
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimManipulator import CosimManipulator
     from libcosimpy.CosimObserver import CosimObserver
@@ -269,9 +268,6 @@ def _run_libcosim_here(fmu, *, outputs, step_size, n_steps, inputs=None, paramet
 
 
 def _child_main(job_path: str) -> None:
-    import json
-    import os
-
     with np.load(job_path, allow_pickle=False) as job:
         spec = json.loads(str(job["spec"]))
         u = job["u"]
@@ -280,13 +276,10 @@ def _child_main(job_path: str) -> None:
                            n_steps=spec["n_steps"], inputs=inputs or None,
                            parameters=spec["parameters"] or None)
     np.save(spec["out"], y)
-    import sys
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)  # skip interpreter teardown with libcosim slaves still alive
 
 
 if __name__ == "__main__":
-    import sys
-
     _child_main(sys.argv[1])

@@ -1,9 +1,4 @@
-"""Build the project's FMUs on demand; extract FMU and SSP archives into a private cache.
-
-``ensure_fmus(names, fmu_dir)`` builds the named FMUs into ``fmu_dir`` when they are
-missing or were built from other sources (a hash of the project's Python sources and
-C loader, kept in ``fmu_dir/.sources``), so commands like ``jitterfmu reproduce`` and
-``make demo`` never run stale FMUs.
+"""The current user's private cache: extracted FMU and SSP archives, compiled loaders.
 
 ``extract_cached(archive, sha256, kind=...)`` unpacks an archive once per content hash
 into the per-user cache folder (:func:`cache_root`) and returns the folder.  The cache
@@ -26,8 +21,6 @@ import zipfile
 import zlib
 from pathlib import Path
 
-PACKAGES = ("fmukit", "structfmu", "piezofmu", "acsfmu", "distfmu", "ctrlfmu")
-
 #: Name of the file, inside each cache entry, that lists the hashes of its files.
 MANIFEST = ".jitterfmu-manifest.json"
 
@@ -38,76 +31,6 @@ _VERIFIED: set[Path] = set()
 
 class CacheError(OSError):
     """The extraction cache cannot be used safely, or an archive cannot be unpacked."""
-
-
-def sources_hash() -> str:
-    """Hash of every source file of the FMU packages."""
-    import importlib.util
-
-    h = hashlib.sha256()
-    for pkg in PACKAGES:
-        spec = importlib.util.find_spec(pkg)
-        root = Path(list(spec.submodule_search_locations)[0])
-        for path in sorted(root.rglob("*")):
-            if path.suffix in (".py", ".c", ".h", ".npz", ".csv") and "__pycache__" not in \
-                    path.parts:
-                h.update(str(path.relative_to(root.parent)).encode())
-                h.update(path.read_bytes())
-    return h.hexdigest()
-
-
-def ensure_fmus(names, fmu_dir="fmus", progress=None, extra=None) -> dict:
-    """Paths of the named FMUs in ``fmu_dir``, building missing or stale ones.
-
-    Parameters
-    ----------
-    names : iterable of str
-        Model identifiers (e.g. ``"truss10_structure"``).
-    fmu_dir : path-like
-        Folder of built FMUs.
-    progress : callable, optional
-        Called with one line of text per FMU built.
-    extra : mapping of str to callable, optional
-        FMUs the registry does not know, as ``name -> () -> FmuSpec`` (e.g. a structure
-        built from a variant of a built-in model); stamped and rebuilt like the others,
-        the spec made only when the FMU is missing or stale.
-
-    Returns
-    -------
-    dict of str to Path
-    """
-    from fmukit.build import build_fmu
-    from fmukit.registry import collect_specs
-
-    fmu_dir = Path(fmu_dir)
-    fmu_dir.mkdir(parents=True, exist_ok=True)
-    stamp_file = fmu_dir / ".sources"
-    stamps = json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
-    current = sources_hash()
-    names = list(dict.fromkeys(names))
-    todo = [n for n in names
-            if not (fmu_dir / f"{n}.fmu").is_file() or stamps.get(n) != current]
-    extra = dict(extra or {})
-    if todo:
-        known = [n for n in todo if n not in extra]
-        specs = {s.model_identifier: s for s in collect_specs(known)} if known else {}
-        missing = [n for n in known if n not in specs]
-        if missing:
-            raise KeyError(f"no FMU named {', '.join(missing)} in the project; run "
-                           "'jitterfmu build' to list the FMUs it knows")
-        for n in todo:
-            if progress:
-                progress(f"building {n}.fmu")
-            build_fmu(specs[n] if n in specs else extra[n](), fmu_dir)
-            stamps[n] = current
-            tmp = stamp_file.with_suffix(".tmp")
-            tmp.write_text(json.dumps(stamps, indent=1))
-            tmp.replace(stamp_file)
-    return {n: fmu_dir / f"{n}.fmu" for n in names}
-
-
-# ---------------------------------------------------------------------------------------
-# Extraction cache
 
 
 def cache_root() -> Path:
@@ -334,7 +257,8 @@ def _prune(root: Path) -> None:
     now = time.time()
     for entry in root.iterdir():
         try:
-            if entry.name.startswith((".fmu-partial-", ".ssp-partial-", ".discarded-")):
+            if entry.name.startswith((".fmu-partial-", ".ssp-partial-", ".loader-partial-",
+                                      ".discarded-")):
                 if now - entry.lstat().st_mtime > _PARTIAL_AGE:
                     shutil.rmtree(entry, ignore_errors=True)
             elif entry.name.startswith(("fmu-", "ssp-")) and entry not in _VERIFIED:

@@ -12,6 +12,11 @@ from __future__ import annotations
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from xml.etree.ElementTree import fromstring
+
+from fmpy.validation import validate_fmu as fmpy_validate
+
+from fmukit.modeldesc import check_model_description
 
 __all__ = ["FmuCheck", "check_fmu", "validate_fmu"]
 
@@ -59,10 +64,6 @@ def check_fmu(path: str | Path) -> FmuCheck:
     FmuCheck
         One sentence per problem, each prefixed with the file name.
     """
-    from fmpy.validation import validate_fmu as fmpy_validate
-
-    from fmukit.modeldesc import check_model_description
-
     path = Path(path)
     if not path.is_file():
         return FmuCheck(errors=(f"FMU {path} does not exist",))
@@ -78,8 +79,6 @@ def check_fmu(path: str | Path) -> FmuCheck:
     if errors:  # the conventions need a readable model description
         return FmuCheck(errors=tuple(errors))
     warnings = [f"{path.name}: {p}" for p in check_model_description(xml)]
-    from xml.etree.ElementTree import fromstring
-
     cs = fromstring(xml).find("CoSimulation")
     if cs is not None:
         binary = f"binaries/linux64/{cs.get('modelIdentifier')}.so"

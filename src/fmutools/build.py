@@ -3,15 +3,17 @@
 :func:`build_fmu` writes a generated slave script with a unique module name and a
 class named after the modelIdentifier, copies the pure-Python packages the slave
 needs into ``resources/`` (so the FMU carries its own code), lets pythonfmu build the
-archive, then installs the C loader (:mod:`fmukit.loader`) as
-``binaries/linux64/<modelIdentifier>.so`` with pythonfmu's binary renamed beside it,
-so that C-only hosts can load the FMU.
+archive, then installs the C loader (:mod:`fmutools.loader`, compiled once per
+configuration) as ``binaries/linux64/<modelIdentifier>.so`` with pythonfmu's binary
+renamed beside it, so that C-only hosts can load the FMU.
+
+This module is build tooling: it is never bundled into an FMU.  Only :mod:`fmukit`
+(the runtime) and the slave's own packages are.
 """
 
 from __future__ import annotations
 
 import contextlib
-
 import importlib
 import importlib.util
 import re
@@ -21,12 +23,14 @@ import tempfile
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from importlib import metadata
 from pathlib import Path
 
-__all__ = ["FmuSpec", "BuildError", "build_fmu", "REAL_BINARY_SUFFIX"]
+from fmukit import slave as fmukit_slave
+from fmukit.modeldesc import CAPABILITIES
+from fmutools.loader import REAL_BINARY_SUFFIX, cached_loader
 
-#: pythonfmu's binary is stored as ``binaries/linux64/<modelIdentifier><suffix>``.
-REAL_BINARY_SUFFIX = "_pythonfmu.so"
+__all__ = ["FmuSpec", "BuildError", "BuildReport", "build_fmu", "REAL_BINARY_SUFFIX"]
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _CLASS_PATH = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
@@ -35,6 +39,17 @@ _RESERVED = {"pythonfmu", "slavemodule.txt"}
 
 class BuildError(RuntimeError):
     """An FMU could not be built."""
+
+
+@dataclass(frozen=True)
+class BuildReport:
+    """Built FMUs and one line per validation problem; unpacks as ``fmus, problems``."""
+
+    fmus: tuple[Path, ...]
+    problems: tuple[str, ...]
+
+    def __iter__(self):
+        return iter((self.fmus, self.problems))
 
 
 @dataclass(frozen=True)
@@ -175,8 +190,6 @@ def build_fmu(spec: FmuSpec, out_dir: str | Path, *, c_loader: bool = True) -> P
     BuildError
         If a package, resource or the compiler is missing, or pythonfmu fails.
     """
-    from fmukit.modeldesc import CAPABILITIES
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{spec.model_identifier}.fmu"
@@ -224,10 +237,8 @@ def build_fmu(spec: FmuSpec, out_dir: str | Path, *, c_loader: bool = True) -> P
             if running is not None:
                 sys.modules[module_name] = running
         loader = None
-        if c_loader:
-            from fmukit.loader import compile_loader
-
-            loader = compile_loader(tmp / "loader.so")
+        if c_loader:  # a fresh copy: the archive entry is dated now, as the FMU's others
+            loader = Path(shutil.copy(cached_loader(), tmp / "loader.so"))
         _rewrite_archive(Path(built), target, spec.model_identifier, loader)
     return target
 
@@ -243,11 +254,6 @@ def _installed_builder():
     slaves derive from); afterwards the bundled modules are put back, so running FMUs
     keep theirs.
     """
-    import importlib
-    from importlib import metadata
-
-    from fmukit import slave as fmukit_slave
-
     try:
         site = Path(metadata.distribution("pythonfmu").locate_file("")).resolve()
     except metadata.PackageNotFoundError:

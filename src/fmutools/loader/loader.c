@@ -12,7 +12,7 @@
  *   4. releases pythonfmu's shared interpreter state at exit, before that binary's own
  *      static destructor runs (see release_pythonfmu_state).
  *
- * Compile-time definitions (set by fmukit.loader.compile_loader):
+ * Compile-time definitions (set by fmutools.loader.compile_loader):
  *   FMUKIT_LIBPYTHON   path of the shared libpython
  *   FMUKIT_EXECUTABLE  path of the Python executable of the build environment
  *   FMUKIT_SITE_DIRS   site-packages folders, separated by '\n'

@@ -127,6 +127,20 @@ def find_fmu(name: str, scenario: Scenario, fmu_dir=None) -> Path:
     the scenario file, next to it, in ``fmus/`` of its parent folder, and in ``fmus/`` of
     the current folder.  A name with a suffix or a folder is a path (relative to the
     scenario folder, then the current folder).
+
+    Parameters
+    ----------
+    name : str
+        FMU name or path, as written in the scenario.
+    scenario : Scenario
+        The scenario (its folder anchors the search).
+    fmu_dir : path-like, optional
+        Folder searched first for bare names.
+
+    Returns
+    -------
+    Path
+        The FMU file.
     """
     p = Path(name)
     if p.suffix.lower() == ".fmu" or len(p.parts) > 1:

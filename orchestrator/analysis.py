@@ -433,7 +433,19 @@ class LinearScenario:
         return self.slots[inst][2].start + b.outputs.index(var)
 
     def with_gain(self, instance: str, factor: float) -> "LinearScenario":
-        """Copy with controller ``instance``'s command scaled by ``factor``."""
+        """Copy with controller ``instance``'s command scaled by ``factor``.
+
+        Parameters
+        ----------
+        instance : str
+            Controller instance name.
+        factor : float
+            Factor on the controller's command (-); negative flips its sign.
+
+        Returns
+        -------
+        LinearScenario
+        """
         b = self.blocks.get(instance)
         if b is None or b.rebuild is None:
             raise AnalysisError(f"{instance!r} is not a controller of the scenario; "
@@ -443,7 +455,19 @@ class LinearScenario:
         return LinearScenario(self.plan, blocks, self.order)
 
     def with_law(self, instance: str, law) -> "LinearScenario":
-        """Copy with controller ``instance`` running ``law`` (a ``DiscreteLaw``) instead."""
+        """Copy with controller ``instance`` running ``law`` (a ``DiscreteLaw``) instead.
+
+        Parameters
+        ----------
+        instance : str
+            Controller instance name; it keeps its period.
+        law : ctrlfmu.law.DiscreteLaw
+            The law to run.
+
+        Returns
+        -------
+        LinearScenario
+        """
         b = self.blocks.get(instance)
         if b is None or b.kind != "controller":
             raise AnalysisError(f"{instance!r} is not a controller of the scenario; "
@@ -595,6 +619,19 @@ class LinearScenario:
         The factor on the controller's gain is searched on a logarithmic grid up to
         ``limit`` and down to ``-limit`` (through zero, i.e. with the sign flipped), then
         refined by bisection to ``rtol``.
+
+        Parameters
+        ----------
+        instance : str
+            Controller instance name.
+        limit : float
+            Largest factor magnitude searched (-).
+        rtol : float
+            Relative tolerance of the bisection on the factor.
+
+        Returns
+        -------
+        Margins
         """
         def stable(f):
             return self.with_gain(instance, f).is_stable()
@@ -820,7 +857,25 @@ def ceiling(lin: LinearScenario, performance, disturbance: str, freqs_hz, *,
 
 
 def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
-    """A readable table: poles (in ``band`` Hz), decay of ``modes``, gain margins."""
+    """A readable table: poles (in ``band`` Hz), decay of ``modes``, gain margins.
+
+    Parameters
+    ----------
+    lin : LinearScenario
+        The linear closed loop.
+    modes : sequence of float
+        Mode frequencies (Hz) whose nearby closed-loop poles are reported with their
+        decay.
+    margins : bool
+        Add the gain margins of every active controller.
+    band : (float, float), optional
+        Pole frequency band (Hz); default 0 to half the hyperperiod rate.
+
+    Returns
+    -------
+    str
+        The report, one line per row.
+    """
     lines = [f"linear closed loop: {len(lin.blocks)} instances, {lin.n} lifted states, "
              f"hyperperiod {lin.T * 1e3:g} ms"]
     poles = lin.poles()

@@ -50,17 +50,58 @@ def atomic_write(path, writer: Callable[[str], None]) -> Path:
 
 
 def write_text_atomic(path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically; returns ``path``."""
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns ``path``.
+
+    Parameters
+    ----------
+    path : path-like
+        Final file; its folder is created if missing.
+    text : str
+        Whole content.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
 def write_json_atomic(path, data, **dumps) -> Path:
-    """Write ``json.dumps(data, **dumps)`` to ``path`` atomically; returns ``path``."""
+    """Write ``json.dumps(data, **dumps)`` to ``path`` atomically; returns ``path``.
+
+    Parameters
+    ----------
+    path : path-like
+        Final file; its folder is created if missing.
+    data : object
+        JSON-serialisable data.
+    **dumps
+        Keyword arguments of :func:`json.dumps` (e.g. ``indent``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return write_text_atomic(path, json.dumps(data, **dumps))
 
 
 def sha256_file(path, chunk: int = 1 << 20) -> str:
-    """Hex SHA-256 of a file's bytes, read in chunks of ``chunk`` bytes."""
+    """Hex SHA-256 of a file's bytes, read in chunks of ``chunk`` bytes.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    chunk : int
+        Read size (bytes); 1 MiB by default.
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits.
+    """
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(chunk), b""):

@@ -103,7 +103,20 @@ def read_table(path) -> dict:
 
 
 def write_metadata(meta: dict, path) -> Path:
-    """Write ``run.json`` atomically."""
+    """Write ``run.json`` atomically.
+
+    Parameters
+    ----------
+    meta : dict
+        Run metadata; values JSON cannot encode are written as ``str(value)``.
+    path : path-like
+        The file to write.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     text = json.dumps(meta, indent=2, sort_keys=True, default=str)
 

@@ -107,7 +107,20 @@ class Timebase:
         return [self.time(k) for k in ticks]
 
     def ticks_of(self, t, what: str = "time") -> int:
-        """Return the tick of an exact time on the grid, or raise TimebaseError."""
+        """Return the tick of an exact time on the grid, or raise TimebaseError.
+
+        Parameters
+        ----------
+        t : int, float, str or Fraction
+            Time (s), read by :func:`to_fraction`.
+        what : str
+            Name of the time in error messages.
+
+        Returns
+        -------
+        int
+            Tick ``k`` with ``t = start + k base``.
+        """
         q = (to_fraction(t, what) - self.start) / self.base
         if q.denominator != 1:
             raise TimebaseError(

@@ -142,6 +142,7 @@ def find_fmu(name: str, scenario: Scenario, fmu_dir=None) -> Path:
     Returns
     -------
     Path
+        The FMU file.
     """
     p = Path(name)
     if p.suffix.lower() == ".fmu" or len(p.parts) > 1:

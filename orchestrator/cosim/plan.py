@@ -65,7 +65,22 @@ def _short(value, limit: int = 60) -> str:
 
 
 def coerce(value, v: Variable, ref: str):
-    """Check a start/action value against the variable type and return it typed."""
+    """Check a start/action value against the variable type and return it typed.
+
+    Parameters
+    ----------
+    value : object
+        The value from the scenario, in the variable's unit.
+    v : Variable
+        The FMU variable; its FMI type decides the check.
+    ref : str
+        ``"instance.variable"`` reference for error messages.
+
+    Returns
+    -------
+    float, int, bool or str
+        The value as the variable's type (Real, Integer/Enumeration, Boolean, String).
+    """
     t = v.type
     got = f"got {type(value).__name__} {_short(value)}"
     if t == "Real":

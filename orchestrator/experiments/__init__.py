@@ -97,7 +97,20 @@ def _clean(obj):
 
 
 def write_json(path, data) -> Path:
-    """Write JSON atomically (NaN/Inf become null)."""
+    """Write JSON atomically (NaN/Inf become null).
+
+    Parameters
+    ----------
+    path : path-like
+        The file to write.
+    data : object
+        JSON-serialisable data (numpy values included).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     write_text_atomic(path, json.dumps(_clean(data), indent=2) + "\n")
     return path

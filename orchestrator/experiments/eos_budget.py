@@ -95,6 +95,10 @@ def budget_table(summary_path, metric=METRIC, window=WINDOW) -> list[dict]:
     ----------
     summary_path : path-like
         ``summary.parquet`` (or the campaign folder holding it).
+    metric : str
+        Metric kind of the summary rows to use (e.g. ``"peak_to_peak"``).
+    window : float
+        Metric window of those rows (s).
 
     Returns
     -------

@@ -112,6 +112,19 @@ class Plant:
     rigid_states: np.ndarray
 
     def rows(self, prefix, names):
+        """Rows of ``C`` of the outputs ``<prefix><name>``, in order.
+
+        Parameters
+        ----------
+        prefix : str
+            Output name prefix, e.g. ``"strain_"``.
+        names : sequence of str
+            Name suffixes, e.g. ``LEGS`` or ``AXES``.
+
+        Returns
+        -------
+        list of int
+        """
         idx = {n: i for i, n in enumerate(self.outputs)}
         return [idx[f"{prefix}{n}"] for n in names]
 
@@ -151,6 +164,26 @@ def closed_loop(plant: Plant, law_, gain: float = 1.0):
     State ``[x_structure, x_law (12 blocks, Eq. 11 delay included), f (12)]``: the law maps
     strain at ``t_k`` to the command applied at ``t_{k+1}``; the stack FMU turns the command
     into its force one sample later (``f = c h v``).
+
+    Parameters
+    ----------
+    plant : Plant
+        The sampled structure (:func:`linear_plant`).
+    law_ : ctrlfmu.law.DiscreteLaw
+        The law of every leg (:func:`law`).
+    gain : float
+        Factor on the law's command (-), the same on all twelve legs.
+
+    Returns
+    -------
+    A : ndarray, shape (n, n)
+        Closed-loop transition over one step ``H``.
+    Bw : ndarray, shape (n, 9)
+        VNIR wrench (N, N m) then ACS torques (N m).
+    C, C_low, C_rigid : ndarray, shape (n_out, n)
+        As in :class:`Plant`, padded with zeros for the law and force states.
+    C_force : ndarray, shape (12, n)
+        Stack forces of ``LEGS`` (N).
     """
     from ctrlfmu.analysis import to_statespace
 
@@ -188,7 +221,20 @@ def acs_config():
 
 
 def vnir_wrench(t, preset="vnir_pointing"):
-    """Wrench of the preset at the structure (``LOAD_SCALE`` applied), shape (n, 6)."""
+    """Wrench of the preset at the structure (``LOAD_SCALE`` applied), shape (n, 6).
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Times (s).
+    preset : str
+        Disturbance preset name (:data:`distfmu.presets.PRESETS`).
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        Forces (N) then moments (N m).
+    """
     from distfmu.presets import get_preset
 
     w = np.asarray(get_preset(preset).source.wrench(np.asarray(t)), float)
@@ -202,6 +248,25 @@ def simulate_linear(plant: Plant, law_=None, gain: float = 0.0, stop: float = 6.
 
     The ACS (pure functions of ``acsfmu.pid``) samples attitude and rate every 0.1 s; its
     torque output at ``t_k`` acts over the next 0.1 s, as in the co-simulation.
+
+    Parameters
+    ----------
+    plant : Plant
+        The sampled structure (:func:`linear_plant`).
+    law_ : ctrlfmu.law.DiscreteLaw, optional
+        The law of every leg; without one, or with ``gain = 0``, the legs are passive.
+    gain : float
+        Factor on the law's command (-), the same on all twelve legs.
+    stop : float
+        Simulated time (s), sampled every ``H``.
+    preset : str
+        Disturbance preset name.
+
+    Returns
+    -------
+    dict of str to ndarray, shape (n_t,)
+        ``"time"`` (s) and the columns above; angles in rad, rates in rad/s, strains
+        (-), elongations in m.
     """
     from acsfmu.pid import acs_advance, acs_outputs, initial_state
 
@@ -242,7 +307,24 @@ def simulate_linear(plant: Plant, law_=None, gain: float = 0.0, stop: float = 6.
 
 # -- jitter -----------------------------------------------------------------------------------
 def jitter(tab, inst, prefix="structure.") -> dict:
-    """Windowed peak-to-peak (arcsec) per axis after ``SKIP`` s."""
+    """Windowed peak-to-peak (arcsec) per axis after ``SKIP`` s.
+
+    Parameters
+    ----------
+    tab : dict of str to array_like, shape (n_t,)
+        Result table with ``"time"`` (s, evenly spaced) and the LOS columns (rad).
+    inst : str
+        Instrument, ``"swir"`` or ``"misr"``.
+    prefix : str
+        Prefix of the columns ``<prefix>los_<inst>_<axis>`` (``"structure."`` for a
+        co-simulation table, ``""``, ``"low:"`` or ``"rigid:"`` for
+        :func:`simulate_linear`).
+
+    Returns
+    -------
+    dict of str to float
+        Jitter per axis of ``AXES`` (arcsec), window ``WINDOW`` s.
+    """
     from orchestrator.metrics import peak_to_peak
 
     t = np.asarray(tab["time"])
@@ -272,6 +354,18 @@ def ceiling(lin_off: dict, lin_on: dict | None = None) -> dict:
     ``lin_on`` it is given isolation on too, because mount forces do move those modes.
     Peak-to-peak is not additive, so a controller can beat either number where the
     flexible part happens to cancel part of the rigid one.
+
+    Parameters
+    ----------
+    lin_off : dict of str to ndarray, shape (n_t,)
+        As returned by :func:`simulate_linear`, isolation off.
+    lin_on : dict of str to ndarray, shape (n_t,), optional
+        As returned by :func:`simulate_linear`, isolation on.
+
+    Returns
+    -------
+    dict
+        Shares (%) and parts (arcsec) per axis.
     """
     tot = jitter(lin_off, "swir", prefix="")
     rig = jitter(lin_off, "swir", prefix="rigid:")
@@ -292,6 +386,20 @@ def force_response(plant: Plant, f_hz, rows) -> np.ndarray:
 
     Rigid-body states are dropped first: they are decoupled and the forces do not reach
     them (their double pole at z = 1 would make the eigenvector basis defective).
+
+    Parameters
+    ----------
+    plant : Plant
+        The sampled structure (:func:`linear_plant`).
+    f_hz : array_like, shape (n_f,)
+        Frequencies (Hz).
+    rows : sequence of int
+        Rows of ``plant.C`` (:meth:`Plant.rows`).
+
+    Returns
+    -------
+    ndarray of complex, shape (n_f, n_rows, 12)
+        Output per newton of stack force (e.g. rad/N, m/N), sampled system with ZOH.
     """
     keep = np.setdiff1d(np.arange(plant.A.shape[0]), plant.rigid_states)
     lam, V = np.linalg.eig(plant.A[np.ix_(keep, keep)])
@@ -313,6 +421,24 @@ def ls_ceiling(plant: Plant, lin_off: dict, stroke_limit=5e-6,
     swept and the best reduction kept whose largest stroke (elongation of any leg, off
     record plus the forces' share) and stack force fit the limits.  Non-causal, periodic,
     a least-squares (not peak-to-peak) optimum: a bound to compare with, not a controller.
+
+    Parameters
+    ----------
+    plant : Plant
+        The sampled structure (:func:`linear_plant`).
+    lin_off : dict of str to ndarray, shape (n_t,)
+        As returned by :func:`simulate_linear` with isolation off.
+    stroke_limit : float
+        Largest leg elongation allowed (m).
+    force_limit : float
+        Largest stack force allowed at testbed scale (N); default 15 lbf full scale.
+
+    Returns
+    -------
+    dict
+        ``"unconstrained"`` (exact cancellation: reduction %, stroke um, force lbf),
+        ``"within_limits_pct"`` and ``"within_limits"`` per axis (None when no ``rho``
+        fits), and the ``"limits"`` (um, lbf full scale).
     """
     from orchestrator.metrics import peak_to_peak
 
@@ -376,6 +502,21 @@ def margins(plant: Plant, law_, gain: float = GAIN) -> dict:
 
     Positive feedback (``u = K y``, ``ctrlfmu.analysis``): a leg's loop transfer is
     ``L = G_ii K z^-1 c h``, and the margins are those of ``-L`` in the usual sense.
+
+    Parameters
+    ----------
+    plant : Plant
+        The sampled structure (:func:`linear_plant`).
+    law_ : ctrlfmu.law.DiscreteLaw
+        The law of every leg (:func:`law`).
+    gain : float
+        Factor on the law's command (-), the same on all twelve legs.
+
+    Returns
+    -------
+    dict
+        ``"per_leg"`` gain margin (dB), phase margin (deg) and crossovers (Hz), their
+        minima, and ``"mimo_gain_margin_db"``.
     """
     from ctrlfmu.analysis import frequency_response
 
@@ -425,7 +566,23 @@ def spectral_radius(A) -> float:
 
 def mimo_gain_margin(plant: Plant, law_, gain: float = GAIN) -> float:
     """Common factor on all twelve loops (dB over ``gain``) at which one pole leaves the unit
-    circle; bisection on the spectral radius of the closed loop."""
+    circle; bisection on the spectral radius of the closed loop.
+
+    Parameters
+    ----------
+    plant : Plant
+        The sampled structure (:func:`linear_plant`).
+    law_ : ctrlfmu.law.DiscreteLaw
+        The law of every leg (:func:`law`).
+    gain : float
+        Factor on the law's command (-), the same on all twelve legs.
+
+    Returns
+    -------
+    float
+        Margin (dB); ``-inf`` if unstable at ``gain``, ``inf`` if stable up to
+        ``1e4 gain``.
+    """
     def stable(g):
         return spectral_radius(closed_loop(plant, law_, g)[0]) < 1.0 + RIGID_TOL
 
@@ -443,7 +600,25 @@ def mimo_gain_margin(plant: Plant, law_, gain: float = GAIN) -> float:
 
 
 def damping(plant: Plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
-    """Damping of the lightly damped poles (zeta < 0.5) in ``band`` (Hz), open and closed."""
+    """Damping of the lightly damped poles (zeta < 0.5) in ``band`` (Hz), open and closed.
+
+    Parameters
+    ----------
+    plant : Plant
+        The sampled structure (:func:`linear_plant`).
+    law_ : ctrlfmu.law.DiscreteLaw
+        The law of every leg (:func:`law`).
+    gain : float
+        Factor on the law's command (-), the same on all twelve legs.
+    band : (float, float)
+        Pole frequency band (Hz).
+
+    Returns
+    -------
+    dict
+        Largest open-loop and smallest closed-loop damping ratio, the number of
+        closed-loop modes above 1 %, and the five most damped (Hz, ratio).
+    """
     from ctrlfmu.analysis import mode_damping
 
     def poles(g):
@@ -497,7 +672,22 @@ def scenario(stop: float) -> dict:
 
 
 def cosim(fmu_dir, gain: float, stop: float) -> dict:
-    """Co-simulate with every leg's law at ``gain``; the recorded table."""
+    """Co-simulate with every leg's law at ``gain``; the recorded table.
+
+    Parameters
+    ----------
+    fmu_dir : path-like
+        Folder holding the built FMUs (:func:`ensure_fmus`).
+    gain : float
+        Factor on every leg's law (-); 0 for isolation off.
+    stop : float
+        Stop time (s).
+
+    Returns
+    -------
+    dict of str to ndarray, shape (n_t,)
+        ``"time"`` (s) and the recorded ``instance.variable`` columns.
+    """
     import warnings
 
     from orchestrator import UnconnectedInputWarning, run_scenario
@@ -522,6 +712,27 @@ def modal_breakdown(model, plant: Plant, law_, axis="pitch", stop=3.5, top=4) ->
 
     Per mode: frequency, its own windowed peak-to-peak in the LOS (arcsec), the share of
     its strain energy in the twelve active legs, and its damping open and closed loop.
+
+    Parameters
+    ----------
+    model : ReducedModel
+        The structure (:func:`structure_model`) ``plant`` was made from.
+    plant : Plant
+        The sampled structure (:func:`linear_plant`).
+    law_ : ctrlfmu.law.DiscreteLaw
+        The law of every leg (:func:`law`).
+    axis : str
+        ``"roll"``, ``"pitch"`` or ``"yaw"``.
+    stop : float
+        Simulated time (s).
+    top : int
+        Number of modes returned.
+
+    Returns
+    -------
+    list of dict
+        Mode number, ``f_hz`` (Hz), ``p2p_arcsec``, strain-energy share (%) and the
+        open- and closed-loop damping ratios, largest contribution first.
     """
     from acsfmu.pid import acs_advance, acs_outputs, initial_state
     from ctrlfmu.analysis import mode_damping
@@ -570,6 +781,22 @@ def reduction_with_damping(model, zeta: float = 0.05, above_hz: float = 20.0,
     A collocated leg damper adds at most about ``nu / 4`` to a mode with a fraction ``nu``
     of its strain energy in that leg (the largest in the twelve legs is 17 %: about 4 %),
     so this is more damping than any strain/strain-rate loop on the legs can add.
+
+    Parameters
+    ----------
+    model : ReducedModel
+        The structure (:func:`structure_model`).
+    zeta : float
+        Damping ratio given to the modes above ``above_hz`` (-).
+    above_hz : float
+        Frequency above which modes get ``zeta`` (Hz).
+    stop : float
+        Simulated time (s).
+
+    Returns
+    -------
+    dict of str to float
+        SWIR jitter reduction per axis (%).
     """
     from dataclasses import replace
 
@@ -689,6 +916,15 @@ def _note(red, ceil, ls, pitch_modes, damped):
 
 
 def plot(off, on, out_dir):
+    """Draw the SWIR line of sight, mounts off and on (Fig. 9).
+
+    Parameters
+    ----------
+    off, on : dict of str to ndarray
+        Co-simulation tables (:func:`cosim`) with isolation off and on.
+    out_dir : path-like
+        Folder for ``swir-isolation.png``.
+    """
     import matplotlib
 
     matplotlib.use("Agg")

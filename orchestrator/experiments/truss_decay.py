@@ -35,10 +35,19 @@ MODES = {"diagonal": ("structure.strain_diag", 8.4), "longeron": ("structure.str
 def fit_two_modes(t, y, f_guess):
     """Fit ``sum_k a_k exp(-s_k t) cos(2 pi f_k t + p_k)`` to a decay.
 
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s); the fit starts its clock at ``t[0]``.
+    y : ndarray, shape (n,)
+        The decaying signal (any unit, e.g. gauge strain).
+    f_guess : (float, float)
+        Starting guesses of the two frequencies (Hz).
+
     Returns
     -------
     freqs : ndarray, shape (2,)
-        Damped frequencies (Hz).
+        Damped frequencies (Hz), ascending.
     zetas : ndarray, shape (2,)
         Damping ratios.
     """
@@ -73,7 +82,26 @@ def fit_two_modes(t, y, f_guess):
 
 def cycles_to_fraction(t, y, f_hz, t0=T_EXC, fraction=0.1):
     """Cycles after ``t0`` until the running one-period peak of |y| falls below
-    ``fraction`` of its value over the last period before ``t0``; None if never."""
+    ``fraction`` of its value over the last period before ``t0``; None if never.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s), evenly spaced.
+    y : ndarray, shape (n,)
+        The signal (any unit, e.g. gauge strain).
+    f_hz : float
+        Mode frequency (Hz); sets the period and converts time to cycles.
+    t0 : float
+        End of the excitation (s).
+    fraction : float
+        Threshold as a fraction of the reference peak (-).
+
+    Returns
+    -------
+    float or None
+        Cycles of ``f_hz`` from ``t0`` to the first time below the threshold.
+    """
     from scipy.ndimage import maximum_filter1d
 
     dt = t[1] - t[0]
@@ -154,6 +182,18 @@ def forced_tip_jitter(camp, laws=None) -> float:
     driven by a 10 V sine at its mode (the diagonal at 8.4 Hz, the longeron at 9.5 Hz).
     Per tip axis, the peak-to-peak steady-state response of each event, RSS over the
     two events; the worst axis.
+
+    Parameters
+    ----------
+    camp : orchestrator.analysis.LinearScenario
+        Linear closed loop of the campaign scenario.
+    laws : dict of str to DiscreteLaw, optional
+        Laws to use instead of the FMUs' (keys ``ctrl_diag``, ``ctrl_long``).
+
+    Returns
+    -------
+    float
+        Worst-axis tip jitter (arcsec).
     """
     from fmukit.units import ARCSEC
 
@@ -181,6 +221,13 @@ def tune(fmu_dir="fmus", maxfev=250):
 
     About three minutes.  ``ctrlfmu.designs.TRUSS10_DIAG`` and ``TRUSS10_LONG`` store
     the result.
+
+    Parameters
+    ----------
+    fmu_dir : path-like
+        Folder of the FMUs (built there if missing or stale).
+    maxfev : int
+        Largest number of objective evaluations of the Nelder-Mead stage.
 
     Returns
     -------
@@ -263,6 +310,22 @@ def _run(fmu_dir, stop: float, gain: float):
 
 
 def compute(fmu_dir="fmus", quick=False):
+    """Co-simulate open and closed loop; identify the decay.
+
+    Parameters
+    ----------
+    fmu_dir : path-like
+        Folder of the FMUs (built there if missing or stale).
+    quick : bool
+        Shorter runs: 20 s open loop and 8 s closed loop instead of 40 s and 12 s.
+
+    Returns
+    -------
+    dict
+        ``"ol"`` and ``"cl"`` result tables (dict of column name to ndarray, ``"time"``
+        in s), open-loop damping ratios and fits, cycles to 90 % decay, peak voltage (V)
+        and whether any amplifier or stroke limit saturated.
+    """
     from fmutools.registry import ensure_fmus
 
     ensure_fmus(FMUS, fmu_dir)
@@ -286,6 +349,15 @@ def compute(fmu_dir="fmus", quick=False):
 
 
 def plot(data, out_dir):
+    """Draw the gauge strains of both runs (Figs. 5 and 6).
+
+    Parameters
+    ----------
+    data : dict
+        The result of :func:`compute`.
+    out_dir : Path
+        Folder for ``truss-decay-open-loop.png`` and ``truss-decay-closed-loop.png``.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -309,6 +381,23 @@ def plot(data, out_dir):
 
 
 def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
+    """Run the experiment and draw its figures; the JSON dict.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Folder for the figures.
+    quick : bool
+        Shorter runs (see :func:`compute`).
+    fmu_dir : path-like
+        Folder of the FMUs (built there if missing or stale).
+
+    Returns
+    -------
+    dict
+        Damping, cycles to 90 % decay, peak voltage (V), the linear prediction and the
+        paper's values.
+    """
     data = compute(fmu_dir, quick)
     plot(data, Path(out_dir))
     cycles = data["closed_loop_cycles_to_90pct"]

@@ -20,6 +20,20 @@ def lowest_antiresonance(freqs, H, f_min=F_MIN, f_max=F_MAX):
     """Frequency of the lowest local minimum of ``|H|`` inside (f_min, f_max), or None.
 
     The minimum is refined by a parabola through the three grid points in log-log.
+
+    Parameters
+    ----------
+    freqs : array_like, shape (n_f,)
+        Frequency grid (Hz), ascending.
+    H : array_like of complex, shape (n_f,)
+        Frequency response on that grid (any unit, e.g. strain per volt, 1/V).
+    f_min, f_max : float
+        Search band (Hz), bounds excluded.
+
+    Returns
+    -------
+    float or None
+        Anti-resonance frequency (Hz).
     """
     f = np.asarray(freqs, float)
     a = np.log(np.abs(np.asarray(H)))
@@ -65,6 +79,15 @@ def compute(n_freq: int = 3000):
 
 
 def plot(data, path):
+    """Draw magnitude and phase of the three FRFs (Fig. 4).
+
+    Parameters
+    ----------
+    data : dict
+        The result of :func:`compute`.
+    path : path-like
+        PNG file to write.
+    """
     import matplotlib
 
     matplotlib.use("Agg")

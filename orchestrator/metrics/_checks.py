@@ -16,7 +16,22 @@ class WindowError(ValueError):
 
 
 def as_record(x, name: str = "x", min_ndim: int = 1) -> np.ndarray:
-    """Return ``x`` as a finite float64 array with at least ``min_ndim`` dimensions."""
+    """Return ``x`` as a finite float64 array with at least ``min_ndim`` dimensions.
+
+    Parameters
+    ----------
+    x : array_like, shape (..., n_samples)
+        A record, samples along the last axis; its values keep their own unit.
+    name : str
+        Name of the record in error messages.
+    min_ndim : int
+        Smallest accepted number of dimensions.
+
+    Returns
+    -------
+    ndarray of float64
+        ``x``, unchanged in shape.
+    """
     arr = np.asarray(x, dtype=float)
     if arr.ndim < min_ndim:
         raise ValueError(f"record {name} has {arr.ndim} dimension(s); expected at least {min_ndim}")

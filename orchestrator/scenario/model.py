@@ -43,7 +43,20 @@ class ScenarioError(ValueError):
 
 
 def closest(name: str, candidates) -> str:
-    """Return a ' (did you mean ...?)' hint listing the closest candidates, or ''."""
+    """Return a ' (did you mean ...?)' hint listing the closest candidates, or ''.
+
+    Parameters
+    ----------
+    name : str
+        The unknown name.
+    candidates : iterable of str
+        Known names; up to three close ones are listed.
+
+    Returns
+    -------
+    str
+        Hint to append to an error message.
+    """
     matches = difflib.get_close_matches(str(name), list(candidates), n=3, cutoff=0.5)
     if not matches:
         return ""

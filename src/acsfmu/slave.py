@@ -74,6 +74,17 @@ class AcsSlave(FmuSlave):
         self._t0 = 0.0
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        """Record the start time, at which the initial state is made.
+
+        Parameters
+        ----------
+        start_time : float
+            Start time (s).
+        stop_time : float, optional
+            Stop time (s); not used.
+        tolerance : float, optional
+            Not used.
+        """
         self._t0 = float(start_time)
 
     def config(self) -> AcsConfig:
@@ -106,6 +117,20 @@ class AcsSlave(FmuSlave):
         self._write(cfg, initial_state(cfg, self._t0, h0))
 
     def do_step(self, current_time, step_size):
+        """Run the controller samples of the step, inputs held.
+
+        Parameters
+        ----------
+        current_time : float
+            Communication point at the start of the step (s); taken as the exact time.
+        step_size : float
+            Step (s).
+
+        Returns
+        -------
+        bool
+            Always True.
+        """
         cfg = self.config()
         # the master's communication point is the exact time; never accumulate
         state = replace(AcsState.from_array(self.x), time=float(current_time))

@@ -270,7 +270,17 @@ class DiscreteLaw:
         return replace(self, C=g * self.C, D=g * self.D, aw_gain=aw)
 
     def with_limits(self, u_min, u_max) -> DiscreteLaw:
-        """Return a copy with output limits ``u_min``, ``u_max`` (V)."""
+        """Return a copy with output limits ``u_min``, ``u_max`` (V).
+
+        Parameters
+        ----------
+        u_min, u_max : float or array_like, shape (n_out,)
+            Lower and upper output limits (V); ``-inf``/``inf`` for none.
+
+        Returns
+        -------
+        DiscreteLaw
+        """
         return replace(self, u_min=u_min, u_max=u_max)
 
     def with_t_on(self, t_on: float) -> DiscreteLaw:
@@ -354,7 +364,21 @@ def _mv(m: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def is_active(law: DiscreteLaw, k: int, enable: bool = True) -> bool:
-    """True when ``law`` runs at sample ``k`` (``enable`` and ``k dt >= t_on``)."""
+    """True when ``law`` runs at sample ``k`` (``enable`` and ``k dt >= t_on``).
+
+    Parameters
+    ----------
+    law : DiscreteLaw
+        The control law.
+    k : int
+        Sample index (``t_k = k dt`` from the law's clock origin).
+    enable : bool
+        External enable.
+
+    Returns
+    -------
+    bool
+    """
     return bool(enable) and k >= law.first_active_sample
 
 

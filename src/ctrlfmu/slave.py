@@ -141,6 +141,17 @@ class ControllerSlave(FmuSlave):
 
     # ---------------------------------------------------------------- FMI
     def setup_experiment(self, start_time, stop_time, tolerance):
+        """Set the law's clock origin ``t_start`` to ``start_time``.
+
+        Parameters
+        ----------
+        start_time : float
+            Experiment start (s).
+        stop_time : float or None
+            Stop time (s); not used.
+        tolerance : float or None
+            Not used.
+        """
         self._t0 = float(start_time)
         self._tau = float(start_time)
 
@@ -168,6 +179,22 @@ class ControllerSlave(FmuSlave):
             self._apply_parameters()    # parameters and clock origin come with the state
 
     def do_step(self, current_time, step_size):
+        """Process every sample ``t <= t_k < t + h`` with the held inputs.
+
+        The outputs are then the commands that apply at ``t + h``.
+
+        Parameters
+        ----------
+        current_time : float
+            Communication point ``t`` at the start of the step (s).
+        step_size : float
+            Step ``h`` (s); need not be a multiple of the sample period.
+
+        Returns
+        -------
+        bool
+            Always True.
+        """
         law = self._law
         tau = current_time + step_size
         k_end = self._samples_before(tau)
@@ -187,11 +214,31 @@ class ControllerSlave(FmuSlave):
         return True
 
     def set_real(self, vrs, values):
+        """Set Real variables; once initialised, recompute the outputs.
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+        values : list of float
+            Values, one per reference, in each variable's unit.
+        """
         super().set_real(vrs, values)
         if self._ready:
             self._write_outputs()
 
     def set_boolean(self, vrs, values):
+        """Set Boolean variables (``enable``); recompute the outputs.
+
+        Outputs are recomputed only for a non-delayed law, after initialisation.
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+        values : list of bool
+            Values, one per reference.
+        """
         super().set_boolean(vrs, values)
         if self._ready and not self._law.delayed:
             self._write_outputs()

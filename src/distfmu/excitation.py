@@ -63,6 +63,17 @@ class ExcitationSlave(FmuSlave):
             setattr(self, f"v{i}", float(value))
 
     def setup_experiment(self, start_time, stop_time, tolerance):
+        """Record the start time; the initial outputs are taken there.
+
+        Parameters
+        ----------
+        start_time : float
+            Experiment start (s).
+        stop_time : float or None
+            Stop time (s); not used.
+        tolerance : float or None
+            Not used.
+        """
         self._t0 = float(start_time)
 
     def exit_initialization_mode(self):
@@ -70,5 +81,19 @@ class ExcitationSlave(FmuSlave):
         return True
 
     def do_step(self, current_time, step_size):
+        """Write the burst voltages ``v1``, ``v2`` (V) at the step end.
+
+        Parameters
+        ----------
+        current_time : float
+            Communication point at the start of the step (s).
+        step_size : float
+            Step (s); outputs are evaluated at ``current_time + step_size``.
+
+        Returns
+        -------
+        bool
+            Always True.
+        """
         self._write(current_time + step_size)
         return True

@@ -74,6 +74,17 @@ class DisturbanceSlave(FmuSlave):
         self._t0 = 0.0
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        """Record the start time, at which the initial state is made.
+
+        Parameters
+        ----------
+        start_time : float
+            Experiment start (s).
+        stop_time : float, optional
+            Stop time (s); not used (the active window is the ``stop_time`` parameter).
+        tolerance : float, optional
+            Not used.
+        """
         self._t0 = float(start_time)
 
     def _config(self) -> DisturbanceConfig:
@@ -96,6 +107,20 @@ class DisturbanceSlave(FmuSlave):
         self._write(self._config(), DisturbanceState(time=self._t0))
 
     def do_step(self, current_time, step_size):
+        """Advance the source, ``wheel_speed`` held; output the wrench.
+
+        Parameters
+        ----------
+        current_time : float
+            Communication point at the start of the step (s); taken as the exact time.
+        step_size : float
+            Step (s).
+
+        Returns
+        -------
+        bool
+            Always True.
+        """
         config = self._config()
         state = disturbance_step(config, self._state(float(current_time)), step_size,
                                  float(self.wheel_speed))

@@ -200,12 +200,38 @@ class ActuatorOutputs:
 
 
 def initial_state(act: PiezoActuator, voltage: float = 0.0) -> ActuatorState:
-    """Return the actuator at rest at a voltage (V), with a virgin hysteresis state."""
+    """Return the actuator at rest at a voltage (V), with a virgin hysteresis state.
+
+    Parameters
+    ----------
+    act : PiezoActuator
+        Actuator model.
+    voltage : float
+        Initial applied voltage (V), clipped to the amplifier rails.
+
+    Returns
+    -------
+    ActuatorState
+        With zero voltage rate, Bouc–Wen state 0 and tick 0.
+    """
     return ActuatorState(amp_mod.initial_state(act.amplifier, voltage), 0.0, 0)
 
 
 def outputs(act: PiezoActuator, state: ActuatorState) -> ActuatorOutputs:
-    """Outputs of a state (force, voltage, current, free stroke, flags)."""
+    """Outputs of a state (force, voltage, current, free stroke, flags).
+
+    Parameters
+    ----------
+    act : PiezoActuator
+        Actuator model.
+    state : ActuatorState
+        The state.
+
+    Returns
+    -------
+    ActuatorOutputs
+        Force (N), voltage (V), current (A), free stroke (m) and saturation flags.
+    """
     a = state.amp
     v_eff = a.voltage - state.h_bw
     stroke = act.stroke_per_volt * v_eff
@@ -295,7 +321,22 @@ def gaussian(seed: int, counter: int) -> float:
 
 
 def strain(act: PiezoActuator, state: ActuatorState, elongation: float) -> float:
-    """Strain-gauge reading for a member elongation (m), noise keyed by the state's tick (-)."""
+    """Strain-gauge reading for a member elongation (m), noise keyed by the state's tick (-).
+
+    Parameters
+    ----------
+    act : PiezoActuator
+        Actuator model (its gauge gives length, noise and resolution).
+    state : ActuatorState
+        Current state; its ``tick`` keys the noise sample.
+    elongation : float
+        Elongation of the active member (m).
+
+    Returns
+    -------
+    float
+        Strain reading (-): ``elongation / length`` plus noise, quantised.
+    """
     g = act.gauge
     eps = float(elongation) / g.length
     if g.noise_std > 0.0:

@@ -165,7 +165,20 @@ class AmplifierOutputs:
 
 
 def initial_state(amp: Amplifier, voltage: float = 0.0) -> AmplifierState:
-    """Return the amplifier at rest at a voltage (V), clipped to the rails."""
+    """Return the amplifier at rest at a voltage (V), clipped to the rails.
+
+    Parameters
+    ----------
+    amp : Amplifier
+        Amplifier parameters.
+    voltage : float
+        Initial output voltage (V).
+
+    Returns
+    -------
+    AmplifierState
+        Zero rate; ``sat_voltage`` set when the voltage was clipped.
+    """
     v = min(max(float(voltage), amp.v_min), amp.v_max)
     return AmplifierState(voltage=v, rate=0.0, sat_voltage=v != voltage, sat_slew=False)
 
@@ -287,7 +300,21 @@ def _advance(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: f
 
 
 def outputs(amp: Amplifier, capacitance: float, state: AmplifierState) -> AmplifierOutputs:
-    """Amplifier outputs of a state; the current is ``C dv/dt`` (A)."""
+    """Amplifier outputs of a state; the current is ``C dv/dt`` (A).
+
+    Parameters
+    ----------
+    amp : Amplifier
+        Amplifier parameters.
+    capacitance : float
+        Load capacitance ``C`` (F).
+    state : AmplifierState
+        The state.
+
+    Returns
+    -------
+    AmplifierOutputs
+    """
     return AmplifierOutputs(voltage=state.voltage, current=capacitance * state.rate,
                             sat_voltage=state.sat_voltage, sat_slew=state.sat_slew)
 
@@ -323,6 +350,19 @@ def step(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: float
 def step_path(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: float,
               dt: float) -> tuple[AmplifierState, np.ndarray]:
     """Advance like `step` and also return the voltage at every sub-step end.
+
+    Parameters
+    ----------
+    amp : Amplifier
+        Amplifier parameters.
+    capacitance : float
+        Load capacitance ``C`` (F).
+    state : AmplifierState
+        State at the start of the step.
+    v_cmd : float
+        Voltage command, held over the step (V).
+    dt : float
+        Step size (s).
 
     Returns
     -------

@@ -62,7 +62,22 @@ class BoucWen:
 
     @classmethod
     def scaled(cls, alpha: float, beta_v0: float, gamma_v0: float, v0: float) -> "BoucWen":
-        """Build from dimensionless ``beta V0`` and ``gamma V0`` for a voltage scale ``V0`` (V)."""
+        """Build from dimensionless ``beta V0`` and ``gamma V0`` for a voltage scale ``V0`` (V).
+
+        Parameters
+        ----------
+        alpha : float
+            Gain of ``dh/dv`` at ``h = 0`` (-).
+        beta_v0, gamma_v0 : float
+            Shape parameters times ``V0`` (-).
+        v0 : float
+            Voltage scale ``V0`` (V), e.g. the stack's rated voltage.
+
+        Returns
+        -------
+        BoucWen
+            With ``beta = beta_v0 / v0`` and ``gamma = gamma_v0 / v0`` (1/V).
+        """
         return cls(alpha, beta_v0 / v0, gamma_v0 / v0)
 
     @property

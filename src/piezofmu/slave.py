@@ -148,6 +148,16 @@ class PiezoSlave(FmuSlave):
         self.strain = ac.strain(act, ActuatorState.from_array(self.x), self.elongation)
 
     def set_real(self, vrs, values):
+        """Set Real variables; once initialised, recompute the strain.
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+        values : list of float
+            Values, one per reference, in each variable's unit (``v_cmd`` in V,
+            ``elongation`` in m).
+        """
         super().set_real(vrs, values)
         if self._ready:
             self._write_strain()
@@ -166,6 +176,20 @@ class PiezoSlave(FmuSlave):
         self._write_strain()
 
     def do_step(self, current_time, step_size):
+        """Advance the actuator with ``v_cmd`` held; write the outputs.
+
+        Parameters
+        ----------
+        current_time : float
+            Communication point at the start of the step (s); not used.
+        step_size : float
+            Step (s), cut into the amplifier's internal sub-steps.
+
+        Returns
+        -------
+        bool
+            Always True.
+        """
         act = self.actuator()
         state, out = ac.step(act, ActuatorState.from_array(self.x), self.v_cmd, step_size)
         self.x[...] = state.to_array()

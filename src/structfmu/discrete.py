@@ -90,10 +90,20 @@ def modal_zoh(omega, c, h):
 def block_zoh(K, D, h):
     """Exact ZOH ``(Phi, Gamma)`` of ``q'' + D q' + K q = f`` (dense block, M = I).
 
+    Parameters
+    ----------
+    K, D : ndarray, shape (n, n)
+        Block stiffness (1/s^2) and damping (1/s), e.g. ``K_oo`` and ``D_oo`` of the
+        Ritz block.
+    h : float
+        Step (s).
+
     Returns
     -------
     Phi : ndarray, shape (2n, 2n)
+        State transition on ``[q, v]``.
     Gamma : ndarray, shape (2n, n)
+        Input matrix for the held ``f``; both are ``(0, 0)`` when ``n = 0``.
     """
     n = K.shape[0]
     if n == 0:
@@ -135,7 +145,20 @@ class DiscreteModel:
 
 
 def discretize(model: ReducedModel, h: float) -> DiscreteModel:
-    """Exact ZOH discretisation of a reduced model for the step ``h`` (s)."""
+    """Exact ZOH discretisation of a reduced model for the step ``h`` (s).
+
+    Parameters
+    ----------
+    model : ReducedModel
+        The continuous reduced model.
+    h : float
+        Step (s); positive and finite.
+
+    Returns
+    -------
+    DiscreteModel
+        The step matrices, state layout as documented there.
+    """
     if not (np.isfinite(h) and h > 0):
         raise ValueError(f"discretisation step must be positive and finite, got {h!r}")
     a11, a12, a21, a22, g1, g2 = modal_zoh(model.omega, model.modal_damping, h)
@@ -181,7 +204,22 @@ def _filter_zoh(model: ReducedModel, h: float):
 
 
 def step(dm: DiscreteModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Advance the state one step with inputs ``u`` held (returns a new array)."""
+    """Advance the state one step with inputs ``u`` held (returns a new array).
+
+    Parameters
+    ----------
+    dm : DiscreteModel
+        The discretised model; the step is ``dm.h`` (s).
+    x : ndarray, shape (n_states,)
+        State at ``t_k`` in the layout of :class:`DiscreteModel`.
+    u : ndarray, shape (n_in,)
+        Inputs held over the step: forces (N) or torques (N.m), per input channel.
+
+    Returns
+    -------
+    ndarray, shape (n_states,)
+        State at ``t_k + h``.
+    """
     n_m, ns = dm.model.n_modes, dm.model.n_struct_states
     q, v, xo, xf = x[:n_m], x[n_m:2 * n_m], x[2 * n_m:ns], x[ns:]
     qn = dm.a11 * q + dm.a12 * v + dm.G1 @ u
@@ -192,7 +230,22 @@ def step(dm: DiscreteModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 
 def output(model: ReducedModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Outputs for state ``x`` and current inputs ``u`` (accelerations feed through)."""
+    """Outputs for state ``x`` and current inputs ``u`` (accelerations feed through).
+
+    Parameters
+    ----------
+    model : ReducedModel
+        The reduced model.
+    x : ndarray, shape (n_states,)
+        State in the layout of :class:`DiscreteModel`.
+    u : ndarray, shape (n_in,)
+        Current inputs: forces (N) or torques (N.m), per input channel.
+
+    Returns
+    -------
+    y : ndarray, shape (n_out,)
+        Outputs, each in the unit of its kind (m, rad, rad/s, m/s^2, strain 1).
+    """
     n_m, n_r, ns = model.n_modes, model.n_ritz, model.n_struct_states
     q, v = x[:n_m], x[n_m:2 * n_m]
     qo, vo = x[2 * n_m:2 * n_m + n_r], x[2 * n_m + n_r:ns]
@@ -214,11 +267,23 @@ def output(model: ReducedModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
 def simulate(model: ReducedModel, h: float, u, x0=None):
     """Simulate with ZOH inputs; ``u`` has shape (n_steps, n_in).
 
+    Parameters
+    ----------
+    model : ReducedModel
+        The reduced model.
+    h : float
+        Step (s).
+    u : array_like, shape (n_steps, n_in)
+        Inputs held over each step: forces (N) or torques (N.m), per input channel.
+    x0 : array_like, shape (n_states,), optional
+        Initial state (layout of :class:`DiscreteModel`); zero by default.
+
     Returns
     -------
     y : ndarray, shape (n_steps, n_out)
         Outputs at ``t_k = k h`` (state at ``t_k``, input ``u[k]``).
     x : ndarray, shape (n_steps + 1, n_states)
+        States at ``t_0 .. t_n``.
     """
     dm = discretize(model, h)
     u = np.atleast_2d(np.asarray(u, float))
@@ -287,7 +352,15 @@ class ZohStepper:
         return dm
 
     def step(self, u: np.ndarray, h: float) -> None:
-        """Advance ``x`` in place by ``h`` with inputs ``u`` held."""
+        """Advance ``x`` in place by ``h`` with inputs ``u`` held.
+
+        Parameters
+        ----------
+        u : ndarray, shape (n_in,)
+            Inputs held over the step: forces (N) or torques (N.m), per input channel.
+        h : float
+            Step (s); one discretisation is cached per distinct value.
+        """
         dm = self.discrete(h)
         if self._xf.size:  # the filter reads the state before the step
             np.dot(dm.F_x, self.x, out=self._tf)
@@ -316,7 +389,22 @@ class ZohStepper:
         return self.y_state
 
     def outputs(self, u: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Outputs for the current state and inputs ``u``, written into ``out``."""
+        """Outputs for the current state and inputs ``u``, written into ``out``.
+
+        Uses the state part computed by :meth:`update_state_outputs`.
+
+        Parameters
+        ----------
+        u : ndarray, shape (n_in,)
+            Current inputs: forces (N) or torques (N.m), per input channel.
+        out : ndarray, shape (n_out,)
+            Buffer overwritten with the outputs.
+
+        Returns
+        -------
+        ndarray, shape (n_out,)
+            ``out``: outputs, each in the unit of its kind (m, rad, rad/s, m/s^2, strain 1).
+        """
         if self.has_feedthrough:
             np.dot(self.D, u, out=out)
             out += self.y_state

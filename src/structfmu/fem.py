@@ -100,6 +100,22 @@ def transverse_link(truss_nodes, n1, n2, mid, k) -> tuple:
 
     The springs act on the transverse part of ``u_mid - (1-s) u_1 - s u_2`` (``s`` the
     position of ``mid`` on the line), like the bending stiffness of the member.
+
+    Parameters
+    ----------
+    truss_nodes : array_like, shape (n_nodes, 3)
+        Node coordinates (m).
+    n1, n2 : int
+        Indices of the nodes that define the line.
+    mid : int
+        Index of the node held on the line.
+    k : float
+        Stiffness of each spring (N/m).
+
+    Returns
+    -------
+    tuple of two Spring
+        One spring per transverse direction.
     """
     p1, p2, pm = (np.asarray(truss_nodes[i], float) for i in (n1, n2, mid))
     d = p2 - p1
@@ -273,30 +289,101 @@ class Truss:
 
     # -- channel constructors (return Channel; add them with replace) --------------------
     def force_channel(self, name, node, direction) -> Channel:
-        """A point force at a node along a direction vector (N)."""
+        """A point force at a node along a direction vector (N).
+
+        Parameters
+        ----------
+        name : str
+            Channel name.
+        node : int or str
+            Node index or name.
+        direction : array_like, shape (3,)
+            Direction vector in model axes; normalised here.
+
+        Returns
+        -------
+        Channel
+            Load channel of kind ``"force"``.
+        """
         n = self.node(node)
         d = np.asarray(direction, float)
         d = d / np.linalg.norm(d)
         return Channel(name, "force", 3 * n + np.arange(3), d)
 
     def accel_channel(self, name, node, direction) -> Channel:
-        """Translational acceleration of a node along a direction (m/s^2)."""
+        """Translational acceleration of a node along a direction (m/s^2).
+
+        Parameters
+        ----------
+        name : str
+            Channel name.
+        node : int or str
+            Node index or name.
+        direction : array_like, shape (3,)
+            Direction vector in model axes; normalised here.
+
+        Returns
+        -------
+        Channel
+            Output channel of kind ``"accel"``.
+        """
         c = self.force_channel(name, node, direction)
         return Channel(name, "accel", c.dofs, c.weights)
 
     def disp_channel(self, name, node, direction) -> Channel:
-        """Translation of a node along a direction (m)."""
+        """Translation of a node along a direction (m).
+
+        Parameters
+        ----------
+        name : str
+            Channel name.
+        node : int or str
+            Node index or name.
+        direction : array_like, shape (3,)
+            Direction vector in model axes; normalised here.
+
+        Returns
+        -------
+        Channel
+            Output channel of kind ``"disp"``.
+        """
         c = self.force_channel(name, node, direction)
         return Channel(name, "disp", c.dofs, c.weights)
 
     def strain_channel(self, name, element) -> Channel:
-        """Axial strain of an element (elongation / length)."""
+        """Axial strain of an element (elongation / length).
+
+        Parameters
+        ----------
+        name : str
+            Channel name.
+        element : int
+            Element index.
+
+        Returns
+        -------
+        Channel
+            Output channel of kind ``"strain"`` (dimensionless).
+        """
         row = self.element_row(element)
         _, length = self.element_geometry()
         return Channel(name, "strain", row.dofs, row.weights / length[element])
 
     def elong_channel(self, name, element) -> Channel:
-        """Elongation of an element (m)."""
+        """Elongation of an element (m).
+
+        Parameters
+        ----------
+        name : str
+            Channel name.
+        element : int
+            Element index.
+
+        Returns
+        -------
+        Channel
+            Output channel of kind ``"elong"``.
+        """
         row = self.element_row(element)
         return Channel(name, "elong", row.dofs, row.weights)
 
@@ -306,6 +393,21 @@ class Truss:
         The translations ``u_i`` of the nodes are fitted by ``t + theta x r_i`` with
         ``r_i`` measured from the centroid; roll, pitch and yaw are ``theta`` about x, y
         and z.  Needs three non-collinear nodes.
+
+        Parameters
+        ----------
+        prefix : str
+            Channel names are ``<prefix>_<axis>``.
+        nodes : sequence of int or str
+            Node indices or names, at least three non-collinear.
+        axes : tuple of str
+            Names of the rotations about x, y and z, in that order; only the first
+            ``len(axes)`` channels are made.
+
+        Returns
+        -------
+        tuple of Channel
+            Output channels of kind ``"angle"``, one per entry of ``axes``.
         """
         idx = np.array([self.node(n) for n in nodes])
         r = self.nodes[idx] - self.nodes[idx].mean(axis=0)
@@ -323,13 +425,41 @@ class Truss:
         return tuple(Channel(f"{prefix}_{ax}", "angle", dofs, P[i]) for i, ax in enumerate(axes))
 
     def rate_channels(self, prefix, nodes, axes=("roll", "pitch", "yaw")) -> tuple:
-        """Angular rate of a node set (rad/s), the time derivative of :meth:`angle_channels`."""
+        """Angular rate of a node set (rad/s), the time derivative of :meth:`angle_channels`.
+
+        Parameters
+        ----------
+        prefix : str
+            Channel names are ``<prefix>_<axis>``.
+        nodes : sequence of int or str
+            Node indices or names, at least three non-collinear.
+        axes : tuple of str
+            Names of the rotations about x, y and z, in that order.
+
+        Returns
+        -------
+        tuple of Channel
+            Output channels of kind ``"rate"``, one per entry of ``axes``.
+        """
         return tuple(Channel(c.name, "rate", c.dofs, c.weights)
                      for c in self.angle_channels(prefix, nodes, axes))
 
 
 def channel_matrix(channels, n_dof: int) -> sp.csr_matrix:
-    """Stack channels as rows of a sparse matrix, shape (n_channels, n_dof)."""
+    """Stack channels as rows of a sparse matrix, shape (n_channels, n_dof).
+
+    Parameters
+    ----------
+    channels : sequence of Channel
+        Rows, in order.
+    n_dof : int
+        Number of columns: all DOFs of the truss (``3 n_nodes``).
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (n_channels, n_dof)
+        Channel weights on the DOFs.
+    """
     rows, cols, vals = [], [], []
     for i, c in enumerate(channels):
         rows.append(np.full(len(c.dofs), i))

@@ -13,7 +13,23 @@ MODELS = ("truss10", "eos_testbed")
 
 
 def spec_from_model(model: ReducedModel, model_identifier: str, description: str = "") -> FmuSpec:
-    """An FMU spec packaging a reduced model (written as the ``model.npz`` resource)."""
+    """An FMU spec packaging a reduced model (written as the ``model.npz`` resource).
+
+    Parameters
+    ----------
+    model : ReducedModel
+        The model the FMU steps.
+    model_identifier : str
+        FMI modelIdentifier of the FMU.
+    description : str
+        FMU description; default names the model and its numbers of modes and Ritz
+        vectors.
+
+    Returns
+    -------
+    FmuSpec
+        Spec for :class:`structfmu.slave.StructureSlave` with the model as a resource.
+    """
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -27,7 +43,20 @@ def spec_from_model(model: ReducedModel, model_identifier: str, description: str
 
 
 def spec_from_npz(path, model_identifier: str) -> FmuSpec:
-    """An FMU spec for a reduced model saved with :meth:`ReducedModel.save`."""
+    """An FMU spec for a reduced model saved with :meth:`ReducedModel.save`.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.npz`` file.
+    model_identifier : str
+        FMI modelIdentifier of the FMU.
+
+    Returns
+    -------
+    FmuSpec
+        As :func:`spec_from_model`, with the default description.
+    """
     return spec_from_model(ReducedModel.load(path), model_identifier)
 
 

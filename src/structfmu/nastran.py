@@ -233,6 +233,19 @@ def parse_actuator(text: str, units) -> Actuator:
 
     Explicit ``k_e`` (force/length), ``ch`` (force/V) and ``mass`` are in the declared
     unit system and converted to SI.
+
+    Parameters
+    ----------
+    text : str
+        The specification, as given on the command line.
+    units : str or UnitSystem
+        Declared unit system of the NASTRAN files (``"SI"``, ``"in-lbf-s"``,
+        ``"mm-t-s"``).
+
+    Returns
+    -------
+    Actuator
+        With the stack properties in SI (N/m, N/V, kg).
     """
     u = unit_system(units)
     eid, sep, rest = text.partition("=")
@@ -277,7 +290,19 @@ def parse_actuator(text: str, units) -> Actuator:
 def parse_point(text: str, kind: str = "disp") -> Point:
     """Parse a sensor or load ``NAME=GRID:COMP[:KIND]``.
 
-    KIND is ``disp`` or ``accel`` (sensors only)."""
+    KIND is ``disp`` or ``accel`` (sensors only).
+
+    Parameters
+    ----------
+    text : str
+        The specification, as given on the command line.
+    kind : str
+        Kind used when ``text`` gives none (e.g. ``"force"`` for loads).
+
+    Returns
+    -------
+    Point
+    """
     name, sep, rest = text.partition("=")
     parts = rest.split(":")
     if not sep or len(parts) not in (2, 3) or not name:
@@ -384,7 +409,15 @@ class Deck:
         return self.grids[grid]
 
     def check_grid(self, grid: int, what: str = "") -> None:
-        """Raise NastranError naming ``what`` when ``grid`` is not a GRID or SPOINT."""
+        """Raise NastranError naming ``what`` when ``grid`` is not a GRID or SPOINT.
+
+        Parameters
+        ----------
+        grid : int
+            GRID or SPOINT id.
+        what : str
+            Prefix of the error message naming what refers to the grid.
+        """
         if grid not in self.grids and grid not in self.spoints:
             import difflib
             close = difflib.get_close_matches(str(grid), [str(g) for g in self.grids], 3)
@@ -392,6 +425,23 @@ class Deck:
             raise NastranError(f"{what}grid {grid} is not in {self.path}{hint}")
 
     def element(self, eid: int, what: str = "element"):
+        """The axial member ``eid``, checked to carry a piezo stack.
+
+        Raises NastranError (naming ``what``) when it is missing, not an axial member, or
+        a CBAR/CBEAM with end offsets or pin flags.
+
+        Parameters
+        ----------
+        eid : int
+            Element id.
+        what : str
+            What the element is, for the error message.
+
+        Returns
+        -------
+        (str, (int, int), float, float)
+            Element type, end grids, axial stiffness ``E A / L`` (N/m) and mass (kg).
+        """
         if eid not in self.element_types:
             raise NastranError(f"{what} {eid} is not in {self.path}")
         kind = self.element_types[eid]
@@ -514,6 +564,19 @@ def _dof_scale(dofs, u: UnitSystem) -> np.ndarray:
 
 def read_matrices(op4_path, dofs, units, k_name=None, m_name=None):
     """Stiffness and mass from an OP4, in SI, on the given DOF map.
+
+    Parameters
+    ----------
+    op4_path : path-like
+        The OP4 file.
+    dofs : list of (int, int), length n
+        ``(grid, component)`` of each matrix row (:func:`read_dof_map`).
+    units : str or UnitSystem
+        Declared unit system of the NASTRAN files (``"SI"``, ``"in-lbf-s"``,
+        ``"mm-t-s"``).
+    k_name, m_name : str, optional
+        Names of the stiffness and mass matrices in the file; default the only matrix
+        whose name starts with ``K`` (``M``).
 
     Returns
     -------
@@ -928,6 +991,16 @@ def _los_terms(deck: Deck, line: LineOfSight) -> list:
 
 def read_modes(op2_path, units, n_modes: int):
     """Eigenvalues and eigenvectors (SI) from a SOL 103 OP2.
+
+    Parameters
+    ----------
+    op2_path : path-like
+        The OP2 file.
+    units : str or UnitSystem
+        Declared unit system of the NASTRAN files (``"SI"``, ``"in-lbf-s"``,
+        ``"mm-t-s"``).
+    n_modes : int
+        Number of modes to read (the lowest in the file).
 
     Returns
     -------

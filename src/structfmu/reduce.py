@@ -95,6 +95,8 @@ def eigenpairs(K, M, n_modes: int, shift: float = 0.0, truss=None):
         Number of eigenpairs.
     shift : float
         Shift ``sigma`` ((rad/s)^2); negative for free-free models.
+    truss : Truss, optional
+        Only to name a massless DOF in an error message.
 
     Returns
     -------
@@ -102,6 +104,8 @@ def eigenpairs(K, M, n_modes: int, shift: float = 0.0, truss=None):
         Eigenvalues ``omega^2`` ((rad/s)^2), ascending, rigid-body ones set to 0.
     phi : ndarray, shape (n, n_modes)
         Mass-normalised eigenvectors.
+    fac : object
+        Sparse LU of ``K - shift M``, reused by :func:`ritz_vectors`.
     """
     n = K.shape[0]
     if n_modes < 1:
@@ -138,6 +142,22 @@ def ritz_vectors(K, M, phi, loads, fac):
     """Static Ritz vectors orthogonalised against the eigenvectors (Eq. 5).
 
     Returns ``T_o`` with ``T_o^T M T_o = I`` and ``phi^T M T_o = 0``.
+
+    Parameters
+    ----------
+    K, M : scipy.sparse matrix, shape (n, n)
+        Stiffness (N/m) and mass (kg) on the free DOFs.
+    phi : ndarray, shape (n, n_m)
+        Mass-normalised eigenvectors.
+    loads : scipy.sparse matrix or ndarray, shape (n, n_r) or (n,)
+        Load patterns, one column per Ritz vector (columns of ``E``).
+    fac : object
+        Factorisation of ``K - shift M`` returned third by :func:`eigenpairs`.
+
+    Returns
+    -------
+    T_o : ndarray, shape (n, n_r)
+        Mass-orthonormal Ritz vectors.
     """
     X = fac.solve(loads.toarray() if sp.issparse(loads) else loads)
     if X.ndim == 1:
@@ -314,6 +334,8 @@ def static_compliance(truss: Truss, inputs, outputs=None):
 
     Parameters
     ----------
+    truss : Truss
+        The full model; constrained (``K`` not singular).
     inputs : list of str
         Input channel names.
     outputs : list of channels, optional

@@ -180,7 +180,19 @@ class ReducedModel:
         return replace(self, modal_damping=2 * z * self.omega)
 
     def select(self, inputs=None, outputs=None) -> "ReducedModel":
-        """Copy restricted to some inputs and outputs (by name, in the given order)."""
+        """Copy restricted to some inputs and outputs (by name, in the given order).
+
+        Parameters
+        ----------
+        inputs : sequence of str, optional
+            Input names to keep; default all.
+        outputs : sequence of str, optional
+            Output names to keep; default all.
+
+        Returns
+        -------
+        ReducedModel
+        """
         ii = [self.input_index(n) for n in inputs] if inputs is not None else \
             list(range(self.n_inputs))
         oo = [self.output_index(n) for n in outputs] if outputs is not None else \

@@ -77,6 +77,13 @@ class SensorLowpass:
 def filter_blocks(lowpass: SensorLowpass | None, n_channels: int):
     """Block-diagonal filter for ``n_channels`` signals (cached, read-only arrays).
 
+    Parameters
+    ----------
+    lowpass : SensorLowpass or None
+        The filter of each channel; ``None`` for none.
+    n_channels : int
+        Number of filtered signals (acceleration outputs).
+
     Returns
     -------
     (A_f, B_f, C_f) : ndarrays of shapes (n_f, n_f), (n_f, n_channels), (n_channels, n_f)

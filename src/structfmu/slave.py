@@ -47,11 +47,34 @@ class StructureSlave(FmuSlave):
         return True
 
     def set_real(self, vrs, values):
+        """Set Real variables; refresh the feedthrough outputs.
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+        values : list of float
+            Values, one per reference, in each variable's unit (inputs: N or N.m).
+        """
         super().set_real(vrs, values)
         if self.stepper.has_feedthrough:
             self.stepper.outputs(self.u, self.y)
 
     def do_step(self, current_time, step_size):
+        """Advance the structure one step with the inputs held.
+
+        Parameters
+        ----------
+        current_time : float
+            Communication point at the start of the step (s); not used.
+        step_size : float
+            Step (s); one discretisation is cached per distinct value.
+
+        Returns
+        -------
+        bool
+            Always True.
+        """
         self.stepper.step(self.u, step_size)
         self.stepper.update_state_outputs()
         self.stepper.outputs(self.u, self.y)

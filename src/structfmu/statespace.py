@@ -118,9 +118,26 @@ def full_frf(truss: Truss, freqs_hz, outputs, inputs, alpha=0.0, beta=0.0):
 
     One sparse LU per frequency; for reference and validation.
 
+    Parameters
+    ----------
+    truss : Truss
+        The full model.
+    freqs_hz : array_like, shape (n_f,)
+        Frequencies (Hz).
+    outputs : sequence of str
+        Output channel names (``n_out``); rate and acceleration outputs are
+        differentiated once and twice.
+    inputs : sequence of str
+        Input channel names (``n_in``).
+    alpha : float
+        Mass-proportional damping (1/s).
+    beta : float
+        Stiffness-proportional damping (s).
+
     Returns
     -------
     ndarray of complex, shape (n_f, n_out, n_in)
+        Output per unit input, in the output unit per input unit (e.g. m/N, rad/N).
     """
     K, M = assemble(truss)
     E = input_matrix(truss)

@@ -73,12 +73,42 @@ ACTIVE_NAMES = ("a1", "a2", "a3", "a4")
 
 
 def n_free_dofs(n_bays: int, nx: int = 4, ny: int = 4, n_active: int = 4) -> int:
-    """Number of free DOFs of :func:`build` (3 per non-base node and fitting node)."""
+    """Number of free DOFs of :func:`build` (3 per non-base node and fitting node).
+
+    Parameters
+    ----------
+    n_bays : int
+        Number of bays.
+    nx, ny : int
+        Nodes per plane along x and y.
+    n_active : int
+        Number of active members (0 to 4), each adding one fitting node.
+
+    Returns
+    -------
+    int
+        ``3 * (nx * ny * n_bays + n_active)``.
+    """
     return 3 * (nx * ny * n_bays + n_active)
 
 
 def bays_for(n_dof: int, nx: int = 4, ny: int = 4, n_active: int = 4) -> int:
-    """Smallest number of bays whose tower has at least ``n_dof`` free DOFs."""
+    """Smallest number of bays whose tower has at least ``n_dof`` free DOFs.
+
+    Parameters
+    ----------
+    n_dof : int
+        Wanted number of free DOFs.
+    nx, ny : int
+        Nodes per plane along x and y.
+    n_active : int
+        Number of active members (0 to 4), each adding one fitting node.
+
+    Returns
+    -------
+    int
+        Number of bays, at least 1.
+    """
     per_bay = 3 * nx * ny
     return max(1, -(-(n_dof - 3 * n_active) // per_bay))
 

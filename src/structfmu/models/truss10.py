@@ -218,13 +218,40 @@ def damping(n_modes: int) -> Damping:
 
 
 def reduced(n_modes: int = 6, ritz: bool = True, truss: Truss | None = None):
-    """The paper's reduced model: 6 eigenvectors + 2 static Ritz vectors by default."""
+    """The paper's reduced model: 6 eigenvectors + 2 static Ritz vectors by default.
+
+    Parameters
+    ----------
+    n_modes : int
+        Number of eigenvectors; damping from :func:`damping`.
+    ritz : bool
+        Append one static Ritz vector per active member (two).
+    truss : Truss, optional
+        Full model to reduce; default :func:`build` with the calibrated values.
+
+    Returns
+    -------
+    ReducedModel
+    """
     truss = truss or build()
     return reduce(truss, n_modes, ritz=ritz, damping=damping(n_modes))
 
 
 def frequencies_hz(truss: Truss, n: int = 6) -> np.ndarray:
-    """First ``n`` natural frequencies of the full FEM (Hz)."""
+    """First ``n`` natural frequencies of the full FEM (Hz).
+
+    Parameters
+    ----------
+    truss : Truss
+        The full model (constrained: no rigid-body modes expected).
+    n : int
+        Number of frequencies.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Natural frequencies (Hz), ascending.
+    """
     from structfmu.fem import assemble
     from structfmu.reduce import eigenpairs
 

@@ -281,7 +281,11 @@ def _source_block(name, period, outputs) -> Block:
 def _instance_block(plan, inst, tmp: Path) -> Block:
     info = plan.fmus[inst.name]
     res = tmp / inst.name
-    with zipfile.ZipFile(info.path) as z:
+    path = info.path
+    twin = path.parent / "python" / path.name
+    if twin.is_file():  # a native FMU named by path: its Python twin carries the model
+        path = twin
+    with zipfile.ZipFile(path) as z:
         for member in z.namelist():
             if member.startswith("resources/") and not member.endswith("/"):
                 target = res / member[len("resources/"):]
@@ -289,7 +293,7 @@ def _instance_block(plan, inst, tmp: Path) -> Block:
                     raise AnalysisError(f"FMU {info.path.name} has an unsafe path {member!r}")
                 target.parent.mkdir(parents=True, exist_ok=True)
                 target.write_bytes(z.read(member))
-    base, klass = _slave_class(res, info.path.name)
+    base, klass = _slave_class(res, path.name)
     period = plan.timebase.period_ticks[inst.name]
     h = float(inst.period)
     outs = [n for n, v in info.variables.items() if v.causality == "output"]
@@ -759,7 +763,8 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
     overrides : mapping of str to value, optional
         ``{"instance.parameter": value}`` start values.
     fmu_dir : path-like, optional
-        Folder searched first for FMUs.
+        Folder searched first for FMUs; the Python build of the suite's FMUs is read
+        (its ``python/`` subfolder first), whatever the scenario's ``fmu_kind``.
 
     Returns
     -------
@@ -770,7 +775,10 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
     from orchestrator import prepare
     from orchestrator.scenario import load_scenario
 
-    sc = load_scenario(scenario).with_overrides(overrides or {})
+    # the models are read from the Python FMUs' resources (model.npz, law.npz), which
+    # the native twins carry in another form: the same FMUs, their Python build
+    sc = load_scenario(scenario).with_overrides(overrides or {}) \
+        .with_experiment(fmu_kind="python")
     if sc.experiment.algorithm != "gauss-seidel":
         raise AnalysisError("the linear analysis follows the Gauss-Seidel master; the "
                             f"scenario uses {sc.experiment.algorithm!r}")

@@ -19,9 +19,10 @@ def suite_fmu_dir(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def suite_fmus(suite_fmu_dir):
-    """``suite_fmus(*names) -> {name: path}``: the named registry FMUs, built once."""
-    from fmutools.registry import ensure_fmus
+    """``suite_fmus(*names, kind="native") -> {name: path}``: the named registry FMUs of
+    one build (native in the folder, Python in its ``python/``), each built once."""
+    from fmutools.ensure import ensure_fmus
 
-    def get(*names):
-        return ensure_fmus(names, suite_fmu_dir)
+    def get(*names, kind="native"):
+        return ensure_fmus(names, suite_fmu_dir, kind=kind)
     return get

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fmutools.registry import ensure_fmus as _ensure
+from fmutools.ensure import ensure_fmus as _ensure
 from . import CAMPAIGNS, SCENARIOS
 
 __all__ = ["SCENARIO", "CAMPAIGN", "STRUCTURE", "MOUNTS_STRUCTURE", "FMUS",

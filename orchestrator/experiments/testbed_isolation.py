@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from fmukit.units import ARCSEC_PER_RAD
+from fmutools.ensure import PYTHON_SUBDIR
 
 from . import eos
 
@@ -62,13 +63,14 @@ _IN = ["fc_iso1", "fc_iso2", "fc_iso3", "swir_fz"]
 
 # -- linear model ------------------------------------------------------------------------
 def linear_model(fmu_dir="fmus"):
-    """The reduced structure packed in the structure FMU (a ReducedModel)."""
+    """The reduced structure packed in the structure FMU (a ReducedModel), read from its
+    Python build (``fmu_dir/python/``: the native twin packs it in another form)."""
     import tempfile
     import zipfile
 
     from structfmu.reduced import ReducedModel
 
-    fmu = eos.ensure_fmus(fmu_dir) / f"{eos.STRUCTURE}.fmu"
+    fmu = eos.ensure_fmus(fmu_dir) / PYTHON_SUBDIR / f"{eos.STRUCTURE}.fmu"
     with zipfile.ZipFile(fmu) as z, tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "model.npz"
         path.write_bytes(z.read("resources/model.npz"))

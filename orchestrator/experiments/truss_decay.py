@@ -239,7 +239,7 @@ def tune(fmu_dir="fmus", maxfev=250):
 
     from ctrlfmu.designs import truss10_strain_diag, truss10_strain_long
     from orchestrator.analysis import linearize
-    from fmutools.registry import ensure_fmus
+    from fmutools.ensure import ensure_fmus
 
     ensure_fmus(FMUS, fmu_dir)
     lin = linearize(SCENARIO, fmu_dir=fmu_dir)
@@ -326,7 +326,7 @@ def compute(fmu_dir="fmus", quick=False):
         in s), open-loop damping ratios and fits, cycles to 90 % decay, peak voltage (V)
         and whether any amplifier or stroke limit saturated.
     """
-    from fmutools.registry import ensure_fmus
+    from fmutools.ensure import ensure_fmus
 
     ensure_fmus(FMUS, fmu_dir)
     ol = _run(fmu_dir, 20.0 if quick else 40.0, 0.0)

@@ -4,16 +4,14 @@
 module, ``specs(models: list[str] | None) -> list[FmuSpec]``: ``models=None`` means
 all of the package's FMUs, otherwise the package returns the requested ones it owns
 and ignores the others.  :func:`build_all` builds and validates them (``jitterfmu
-build``); :func:`ensure_fmus` rebuilds only the missing or stale ones (a hash of the
-sources, kept in ``fmu_dir/.sources``), so commands like ``jitterfmu reproduce`` and
-``make demo`` never run stale FMUs.
+build``); :func:`fmutools.ensure.ensure_fmus` rebuilds only the missing or stale ones
+(by :func:`sources_hash`).
 """
 
 from __future__ import annotations
 
 import hashlib
 import importlib.util
-import json
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
@@ -26,8 +24,8 @@ from structfmu import fmuspec as structfmu_specs
 from fmutools.build import BuildReport, FmuSpec, build_fmu
 from fmutools.validate import validate_fmu
 
-__all__ = ["PROVIDERS", "PACKAGES", "collect_specs", "build_all", "ensure_fmus",
-           "sources_hash", "BuildReport", "UnknownModelError"]
+__all__ = ["PROVIDERS", "PACKAGES", "collect_specs", "build_all", "sources_hash",
+           "BuildReport", "UnknownModelError"]
 
 #: FMU package -> its ``specs(models)`` function, in build order.
 PROVIDERS: Mapping[str, Callable[[list[str] | None], list[FmuSpec]]] = {
@@ -126,10 +124,16 @@ def build_all(out_dir: str | Path, models: Sequence[str] | None = None, *,
     return BuildReport(tuple(fmus), tuple(problems))
 
 
-def sources_hash() -> str:
-    """Hash of every source file of :data:`SOURCE_PACKAGES` (hex SHA-256)."""
+def sources_hash(packages: Sequence[str] = SOURCE_PACKAGES) -> str:
+    """Hash of every source file of the named packages (hex SHA-256).
+
+    Parameters
+    ----------
+    packages : sequence of str
+        Importable package names; default :data:`SOURCE_PACKAGES`.
+    """
     h = hashlib.sha256()
-    for pkg in SOURCE_PACKAGES:
+    for pkg in packages:
         spec = importlib.util.find_spec(pkg)
         root = Path(list(spec.submodule_search_locations)[0])
         for path in sorted(root.rglob("*")):
@@ -138,50 +142,3 @@ def sources_hash() -> str:
                 h.update(str(path.relative_to(root.parent)).encode())
                 h.update(path.read_bytes())
     return h.hexdigest()
-
-
-def ensure_fmus(names, fmu_dir="fmus", progress=None, extra=None) -> dict:
-    """Paths of the named FMUs in ``fmu_dir``, building missing or stale ones.
-
-    Parameters
-    ----------
-    names : iterable of str
-        Model identifiers (e.g. ``"truss10_structure"``).
-    fmu_dir : path-like
-        Folder of built FMUs.
-    progress : callable, optional
-        Called with one line of text per FMU built.
-    extra : mapping of str to callable, optional
-        FMUs the registry does not know, as ``name -> () -> FmuSpec`` (e.g. a structure
-        built from a variant of a built-in model); stamped and rebuilt like the others,
-        the spec made only when the FMU is missing or stale.
-
-    Returns
-    -------
-    dict of str to Path
-    """
-    fmu_dir = Path(fmu_dir)
-    fmu_dir.mkdir(parents=True, exist_ok=True)
-    stamp_file = fmu_dir / ".sources"
-    stamps = json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
-    current = sources_hash()
-    names = list(dict.fromkeys(names))
-    todo = [n for n in names
-            if not (fmu_dir / f"{n}.fmu").is_file() or stamps.get(n) != current]
-    extra = dict(extra or {})
-    if todo:
-        known = [n for n in todo if n not in extra]
-        specs = {s.model_identifier: s for s in collect_specs(known)} if known else {}
-        missing = [n for n in known if n not in specs]
-        if missing:
-            raise KeyError(f"no FMU named {', '.join(missing)} in the project; run "
-                           "'jitterfmu build' to list the FMUs it knows")
-        for n in todo:
-            if progress:
-                progress(f"building {n}.fmu")
-            build_fmu(specs[n] if n in specs else extra[n](), fmu_dir)
-            stamps[n] = current
-            tmp = stamp_file.with_suffix(".tmp")
-            tmp.write_text(json.dumps(stamps, indent=1))
-            tmp.replace(stamp_file)
-    return {n: fmu_dir / f"{n}.fmu" for n in names}

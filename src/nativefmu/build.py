@@ -288,7 +288,8 @@ class NativeReport:
 
 
 def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *,
-                     progress: Callable[[str], None] | None = None) -> NativeReport:
+                     progress: Callable[[str], None] | None = None,
+                     python_dir: str | Path | None = None) -> NativeReport:
     """Build and validate the native FMU of every model that has a C kernel.
 
     Parameters
@@ -299,6 +300,9 @@ def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *
         modelIdentifiers; None for all of the project's FMUs.
     progress : callable, optional
         Called with one line per FMU.
+    python_dir : str or Path, optional
+        Folder of the already built Python FMUs to take the model descriptions from;
+        each is built in a temporary folder when omitted.
 
     Returns
     -------
@@ -314,7 +318,8 @@ def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *
                 progress(f"[{i}/{len(specs)}] {spec.model_identifier}: no native kernel yet, "
                          "skipped")
             continue
-        path = build_native(spec, out_dir)
+        twin = None if python_dir is None else Path(python_dir) / f"{spec.model_identifier}.fmu"
+        path = build_native(spec, out_dir, python_fmu=twin)
         found = validate_fmu(path, strict=True)
         fmus.append(path)
         problems += found

@@ -79,7 +79,7 @@ def test_bandwidth_too_high_for_the_rate_names_the_instance():
 def fmu(suite_fmus):
     (spec,) = specs(None)
     assert spec.model_identifier == "acs"
-    return suite_fmus("acs")["acs"]
+    return suite_fmus("acs", kind="python")["acs"]
 
 
 @pytest.mark.slow

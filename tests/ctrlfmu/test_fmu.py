@@ -17,7 +17,7 @@ N = 120
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory, suite_fmus):
-    built = dict(suite_fmus(*[s.model_identifier for s in specs(None)]))
+    built = dict(suite_fmus(*[s.model_identifier for s in specs(None)], kind="python"))
     built["direct"] = build_fmu(law_spec(direct_law(), "controller_direct_test"),
                                 tmp_path_factory.mktemp("ctrl_fmus"))
     return built

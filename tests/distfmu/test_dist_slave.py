@@ -103,7 +103,7 @@ def fmus(tmp_path_factory, suite_fmus):
     out = tmp_path_factory.mktemp("fmus")
     (spec,) = specs(["disturbance"])
     assert spec.model_identifier == "disturbance"
-    real = suite_fmus("disturbance")["disturbance"]
+    real = suite_fmus("disturbance", kind="python")["disturbance"]
     # the test hosts set Real parameters only: a variant whose String/Boolean defaults
     # select the input-driven wheel exercises the same slave class in every host
     variant = build_fmu(FmuSpec("disturbance_rwa_test", spec.slave_class,

@@ -192,8 +192,13 @@ def test_fmu_that_fails_to_initialise_gives_its_reason_and_no_crash(init_fails, 
     assert json.loads((tmp_path / "o/run.json").read_text())["status"] == "error"
 
 
+@pytest.mark.parametrize("kind, reason", [
+    ("python", "internal_step must be a positive finite number, got 0.0"),
+    ("native", "internal_step and i_max must be positive"),
+])
 def test_ten_bay_run_with_a_piezo_that_cannot_initialise_exits_cleanly(tmp_path, suite_fmus,
-                                                                       suite_fmu_dir):
+                                                                       suite_fmu_dir, kind,
+                                                                       reason):
     """Issue 12: ``--set piezo_diag.internal_step=0`` on the ten-bay scenario printed
     the error line, then died with a segfault (exit 139) without saying why."""
     import sys
@@ -203,12 +208,13 @@ def test_ten_bay_run_with_a_piezo_that_cannot_initialise_exits_cleanly(tmp_path,
     scen = root / "scenarios/truss10_closed_loop.toml"
     names = [spec["fmu"] for spec in tomllib.loads(scen.read_text())["fmus"].values()]
     suite_fmus(*names)
+    flags = ["--python-fmus"] if kind == "python" else []
     proc = subprocess.run(
         [sys.executable, "-c", "import sys; from orchestrator.cli import main; "
          "sys.exit(main(sys.argv[1:]))", "run", str(scen), "--set", "piezo_diag.internal_step=0",
          "--out", str(tmp_path / "o"), "--fmu-dir", str(suite_fmu_dir), "--quiet",
-         "--stop-time", "0.1"],
+         "--stop-time", "0.1", *flags],
         capture_output=True, text=True, timeout=600, cwd=root)
     assert proc.returncode == 1, (proc.returncode, proc.stderr)
     assert "instance 'piezo_diag' failed in initialisation" in proc.stderr
-    assert "internal_step must be a positive finite number, got 0.0" in proc.stderr
+    assert reason in proc.stderr

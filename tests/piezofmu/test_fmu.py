@@ -21,7 +21,7 @@ OUTPUTS = ["force", "voltage", "current", "free_stroke", "strain", "sat_voltage"
 
 @pytest.fixture(scope="module")
 def fmus(suite_fmus):
-    return suite_fmus(*[s.model_identifier for s in specs(None)])
+    return suite_fmus(*[s.model_identifier for s in specs(None)], kind="python")
 
 
 def commands(model):

@@ -11,7 +11,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def structure_fmu(suite_fmus, truss10_reduced):
     model, _ = truss10_reduced
-    return suite_fmus("truss10_structure")["truss10_structure"], model
+    return suite_fmus("truss10_structure", kind="python")["truss10_structure"], model
 
 
 def _inputs(n):

@@ -70,6 +70,8 @@ void jf_data_close(JfData *data);
 /* Dense linear algebra on row-major matrices. */
 /* out = expm(a), a of shape (n, n); returns JF_ERROR if out of memory. */
 int jf_expm(const double *a, size_t n, double *out);
+/* expm(a) after exact power-of-two diagonal balancing (stiff, badly scaled blocks). */
+int jf_expm_balanced(const double *a, size_t n, double *out);
 
 /* Kernel interface. */
 int model_instantiate(JfInstance *inst);           /* read data, allocate, set n_state */

@@ -122,3 +122,46 @@ int jf_expm(const double *a, size_t n, double *out) {
     free(w);
     return status;
 }
+
+/* expm(a) after power-of-two diagonal balancing (Parlett-Reinsch, LAPACK's dgebal without
+ * permutations): out = D expm(D^-1 a D) D^-1 with D exact powers of two.  A stiff block
+ * (rows of order w^2 h next to rows of order h) balances to entries of order w h, so the
+ * scaling and squaring needs far fewer squarings and keeps its relative accuracy. */
+int jf_expm_balanced(const double *a, size_t n, double *out) {
+    double *b = (double *)malloc((n * n + n) * sizeof(double)), *d;
+    size_t i, j;
+    int iter, noconv = 1, status;
+    if (b == NULL) return JF_ERROR;
+    d = b + n * n;
+    memcpy(b, a, n * n * sizeof(double));
+    for (i = 0; i < n; i++) d[i] = 1.0;
+    for (iter = 0; noconv && iter < 100; iter++) {
+        noconv = 0;
+        for (i = 0; i < n; i++) {
+            double c = 0.0, r = 0.0, f = 1.0, s;
+            for (j = 0; j < n; j++)
+                if (j != i) {
+                    c += fabs(b[j * n + i]);
+                    r += fabs(b[i * n + j]);
+                }
+            if (c == 0.0 || r == 0.0) continue;
+            s = c + r;
+            while (c < r / 2.0) { c *= 2.0; r /= 2.0; f *= 2.0; }
+            while (c >= r * 2.0) { c /= 2.0; r *= 2.0; f /= 2.0; }
+            if (c + r < 0.95 * s) {
+                noconv = 1;
+                d[i] *= f;
+                for (j = 0; j < n; j++) {
+                    b[i * n + j] /= f;
+                    b[j * n + i] *= f;
+                }
+            }
+        }
+    }
+    status = jf_expm(b, n, out);
+    if (status == JF_OK)
+        for (i = 0; i < n; i++)
+            for (j = 0; j < n; j++) out[i * n + j] = out[i * n + j] * d[i] / d[j];
+    free(b);
+    return status;
+}

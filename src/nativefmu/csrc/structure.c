@@ -15,6 +15,7 @@
  * discretised here agrees with the Python FMU to that level rather than to 1e-15.
  * Outputs: y = C_x x + D u (D non-zero only for unfiltered accelerations).
  */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -212,7 +213,9 @@ static int discretize(JfInstance *inst, double h) {
     size_t i, j, k, nr = m->n_r, n3 = 3 * nr, nin = m->n_in;
     double g1, g2, E[9], Aug[9];
     for (j = 0; j < m->n_steps; j++)
-        if (m->steps[j] == h) { /* declared step: discretised at build time */
+        /* a declared step, discretised at build time; to a few ulps, because a host
+           that counts time in nanoseconds passes 1 ms as 0.0010000000000000002 */
+        if (fabs(m->steps[j] - h) <= 4.0 * DBL_EPSILON * m->steps[j]) {
             const Zoh *z = &m->pre[j];
             memcpy(m->a11, z->a11, 4 * m->n_m * sizeof(double));
             memcpy(m->G1, z->G1, m->n_m * nin * sizeof(double));
@@ -278,7 +281,7 @@ static int discretize(JfInstance *inst, double h) {
                 A[(nr + i) * n3 + nr + j] = -m->D_oo[i * nr + j] * h;
             }
         }
-        if (jf_expm(A, n3, X) != JF_OK) {
+        if (jf_expm_balanced(A, n3, X) != JF_OK) {
             free(A);
             return JF_ERROR;
         }

@@ -1,0 +1,125 @@
+"""Build the suite's FMUs on demand, native by default, never running stale ones.
+
+An FMU folder holds the native (C99) FMUs, which run in any FMI tool without Python,
+and, in its ``python/`` subfolder, their Python twins (pythonfmu), from which the
+native ones take their model description and model data.  :func:`ensure_fmus` builds
+the named FMUs that are missing or were built from other sources (a hash of the sources,
+kept per folder in ``.sources``), so ``jitterfmu reproduce``, ``make demo`` and the
+tests never run stale FMUs.  A scenario chooses the build it runs with
+``[experiment] fmu_kind`` (``native`` or ``python``; :func:`orchestrator.cosim.find_fmu`).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+
+from fmutools.build import build_fmu
+from fmutools.registry import SOURCE_PACKAGES, collect_specs, sources_hash
+from nativefmu.build import build_native
+from nativefmu.data import NativeUnsupportedError
+
+__all__ = ["ensure_fmus", "record_built", "PYTHON_SUBDIR", "FMU_KINDS"]
+
+#: Subfolder of an FMU folder that holds the Python build of the suite's FMUs.
+PYTHON_SUBDIR = "python"
+FMU_KINDS = ("native", "python")
+
+
+def ensure_fmus(names: Iterable[str], fmu_dir="fmus", progress: Callable | None = None,
+                extra: Mapping[str, Callable] | None = None, kind: str = "native") -> dict:
+    """Paths of the named FMUs of one build, building missing or stale ones.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Model identifiers (e.g. ``"truss10_structure"``).
+    fmu_dir : path-like
+        FMU folder: the native FMUs in it, the Python ones in ``fmu_dir/python/``.
+    progress : callable, optional
+        Called with one line of text per FMU built.
+    extra : mapping of str to callable, optional
+        FMUs the registry does not know, as ``name -> () -> FmuSpec`` (e.g. a structure
+        built from a variant of a built-in model); stamped and rebuilt like the others,
+        the spec made only when the FMU is missing or stale.
+    kind : {"native", "python"}
+        Which build to return.  ``"native"`` builds the Python FMUs first (the native
+        build reads them); an FMU without a C kernel is then the Python one, copied.
+
+    Returns
+    -------
+    dict of str to Path
+        ``name -> path`` of the requested build.
+    """
+    if kind not in FMU_KINDS:
+        raise ValueError(f"FMU kind {kind!r} is unknown; expected one of "
+                         f"{', '.join(FMU_KINDS)}")
+    fmu_dir = Path(fmu_dir)
+    names = list(dict.fromkeys(names))
+    extra = dict(extra or {})
+    py_dir = fmu_dir / PYTHON_SUBDIR
+    python = _ensure(names, py_dir, progress, extra, SOURCE_PACKAGES,
+                     lambda spec: build_fmu(spec, py_dir))
+    if kind == "python":
+        return python
+
+    def native(spec):
+        try:
+            return build_native(spec, fmu_dir, python_fmu=python[spec.model_identifier],
+                                windows=False)
+        except NativeUnsupportedError as exc:
+            if progress:
+                progress(f"{spec.model_identifier}: no native form ({exc}); the Python FMU "
+                         "is used")
+            return Path(shutil.copy(python[spec.model_identifier], fmu_dir))
+    return _ensure(names, fmu_dir, progress, extra, NATIVE_PACKAGES, native)
+
+
+NATIVE_PACKAGES = (*SOURCE_PACKAGES, "nativefmu")
+
+
+def record_built(folder, names: Iterable[str], kind: str) -> None:
+    """Stamp FMUs built outside :func:`ensure_fmus` (``jitterfmu build``) as current.
+
+    Parameters
+    ----------
+    folder : path-like
+        The folder holding them (an FMU folder, or its ``python/`` for ``"python"``).
+    names : iterable of str
+        Model identifiers just built from the current sources.
+    kind : {"native", "python"}
+        Which build they are.
+    """
+    folder = Path(folder)
+    stamp_file = folder / ".sources"
+    stamps = json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
+    current = sources_hash(NATIVE_PACKAGES if kind == "native" else SOURCE_PACKAGES)
+    stamps.update({n: current for n in names})
+    tmp = stamp_file.with_suffix(".tmp")
+    tmp.write_text(json.dumps(stamps, indent=1))
+    tmp.replace(stamp_file)
+
+
+def _ensure(names, folder: Path, progress, extra, packages, build) -> dict:
+    """Build the missing or stale ``names`` into ``folder`` with ``build(spec)``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    stamp_file = folder / ".sources"
+    stamps = json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
+    current = sources_hash(packages)
+    todo = [n for n in names
+            if not (folder / f"{n}.fmu").is_file() or stamps.get(n) != current]
+    if todo:
+        known = [n for n in todo if n not in extra]
+        # an unknown name raises UnknownModelError, listing the FMUs the project knows
+        specs = {s.model_identifier: s for s in collect_specs(known)} if known else {}
+        for n in todo:
+            if progress:
+                progress(f"building {folder / n}.fmu")
+            build(specs[n] if n in specs else extra[n]())
+            stamps[n] = current
+            tmp = stamp_file.with_suffix(".tmp")
+            tmp.write_text(json.dumps(stamps, indent=1))
+            tmp.replace(stamp_file)
+    return {n: folder / f"{n}.fmu" for n in names}

@@ -438,7 +438,7 @@ def test_pool_workers_exit_when_the_campaign_process_dies(tmp_path):
     parent = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     script = textwrap.dedent(f"""
         import time
-        from orchestrator.campaign import _die_with_parent
+        from orchestrator.campaign.engine import _die_with_parent
         _die_with_parent({parent.pid}, period=0.05)
         time.sleep(60)
     """)

@@ -3,7 +3,9 @@
 A campaign is a base scenario plus a matrix of cases.  Every case applies parameter
 overrides to the base scenario — one disturbance event (each event runs alone), one
 configuration (e.g. isolation off / on) and one point of the parameter sweeps — and is run
-by a *runner*, any callable ``runner(scenario_dict, out_dir) -> path of results.parquet``.
+by a *runner*, any callable ``runner(scenario_dict, out_dir)`` that writes
+``out_dir/results.parquet`` and returns its table (a :class:`~orchestrator.results.RunResult`)
+or the file's path.
 The default runner is the co-simulation master (:class:`MasterRunner`); tests and scripts may
 pass any picklable callable.  Each finished case's recorded line-of-sight (LOS) angles are
 turned into jitter metrics (:mod:`orchestrator.metrics`), and the campaign's summary holds

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..progress import ProgressBar
 from .cases import Campaign, Case, keyed
-from .runner import MasterRunner, one_sentence, execute_case
+from .runner import MasterRunner, execute_case, one_sentence
 from .spec import CampaignError
 from .store import case_verified, record_lost, write_json
 from .summary import write_summary
@@ -75,8 +75,8 @@ def run_campaign(
     out_dir : path-like
         Output folder (created; reused to resume).
     runner : callable, optional
-        ``runner(scenario_dict, out_dir) -> path of results.parquet``; picklable for
-        ``workers >= 1`` and Dask.  Default:
+        ``runner(scenario_dict, out_dir)`` returning a RunResult or the path of
+        ``results.parquet``; picklable for ``workers >= 1`` and Dask.  Default:
         :class:`~orchestrator.campaign.MasterRunner`.  If it has a
         ``fingerprint(scenario_dict) -> str`` method, that enters the case keys.
     workers : int, optional

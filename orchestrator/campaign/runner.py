@@ -1,9 +1,10 @@
 """One case: run it, compute its jitter metrics from the table in memory, publish its folder.
 
 A *runner* is any callable ``runner(scenario_dict, out_dir)`` that runs a case's scenario
-and returns the path of its results file.  :func:`execute_case` reads that table,
-computes the metrics from it and renames the case's temporary folder to ``cases/KEY``
-only when everything is written.
+and writes ``out_dir/results.parquet``; it returns a :class:`~orchestrator.results.RunResult`
+(the table in memory, as :class:`MasterRunner` does) or the path of the results file
+(then read once).  :func:`execute_case` computes the metrics from that table and renames the
+case's temporary folder to ``cases/KEY`` only when everything is written.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import pyarrow as pa
 
 from .. import metrics as M
 from ..master import find_fmu, run_scenario
-from ..results import read_table
+from ..results import RunResult, read_table
 from ..scenario import scenario_from_dict
 from .cases import Case
 from .store import (CASE_FILES, METRIC_SCHEMA, METRICS_FILE, RESULTS_FILE, STATUS_FILE,
@@ -67,7 +68,7 @@ class MasterRunner:
             files.append((inst.name, inst.fmu, path))
         return _fmu_digest(files)
 
-    def __call__(self, scenario: dict, out_dir) -> Path:
+    def __call__(self, scenario: dict, out_dir) -> RunResult:
         """Run a case's scenario into ``out_dir``.
 
         Parameters
@@ -79,11 +80,10 @@ class MasterRunner:
 
         Returns
         -------
-        Path
-            ``out_dir/results.parquet``.
+        RunResult
+            The recorded table in memory, its metadata and ``out_dir``.
         """
-        run_scenario(self._scenario(scenario), out_dir, quiet=True, fmu_dir=self.fmu_dir)
-        return Path(out_dir) / RESULTS_FILE
+        return run_scenario(self._scenario(scenario), out_dir, quiet=True, fmu_dir=self.fmu_dir)
 
 
 def _fmu_digest(files) -> str:
@@ -174,7 +174,8 @@ def execute_case(case: Case, runner: Callable, cases_dir, instruments, metrics, 
     ----------
     case : Case
     runner : callable
-        ``runner(scenario_dict, out_dir)`` returning the path of its results file.
+        ``runner(scenario_dict, out_dir)`` returning a RunResult or the path of
+        ``results.parquet``.
     cases_dir : path-like
         The campaign's ``cases`` folder.
     instruments : mapping
@@ -211,9 +212,14 @@ def execute_case(case: Case, runner: Callable, cases_dir, instruments, metrics, 
 
 
 def _run(runner: Callable, scenario: dict, folder: Path) -> dict:
-    """Run the runner into ``folder``; its table, read from ``folder/results.parquet``."""
-    res = Path(runner(scenario, folder))
+    """Run the runner into ``folder``; its table, written to ``folder/results.parquet``."""
+    produced = runner(scenario, folder)
     results = folder / RESULTS_FILE
+    if isinstance(produced, RunResult):
+        if not results.is_file():
+            raise FileNotFoundError(f"runner returned its table but wrote no {str(results)!r}")
+        return produced.table
+    res = Path(produced)
     if not res.is_file():
         raise FileNotFoundError(f"runner returned {str(res)!r}, which is not a file")
     if res.parent.resolve() != folder.resolve() or res.name != RESULTS_FILE:

@@ -18,14 +18,17 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from orchestrator import metrics as M
 from orchestrator.campaign import (
     ANGLE_UNITS,
     CampaignError,
     campaign_from_dict,
+    execute_case,
     keyed,
     run_campaign,
 )
 from orchestrator.cli import main as cli_main
+from orchestrator.results import RunResult, read_table
 
 ARCSEC = ANGLE_UNITS["arcsec"]
 DT = 0.001
@@ -268,6 +271,49 @@ def test_serial_summary_holds_analytic_jitter_rss_and_margins(tmp_path):
     csv = (tmp_path / "summary.csv").read_text()
     assert csv.splitlines()[0].startswith('"case","key","event","configuration"')
     assert csv.count("\n") == len(rows) + 1
+
+
+def table_runner(scenario: dict, out_dir) -> RunResult:
+    """The synthetic runner returning its table in memory, as the master's runner does."""
+    path = synthetic_runner(scenario, out_dir)
+    return RunResult(read_table(path), {}, Path(out_dir))
+
+
+def test_metrics_from_the_in_memory_table_equal_those_of_the_written_results(tmp_path):
+    camp = campaign_from_dict(campaign_data())
+    case = camp.cases[4]                                 # event2 | isolation off
+    status = execute_case(case, table_runner, tmp_path, camp.instruments, camp.metrics,
+                          camp.skip)
+    assert status["status"] == "ok", status["error"]
+    folder = tmp_path / case.key
+    stored = {(r["instrument"], r["axis"], r["metric"], r["window"]): r["value"]
+              for r in pq.read_table(folder / "metrics.parquet").to_pylist()}
+    # Independently: the written results read back with pyarrow, the metric functions
+    # called directly.  Same float64 samples, so the values are equal to the last bit.
+    results = pq.read_table(folder / "results.parquet")
+    t = results.column("time").to_numpy()
+    keep = t >= t[0] + camp.skip - 0.5 * DT
+    expected = {}
+    for inst, axes in camp.instruments.items():
+        for axis, var in axes.items():
+            x = results.column(var).to_numpy()[keep]
+            expected[(inst, axis, "peak_to_peak", 0.2)] = M.peak_to_peak(x, DT, 0.2,
+                                                                         short="whole")
+            expected[(inst, axis, "rms_jitter", 0.4)] = M.jitter_rms(x, DT, 0.4)
+    assert stored.keys() == expected.keys()
+    for line, value in expected.items():
+        np.testing.assert_allclose(stored[line], value, rtol=0, atol=0, err_msg=str(line))
+    # and the analytic value: peak-to-peak of a sine of amplitude a over >= half a period
+    a = 3e-6
+    np.testing.assert_allclose(stored[("A", "pitch", "peak_to_peak", 0.2)], 2 * a, rtol=1e-9)
+
+
+def test_a_runner_returning_its_table_gives_the_same_summary(tmp_path):
+    camp = campaign_from_dict(campaign_data())
+    run_campaign(camp, tmp_path / "path", synthetic_runner, workers=0, progress=False)
+    run_campaign(camp, tmp_path / "table", table_runner, workers=0, progress=False)
+    assert read_sorted(tmp_path / "table/summary.parquet") == read_sorted(
+        tmp_path / "path/summary.parquet")
 
 
 def test_parallel_result_identical_to_serial(tmp_path):

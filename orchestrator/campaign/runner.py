@@ -46,18 +46,25 @@ class MasterRunner:
     Notes
     -----
     Picklable, so it runs in pool and Dask workers.  :meth:`fingerprint` returns the
-    SHA-256 of every FMU file a scenario uses, so rebuilt FMUs change the case keys.
+    SHA-256 of every FMU file a scenario uses, so rebuilt FMUs change the case keys; a
+    file is read once for all the cases that use it, and again only when it changes.
     """
 
     def __init__(self, base_dir=None, fmu_dir=None):
         self.base_dir = Path(base_dir or Path.cwd()).resolve()
         self.fmu_dir = None if fmu_dir is None else Path(fmu_dir).resolve()
+        self._fingerprints = {}
 
     def _scenario(self, scenario: dict):
         return scenario_from_dict(scenario, self.base_dir, source="<campaign case>")
 
     def fingerprint(self, scenario: dict) -> str:
-        """SHA-256 over the FMU files the scenario uses ("missing" for absent ones)."""
+        """SHA-256 over the FMU files the scenario uses ("missing" for absent ones).
+
+        Cases of a campaign differ in parameters only, so their FMU files are the same:
+        the digest is kept per set of (instance, FMU name, file and its stat), and a
+        file that changes (inode, size, modification or change time) is read again.
+        """
         sc = self._scenario(scenario)
         files = []
         for inst in sorted(sc.instances, key=lambda i: i.name):
@@ -66,7 +73,11 @@ class MasterRunner:
             except ValueError:
                 path = None
             files.append((inst.name, inst.fmu, path))
-        return _fmu_digest(files)
+        identity = tuple((name, fmu, None if path is None else (str(path), _stat(path)))
+                         for name, fmu, path in files)
+        if identity not in self._fingerprints:
+            self._fingerprints[identity] = _fmu_digest(files)
+        return self._fingerprints[identity]
 
     def __call__(self, scenario: dict, out_dir) -> RunResult:
         """Run a case's scenario into ``out_dir``.
@@ -84,6 +95,11 @@ class MasterRunner:
             The recorded table in memory, its metadata and ``out_dir``.
         """
         return run_scenario(self._scenario(scenario), out_dir, quiet=True, fmu_dir=self.fmu_dir)
+
+
+def _stat(path: Path) -> tuple:
+    st = os.stat(path)
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns
 
 
 def _fmu_digest(files) -> str:

@@ -146,6 +146,53 @@ def test_matrix_expands_events_configurations_and_sweeps():
     assert [x.label for x in other.cases] == [x.label for x in c.cases]
 
 
+def test_master_runner_reads_each_fmu_file_once_and_again_when_it_changes(tmp_path,
+                                                                           monkeypatch):
+    from orchestrator.campaign import MasterRunner, runner as runner_module
+
+    fmus = tmp_path / "fmus"
+    fmus.mkdir()
+    (fmus / "plant.fmu").write_bytes(b"plant v1")
+    (fmus / "ctrl.fmu").write_bytes(b"controller")
+    digests = []
+    real = runner_module._fmu_digest
+    monkeypatch.setattr(runner_module, "_fmu_digest",
+                        lambda files: digests.append(files) or real(files))
+
+    def scenario(gain):
+        return {"experiment": {"stop": 1.0, "output_interval": DT},
+                "fmus": {"plant": {"fmu": "plant", "period": DT},
+                         "ctrl": {"fmu": "ctrl", "period": DT, "parameters": {"gain": gain}},
+                         "sensor": {"fmu": "absent", "period": DT}}}
+
+    def expected():
+        # the definition: instances by name, "name:fmu:" then the file's bytes or "missing"
+        h = hashlib.sha256(b"ctrl:ctrl:" + (fmus / "ctrl.fmu").read_bytes())
+        h.update(b"plant:plant:" + (fmus / "plant.fmu").read_bytes())
+        h.update(b"sensor:absent:missing")
+        return h.hexdigest()
+
+    runner = MasterRunner(tmp_path, fmu_dir=fmus)
+    assert {runner.fingerprint(scenario(g)) for g in (0.0, 1.0, 2.0, 3.0)} == {expected()}
+    assert len(digests) == 1                             # four cases, files read once
+    # rebuilt in place, same size; a second later (file times may be as coarse as a tick)
+    mtime = (fmus / "plant.fmu").stat().st_mtime_ns
+    (fmus / "plant.fmu").write_bytes(b"plant v2")
+    os.utime(fmus / "plant.fmu", ns=(mtime + 10**9, mtime + 10**9))
+    assert runner.fingerprint(scenario(0.0)) == expected()
+    assert len(digests) == 2
+    # the keys of a campaign (one fingerprint per case) move with the file
+    camp = campaign_from_dict({**campaign_data(), "campaign": {
+        "name": "fp", "scenario": {**scenario(0.0), "fmus": {**scenario(0.0)["fmus"],
+                                                               "dist": {"fmu": "plant",
+                                                                        "period": DT}}},
+        "skip": 0.1}}, tmp_path)
+    before = keyed(camp, runner)
+    (fmus / "ctrl.fmu").write_bytes(b"controller, rebuilt")
+    after = keyed(camp, runner)
+    assert not {c.key for c in before.cases} & {c.key for c in after.cases}
+
+
 def test_bad_campaigns_are_rejected_with_the_culprit_named():
     d = campaign_data()
     d["events"][0]["overrides"]["nosuch.amplitude"] = 1.0

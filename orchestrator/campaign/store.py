@@ -32,19 +32,47 @@ METRIC_SCHEMA = pa.schema([
 
 
 def temporary_folder(cases_dir: Path, key: str) -> Path:
-    """A new folder ``cases_dir/.tmp-KEY-RANDOM`` in which a case is written."""
+    """A new folder ``cases_dir/.tmp-KEY-RANDOM`` in which a case is written.
+
+    Parameters
+    ----------
+    cases_dir, key : Path, str
+        The campaign's ``cases`` folder and the case's key.
+
+    Returns
+    -------
+    Path
+        The folder, created.
+    """
     tmp = cases_dir / f".tmp-{key}-{uuid.uuid4().hex[:8]}"
     tmp.mkdir(parents=True)
     return tmp
 
 
 def write_json(path: Path, data) -> None:
-    """Write ``data`` as indented, sorted JSON, atomically."""
+    """Write ``data`` as indented, sorted JSON, atomically.
+
+    Parameters
+    ----------
+    path : Path
+        Target file.
+    data : object
+        JSON data; other objects are written as their ``str``.
+    """
     write_json_atomic(path, data, indent=1, sort_keys=True, default=str)
 
 
 def write_table(table: pa.Table, path: Path, csv: bool = False) -> None:
-    """Write a table to Parquet (or CSV), atomically."""
+    """Write a table to Parquet (or CSV), atomically.
+
+    Parameters
+    ----------
+    table : pyarrow.Table
+    path : Path
+        Target file.
+    csv : bool
+        Write CSV instead of Parquet.
+    """
     atomic_write(path, (lambda tmp: pacsv.write_csv(table, tmp)) if csv
                  else (lambda tmp: pq.write_table(table, tmp)))
 
@@ -55,7 +83,13 @@ def file_record(path: Path) -> dict:
 
 
 def case_status(cases_dir: Path, key: str) -> dict | None:
-    """The ``case.json`` of a case, None if it is missing or unreadable."""
+    """The ``case.json`` of a case, None if it is missing or unreadable.
+
+    Parameters
+    ----------
+    cases_dir, key : Path, str
+        The campaign's ``cases`` folder and the case's key.
+    """
     p = cases_dir / key / STATUS_FILE
     if not p.is_file():
         return None
@@ -71,6 +105,11 @@ def case_verified(cases_dir: Path, key: str) -> bool:
     Status ``ok`` and, for every file of :data:`CASE_FILES`, the recorded size and
     SHA-256; a truncated, replaced or missing file (or a ``case.json`` without the
     record) makes the case run again.
+
+    Parameters
+    ----------
+    cases_dir, key : Path, str
+        The campaign's ``cases`` folder and the case's key.
     """
     st = case_status(cases_dir, key)
     if st is None or st.get("status") != "ok" or not isinstance(st.get("files"), dict):
@@ -86,7 +125,16 @@ def case_verified(cases_dir: Path, key: str) -> bool:
 
 
 def record_lost(cases_dir: Path, case, error: str) -> None:
-    """Publish a failed ``case.json`` for a case whose worker died before writing one."""
+    """Publish a failed ``case.json`` for a case whose worker died before writing one.
+
+    Parameters
+    ----------
+    cases_dir : Path
+        The campaign's ``cases`` folder.
+    case : Case
+    error : str
+        One sentence: why the case was lost.
+    """
     if case_status(cases_dir, case.key) is not None:
         return
     tmp = temporary_folder(cases_dir, case.key)

@@ -21,6 +21,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--runner", default=None, metavar="MODULE:FUNCTION",
                         help="case runner callable(scenario_dict, out_dir) -> results.parquet "
                              "(default: the co-simulation master)")
+    parser.add_argument("--fmu-dir", default=None,
+                        help="folder searched first for FMUs (master runner)")
+    parser.add_argument("--python-fmus", action="store_const", const="python",
+                        dest="fmu_kind", default=None,
+                        help="run the Python build of the suite's FMUs (FMU_DIR/python/) "
+                             "instead of the native ones")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -38,7 +44,8 @@ def run(args) -> int:
     from ..campaign import MasterRunner, load_campaign, run_campaign, slug
 
     camp = load_campaign(args.campaign)
-    runner = _import_runner(args.runner) if args.runner else MasterRunner(camp.scenario_dir)
+    runner = (_import_runner(args.runner) if args.runner else
+              MasterRunner(camp.scenario_dir, fmu_dir=args.fmu_dir, fmu_kind=args.fmu_kind))
     out = args.out or Path("out") / slug(camp.name)
     res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                        progress=False if args.quiet else None)

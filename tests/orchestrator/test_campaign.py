@@ -18,14 +18,17 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from orchestrator import metrics as M
 from orchestrator.campaign import (
     ANGLE_UNITS,
     CampaignError,
     campaign_from_dict,
+    execute_case,
     keyed,
     run_campaign,
 )
 from orchestrator.cli import main as cli_main
+from orchestrator.results import RunResult, read_table
 
 ARCSEC = ANGLE_UNITS["arcsec"]
 DT = 0.001
@@ -141,6 +144,53 @@ def test_matrix_expands_events_configurations_and_sweeps():
     other = keyed(c, FingerprintedRunner())
     assert not {x.key for x in other.cases} & {x.key for x in c.cases}
     assert [x.label for x in other.cases] == [x.label for x in c.cases]
+
+
+def test_master_runner_reads_each_fmu_file_once_and_again_when_it_changes(tmp_path,
+                                                                           monkeypatch):
+    from orchestrator.campaign import MasterRunner, runner as runner_module
+
+    fmus = tmp_path / "fmus"
+    fmus.mkdir()
+    (fmus / "plant.fmu").write_bytes(b"plant v1")
+    (fmus / "ctrl.fmu").write_bytes(b"controller")
+    digests = []
+    real = runner_module._fmu_digest
+    monkeypatch.setattr(runner_module, "_fmu_digest",
+                        lambda files: digests.append(files) or real(files))
+
+    def scenario(gain):
+        return {"experiment": {"stop": 1.0, "output_interval": DT},
+                "fmus": {"plant": {"fmu": "plant", "period": DT},
+                         "ctrl": {"fmu": "ctrl", "period": DT, "parameters": {"gain": gain}},
+                         "sensor": {"fmu": "absent", "period": DT}}}
+
+    def expected():
+        # the definition: instances by name, "name:fmu:" then the file's bytes or "missing"
+        h = hashlib.sha256(b"ctrl:ctrl:" + (fmus / "ctrl.fmu").read_bytes())
+        h.update(b"plant:plant:" + (fmus / "plant.fmu").read_bytes())
+        h.update(b"sensor:absent:missing")
+        return h.hexdigest()
+
+    runner = MasterRunner(tmp_path, fmu_dir=fmus)
+    assert {runner.fingerprint(scenario(g)) for g in (0.0, 1.0, 2.0, 3.0)} == {expected()}
+    assert len(digests) == 1                             # four cases, files read once
+    # rebuilt in place, same size; a second later (file times may be as coarse as a tick)
+    mtime = (fmus / "plant.fmu").stat().st_mtime_ns
+    (fmus / "plant.fmu").write_bytes(b"plant v2")
+    os.utime(fmus / "plant.fmu", ns=(mtime + 10**9, mtime + 10**9))
+    assert runner.fingerprint(scenario(0.0)) == expected()
+    assert len(digests) == 2
+    # the keys of a campaign (one fingerprint per case) move with the file
+    camp = campaign_from_dict({**campaign_data(), "campaign": {
+        "name": "fp", "scenario": {**scenario(0.0), "fmus": {**scenario(0.0)["fmus"],
+                                                               "dist": {"fmu": "plant",
+                                                                        "period": DT}}},
+        "skip": 0.1}}, tmp_path)
+    before = keyed(camp, runner)
+    (fmus / "ctrl.fmu").write_bytes(b"controller, rebuilt")
+    after = keyed(camp, runner)
+    assert not {c.key for c in before.cases} & {c.key for c in after.cases}
 
 
 def test_bad_campaigns_are_rejected_with_the_culprit_named():
@@ -268,6 +318,49 @@ def test_serial_summary_holds_analytic_jitter_rss_and_margins(tmp_path):
     csv = (tmp_path / "summary.csv").read_text()
     assert csv.splitlines()[0].startswith('"case","key","event","configuration"')
     assert csv.count("\n") == len(rows) + 1
+
+
+def table_runner(scenario: dict, out_dir) -> RunResult:
+    """The synthetic runner returning its table in memory, as the master's runner does."""
+    path = synthetic_runner(scenario, out_dir)
+    return RunResult(read_table(path), {}, Path(out_dir))
+
+
+def test_metrics_from_the_in_memory_table_equal_those_of_the_written_results(tmp_path):
+    camp = campaign_from_dict(campaign_data())
+    case = camp.cases[4]                                 # event2 | isolation off
+    status = execute_case(case, table_runner, tmp_path, camp.instruments, camp.metrics,
+                          camp.skip)
+    assert status["status"] == "ok", status["error"]
+    folder = tmp_path / case.key
+    stored = {(r["instrument"], r["axis"], r["metric"], r["window"]): r["value"]
+              for r in pq.read_table(folder / "metrics.parquet").to_pylist()}
+    # Independently: the written results read back with pyarrow, the metric functions
+    # called directly.  Same float64 samples, so the values are equal to the last bit.
+    results = pq.read_table(folder / "results.parquet")
+    t = results.column("time").to_numpy()
+    keep = t >= t[0] + camp.skip - 0.5 * DT
+    expected = {}
+    for inst, axes in camp.instruments.items():
+        for axis, var in axes.items():
+            x = results.column(var).to_numpy()[keep]
+            expected[(inst, axis, "peak_to_peak", 0.2)] = M.peak_to_peak(x, DT, 0.2,
+                                                                         short="whole")
+            expected[(inst, axis, "rms_jitter", 0.4)] = M.jitter_rms(x, DT, 0.4)
+    assert stored.keys() == expected.keys()
+    for line, value in expected.items():
+        np.testing.assert_allclose(stored[line], value, rtol=0, atol=0, err_msg=str(line))
+    # and the analytic value: peak-to-peak of a sine of amplitude a over >= half a period
+    a = 3e-6
+    np.testing.assert_allclose(stored[("A", "pitch", "peak_to_peak", 0.2)], 2 * a, rtol=1e-9)
+
+
+def test_a_runner_returning_its_table_gives_the_same_summary(tmp_path):
+    camp = campaign_from_dict(campaign_data())
+    run_campaign(camp, tmp_path / "path", synthetic_runner, workers=0, progress=False)
+    run_campaign(camp, tmp_path / "table", table_runner, workers=0, progress=False)
+    assert read_sorted(tmp_path / "table/summary.parquet") == read_sorted(
+        tmp_path / "path/summary.parquet")
 
 
 def test_parallel_result_identical_to_serial(tmp_path):
@@ -438,7 +531,7 @@ def test_pool_workers_exit_when_the_campaign_process_dies(tmp_path):
     parent = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     script = textwrap.dedent(f"""
         import time
-        from orchestrator.campaign import _die_with_parent
+        from orchestrator.campaign.engine import _die_with_parent
         _die_with_parent({parent.pid}, period=0.05)
         time.sleep(60)
     """)

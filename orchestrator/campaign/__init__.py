@@ -1,0 +1,118 @@
+"""Campaigns: many scenario runs (events × configurations × sweeps), their jitter and budget.
+
+A campaign is a base scenario plus a matrix of cases.  Every case applies parameter
+overrides to the base scenario — one disturbance event (each event runs alone), one
+configuration (e.g. isolation off / on) and one point of the parameter sweeps — and is run
+by a *runner*, any callable ``runner(scenario_dict, out_dir)`` that writes
+``out_dir/results.parquet`` and returns its table (a :class:`~orchestrator.results.RunResult`)
+or the file's path.
+The default runner is the co-simulation master (:class:`MasterRunner`); tests and scripts may
+pass any picklable callable.  Each finished case's recorded line-of-sight (LOS) angles are
+turned into jitter metrics (:mod:`orchestrator.metrics`), and the campaign's summary holds
+one row per case, instrument, axis, metric and window plus the RSS over events of every
+configuration and sweep point, against the requirements.
+
+Campaign file (TOML)::
+
+    [campaign]
+    name = "truss10_quick"
+    scenario = "../scenarios/truss10.toml"   # base scenario, relative to this file
+    unit = "arcsec"                          # unit of the summary, requirements and report
+    skip = 0.5                               # s of transient dropped from every record
+    stop = 5.0                               # optional experiment overrides of the base
+    output_interval = 1e-3
+
+    [[events]]                               # each case turns on exactly one event
+    name = "VNIR pointing"
+    overrides = { "dist.amplitude" = 1.0, "dist.frequency" = 8.4 }
+
+    [[configurations]]                       # every event runs in every configuration
+    name = "isolation off"
+    overrides = { "ctrl.enable" = false }
+
+    [[sweeps]]                               # optional, cartesian product of all sweeps
+    parameter = "structure.zeta"
+    values = [0.002, 0.004]
+
+    [[instruments]]                          # recorded LOS angles (rad) per axis
+    name = "SWIR"
+    axes = { pitch = "structure.los_swir_pitch", yaw = "structure.los_swir_yaw" }
+
+    [[metrics]]                              # kind and windows (s); stability: lags (s)
+    kind = "peak_to_peak"                    # peak_to_peak | rms_jitter | stability | rms
+    windows = [1.8]
+
+    [[requirements]]                         # in `unit`; axis and window optional
+    instrument = "SWIR"
+    metric = "peak_to_peak"
+    window = 1.8
+    value = 2.0
+
+Output folder::
+
+    DIR/campaign.json          the expanded campaign (cases, keys)
+    DIR/cases/KEY/case.json    definition, status ("ok" or "failed"), error, timings
+    DIR/cases/KEY/results.parquet, metrics.parquet   (successful cases)
+    DIR/cases.parquet, cases.csv       one row per case with its status and error
+    DIR/summary.parquet, summary.csv   the jitter table (see :func:`summarize`)
+
+Resuming
+--------
+A case is keyed by the SHA-256 of its definition (scenario after overrides, instruments,
+metrics, skip) and of the runner's fingerprint of the FMUs it uses.  A case runs in a
+temporary folder which is renamed to ``cases/KEY`` (``os.replace``) only when complete, so
+a killed campaign loses only the cases in flight; running the campaign again skips every
+case whose folder says "ok" and retries failed ones.
+
+Parallelism
+-----------
+``workers=0`` runs the cases one after another in this process; ``workers >= 1`` uses a
+process pool (forkserver on Linux, spawn elsewhere) with at most ``workers`` cases in
+flight; ``scheduler="tcp://..."`` (or a ``distributed.Client``) submits them to an existing
+Dask cluster whose workers must see ``DIR`` (shared file system).  Every mode computes the
+same numbers: each case is a pure function of its definition.
+
+Modules, in pipeline order
+--------------------------
+:mod:`~orchestrator.campaign.spec`
+    the campaign file, parsed and checked table by table;
+:mod:`~orchestrator.campaign.cases`
+    the cases: the base scenario with each event, configuration and sweep point, keyed;
+:mod:`~orchestrator.campaign.runner`
+    one case: run, jitter metrics from the table in memory, its folder published;
+:mod:`~orchestrator.campaign.engine`
+    all cases: serially, in a process pool or on Dask; folder lock, resume;
+:mod:`~orchestrator.campaign.summary`
+    the summary table: jitter, RSS over the events, margins;
+:mod:`~orchestrator.campaign.store`
+    the case folders on disk: status, file records, atomic writes.
+"""
+
+
+from .cases import Campaign, Case, campaign_from_dict, keyed, load_campaign
+from .engine import CampaignResult, run_campaign
+from .runner import MasterRunner, case_metrics, execute_case
+from .spec import ANGLE_UNITS, METRIC_KINDS, RSS_EVENT, CampaignError
+from .store import slug
+from .summary import SUMMARY_SCHEMA, summarize, write_summary
+
+__all__ = [
+    "ANGLE_UNITS",
+    "METRIC_KINDS",
+    "Campaign",
+    "CampaignError",
+    "CampaignResult",
+    "Case",
+    "MasterRunner",
+    "RSS_EVENT",
+    "SUMMARY_SCHEMA",
+    "campaign_from_dict",
+    "case_metrics",
+    "execute_case",
+    "keyed",
+    "load_campaign",
+    "run_campaign",
+    "slug",
+    "summarize",
+    "write_summary",
+]

@@ -1,0 +1,255 @@
+"""Running a campaign's cases: in this process, in a process pool or on a Dask cluster.
+
+The campaign folder is locked for the run; cases whose folders are verified finished are
+skipped (resume), the others run with at most ``workers`` in flight, and a case whose
+worker died is recorded as failed.  Pool workers exit when the campaign process dies.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import shutil
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..progress import ProgressBar
+from .cases import Campaign, Case, keyed
+from .runner import MasterRunner, execute_case, one_sentence
+from .spec import CampaignError
+from .store import case_verified, record_lost, write_json
+from .summary import write_summary
+
+_LOCK_FILE = ".jitterfmu.lock"
+_WORKER_DIED = "a worker process died while this case ran"
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """What a campaign run did.
+
+    Attributes
+    ----------
+    out_dir : Path
+    n_cases, n_run, n_skipped, n_failed : int
+        All cases; run now; skipped because already finished; failed (now).
+    summary : Path
+        ``summary.parquet``.
+    failures : dict of str to str
+        Case label to one-sentence error.
+    """
+
+    out_dir: Path
+    n_cases: int
+    n_run: int
+    n_skipped: int
+    n_failed: int
+    summary: Path
+    failures: dict
+
+    def __iter__(self):
+        return iter((self.n_failed, self.summary))
+
+
+def run_campaign(
+    campaign: Campaign,
+    out_dir,
+    runner: Callable | None = None,
+    *,
+    workers: int | None = None,
+    scheduler=None,
+    progress: bool | None = None,
+) -> CampaignResult:
+    """Run every unfinished case of a campaign and write the summary.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        From :func:`~orchestrator.campaign.load_campaign` or
+        :func:`~orchestrator.campaign.campaign_from_dict`.
+    out_dir : path-like
+        Output folder (created; reused to resume).
+    runner : callable, optional
+        ``runner(scenario_dict, out_dir)`` returning a RunResult or the path of
+        ``results.parquet``; picklable for ``workers >= 1`` and Dask.  Default:
+        :class:`~orchestrator.campaign.MasterRunner`.  If it has a
+        ``fingerprint(scenario_dict) -> str`` method, that enters the case keys.
+    workers : int, optional
+        0 runs the cases in this process; N >= 1 uses N worker processes.  Default: the
+        number of CPUs.  Ignored when ``scheduler`` is given.
+    scheduler : str or distributed.Client, optional
+        Address of a Dask scheduler (or a client) to run the cases on.
+    progress : bool, optional
+        Draw a progress bar on stderr; default: only when stderr is a terminal.
+
+    Returns
+    -------
+    CampaignResult
+        Unpacks as ``n_failed, summary_path``.
+    """
+    out = Path(out_dir)
+    cases_dir = out / "cases"
+    cases_dir.mkdir(parents=True, exist_ok=True)
+    with _folder_lock(out):
+        for stale in cases_dir.glob(".tmp-*"):  # left by a killed run
+            shutil.rmtree(stale, ignore_errors=True)
+        runner = runner or MasterRunner(campaign.scenario_dir)
+        campaign = keyed(campaign, runner)
+        write_json(out / "campaign.json", {
+            "name": campaign.name, "unit": campaign.unit, "skip": campaign.skip,
+            "instruments": campaign.instruments, "metrics": campaign.metrics,
+            "requirements": campaign.requirements,
+            "cases": [{"key": c.key, "label": c.label, "event": c.event,
+                       "configuration": c.configuration, "sweep": c.sweep} for c in campaign.cases],
+        })
+        todo = [case for case in campaign.cases if not case_verified(cases_dir, case.key)]
+        skipped = len(campaign.cases) - len(todo)
+        bar = ProgressBar(len(campaign.cases), "campaign", "case", enabled=progress)
+        for _ in range(skipped):
+            bar.update("ok")
+        failures = {}
+
+        def on_done(case, status):
+            if status["status"] == "failed":
+                failures[case.label] = status["error"]
+                if status.get("unpublished"):  # the case never wrote its folder
+                    record_lost(cases_dir, case, status["error"])
+            bar.update(status["status"])
+
+        args = (runner, cases_dir, campaign.instruments, campaign.metrics, campaign.skip)
+        workers = (os.cpu_count() or 1) if workers is None else int(workers)
+        try:
+            if scheduler is not None:
+                _run_dask(todo, args, scheduler, on_done)
+            elif workers <= 0:
+                for case in todo:
+                    on_done(case, execute_case(case, *args))
+            else:
+                _run_local(todo, args, workers, on_done)
+        finally:
+            bar.close()
+        summary_path = write_summary(campaign, out)
+        return CampaignResult(out, len(campaign.cases), len(todo), skipped, len(failures),
+                              summary_path, failures)
+
+
+def _run_local(todo, args, workers, on_done):
+    """Process pool with at most ``workers`` cases in flight; survives dead workers."""
+    queue = list(todo)
+    while queue:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=_pool_context(),
+                                   initializer=_die_with_parent, initargs=(os.getpid(),))
+        inflight = {}
+        broken = False
+        try:
+            while queue or inflight:
+                while queue and len(inflight) < workers and not broken:
+                    case = queue.pop(0)
+                    inflight[pool.submit(execute_case, case, *args)] = case
+                if not inflight:
+                    break
+                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    case = inflight.pop(fut)
+                    try:
+                        on_done(case, fut.result())
+                    except BrokenProcessPool:
+                        broken = True
+                        on_done(case, _lost(case, _WORKER_DIED))
+                if broken:
+                    for fut, case in inflight.items():
+                        on_done(case, _lost(case, _WORKER_DIED))
+                    inflight.clear()
+                    break
+        finally:
+            pool.shutdown(wait=not broken, cancel_futures=True)
+
+
+def _run_dask(todo, args, scheduler, on_done):
+    # distributed is an optional extra ("cluster"), imported only when a scheduler is given
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise CampaignError(
+            "a Dask scheduler was given but the 'distributed' package is not installed "
+            "(install the 'cluster' extra)"
+        ) from None
+    own = not hasattr(scheduler, "submit")
+    client = Client(scheduler) if own else scheduler
+    try:
+        futs = {client.submit(execute_case, case, *args, key=f"case-{case.key}", pure=False): case
+                for case in todo}
+        for fut in as_completed(futs):
+            case = futs[fut]
+            try:
+                on_done(case, fut.result())
+            except Exception as exc:  # the worker died or the task was lost
+                on_done(case, _lost(case, one_sentence(exc)))
+    finally:
+        if own:
+            client.close()
+
+
+def _lost(case: Case, why: str) -> dict:
+    return {"key": case.key, "status": "failed", "error": why, "seconds": float("nan"),
+            "unpublished": True}
+
+
+def _pool_context():
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+class _folder_lock:
+    """Exclusive lock on a campaign folder for the life of a campaign run.
+
+    A second campaign (or a run) into the same folder fails at once instead of deleting
+    the other's in-progress cases; the lock goes with the process, so a killed
+    campaign leaves nothing to clean up.
+    """
+
+    def __init__(self, folder: Path):
+        self.path = Path(folder) / _LOCK_FILE
+
+    def __enter__(self):
+        import fcntl  # POSIX only: imported where the lock is taken
+
+        self.file = open(self.path, "a+")
+        try:
+            fcntl.flock(self.file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            self.file.close()
+            raise CampaignError(f"campaign folder {str(self.path.parent)!r} is in use by "
+                                "another campaign or run; wait for it or choose another "
+                                "--out") from None
+        return self
+
+    def __exit__(self, *exc):
+        self.file.close()   # releases the lock
+        return False
+
+
+def _die_with_parent(parent_pid: int, period: float = 1.0) -> None:
+    """Pool worker initialiser: exit when the campaign process is gone.
+
+    A killed campaign would otherwise leave its workers running cases and writing into
+    its folder.  A daemon thread checks every ``period`` seconds that ``parent_pid``
+    still exists (the pool's own parent may be a fork server, so the check names the
+    campaign process itself).
+    """
+    def watch():
+        while True:
+            time.sleep(period)
+            try:
+                os.kill(parent_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except PermissionError:
+                pass
+
+    threading.Thread(target=watch, name="die-with-parent", daemon=True).start()

@@ -1,0 +1,254 @@
+"""One case: run it, compute its jitter metrics from the table in memory, publish its folder.
+
+A *runner* is any callable ``runner(scenario_dict, out_dir)`` that runs a case's scenario
+and writes ``out_dir/results.parquet``; it returns a :class:`~orchestrator.results.RunResult`
+(the table in memory, as :class:`MasterRunner` does) or the path of the results file
+(then read once).  :func:`execute_case` computes the metrics from that table and renames the
+case's temporary folder to ``cases/KEY`` only when everything is written.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import time
+import traceback
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+
+from .. import metrics as M
+from ..cosim import find_fmu
+from ..run import run_scenario
+from ..results import RunResult, read_table
+from ..scenario import scenario_from_dict
+from .cases import Case
+from .store import (CASE_FILES, METRIC_SCHEMA, METRICS_FILE, RESULTS_FILE, STATUS_FILE,
+                    file_record, temporary_folder, write_json, write_table)
+
+# Names the time column of a results table may have.
+_TIME_COLUMNS = ("time", "t", "time_s")
+
+
+class MasterRunner:
+    """Run a case with the co-simulation master.
+
+    Parameters
+    ----------
+    base_dir : path-like
+        Folder against which the FMU names of a case's scenario are resolved (the base
+        scenario's folder), as :func:`orchestrator.cosim.find_fmu` does for a scenario file.
+    fmu_dir : path-like, optional
+        Extra folder searched first for FMU names.
+    fmu_kind : {"native", "python"}, optional
+        Overrides the cases' ``experiment.fmu_kind`` (which build of the suite's FMUs).
+
+    Notes
+    -----
+    Picklable, so it runs in pool and Dask workers.  :meth:`fingerprint` returns the
+    SHA-256 of every FMU file a scenario uses, so rebuilt FMUs change the case keys; a
+    file is read once for all the cases that use it, and again only when it changes.
+    """
+
+    def __init__(self, base_dir=None, fmu_dir=None, fmu_kind=None):
+        self.base_dir = Path(base_dir or Path.cwd()).resolve()
+        self.fmu_dir = None if fmu_dir is None else Path(fmu_dir).resolve()
+        self.fmu_kind = fmu_kind
+        self._fingerprints = {}
+
+    def _scenario(self, scenario: dict):
+        sc = scenario_from_dict(scenario, self.base_dir, source="<campaign case>")
+        return sc.with_experiment(fmu_kind=self.fmu_kind)
+
+    def fingerprint(self, scenario: dict) -> str:
+        """SHA-256 over the FMU files the scenario uses ("missing" for absent ones).
+
+        Cases of a campaign differ in parameters only, so their FMU files are the same:
+        the digest is kept per set of (instance, FMU name, file and its stat), and a
+        file that changes (inode, size, modification or change time) is read again.
+        """
+        sc = self._scenario(scenario)
+        files = []
+        for inst in sorted(sc.instances, key=lambda i: i.name):
+            try:
+                path = find_fmu(inst.fmu, sc, self.fmu_dir)
+            except ValueError:
+                path = None
+            files.append((inst.name, inst.fmu, path))
+        identity = tuple((name, fmu, None if path is None else (str(path), _stat(path)))
+                         for name, fmu, path in files)
+        if identity not in self._fingerprints:
+            self._fingerprints[identity] = _fmu_digest(files)
+        return self._fingerprints[identity]
+
+    def __call__(self, scenario: dict, out_dir) -> RunResult:
+        """Run a case's scenario into ``out_dir``.
+
+        Parameters
+        ----------
+        scenario : dict
+            Scenario data (the TOML layout).
+        out_dir : path-like
+            Folder for ``results.parquet`` and ``run.json``.
+
+        Returns
+        -------
+        RunResult
+            The recorded table in memory, its metadata and ``out_dir``.
+        """
+        return run_scenario(self._scenario(scenario), out_dir, quiet=True, fmu_dir=self.fmu_dir)
+
+
+def _stat(path: Path) -> tuple:
+    st = os.stat(path)
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns
+
+
+def _fmu_digest(files) -> str:
+    """SHA-256 over ``name:fmu:`` and the bytes (or ``missing``) of each instance's FMU."""
+    h = hashlib.sha256()
+    for name, fmu, path in files:
+        h.update(f"{name}:{fmu}:".encode())
+        if path is None:
+            h.update(b"missing")
+            continue
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+    return h.hexdigest()
+
+
+def case_metrics(t, columns: Mapping, instruments: Mapping, metrics, skip: float = 0.0):
+    """Jitter metrics of one case's recorded LOS angles.
+
+    Parameters
+    ----------
+    t : array_like, shape (n_samples,)
+        Time (s), uniformly spaced.
+    columns : mapping of str to array_like, shape (n_samples,)
+        Recorded variables by name (LOS angles in rad).
+    instruments : mapping
+        ``{instrument: {axis: variable}}``.
+    metrics : sequence of (str, float or None)
+        ``(kind, window)`` pairs (window or lag in s).
+    skip : float
+        Transient dropped from the start (s).
+
+    Returns
+    -------
+    rows : list of dict
+        ``instrument, axis, metric, window, value`` with value in rad.
+    """
+    t = np.asarray(t, dtype=float)
+    if t.size < 2:
+        raise ValueError(f"results hold {t.size} time sample(s); expected at least 2")
+    d = np.diff(t)
+    dt = float(np.median(d))
+    if not np.allclose(d, dt, rtol=1e-6, atol=1e-12):
+        raise ValueError("results time column is not uniformly spaced; "
+                         "expected one output interval")
+    keep = t >= t[0] + skip - 0.5 * dt
+    rows = []
+    for inst, axes in instruments.items():
+        for axis, var in axes.items():
+            if var not in columns:
+                raise KeyError(
+                    f"recorded variable {var!r} for {inst}/{axis} is not in the results; "
+                    "add it to [record] variables of the scenario"
+                )
+            x = np.asarray(columns[var], dtype=float)[keep]
+            for kind, w in metrics:
+                if kind == "peak_to_peak":
+                    v = M.peak_to_peak(x, dt, w, short="whole")
+                elif kind == "rms_jitter":
+                    v = M.jitter_rms(x, dt, w)
+                elif kind == "stability":
+                    v = M.stability_rms(x, dt, w)
+                else:
+                    v = float(np.std(x))
+                rows.append(dict(instrument=inst, axis=axis, metric=kind, window=w,
+                                 value=float(v)))
+    return rows
+
+
+def _metrics_table(table: Mapping, instruments: Mapping, metrics, skip: float) -> pa.Table:
+    """:func:`case_metrics` of a results table, as the rows of ``metrics.parquet``."""
+    names = list(table)
+    tcol = next((c for c in _TIME_COLUMNS if c in names), None)
+    if tcol is None:
+        raise ValueError(f"results file {RESULTS_FILE} has no 'time' column (has {names[:5]})")
+    columns = {c: table[c] for c in names if c != tcol}
+    rows = case_metrics(table[tcol], columns, instruments, metrics, skip)
+    return pa.Table.from_pylist(rows, schema=METRIC_SCHEMA)
+
+
+def execute_case(case: Case, runner: Callable, cases_dir, instruments, metrics, skip) -> dict:
+    """Run one case and publish its folder atomically; never raises for case errors.
+
+    The runner works in ``cases_dir/.tmp-KEY-RANDOM``; the folder is renamed to
+    ``cases_dir/KEY`` when results, metrics and ``case.json`` are written.
+
+    Parameters
+    ----------
+    case : Case
+    runner : callable
+        ``runner(scenario_dict, out_dir)`` returning a RunResult or the path of
+        ``results.parquet``.
+    cases_dir : path-like
+        The campaign's ``cases`` folder.
+    instruments : mapping
+        ``{instrument: {axis: variable}}``; recorded LOS angles in rad.
+    metrics : sequence of (str, float or None)
+        ``(kind, window)`` pairs (window or lag in s).
+    skip : float
+        Transient dropped from the start of the record (s).
+
+    Returns
+    -------
+    status : dict
+        ``key, status ("ok" | "failed"), error, seconds``.
+    """
+    cases_dir = Path(cases_dir)
+    tmp = temporary_folder(cases_dir, case.key)
+    t0 = time.perf_counter()
+    info = {"key": case.key, "label": case.label, "event": case.event,
+            "configuration": case.configuration, "sweep": case.sweep, "scenario": case.scenario}
+    try:
+        table = _run(runner, case.scenario, tmp)
+        write_table(_metrics_table(table, instruments, metrics, skip), tmp / METRICS_FILE)
+        info.update(status="ok", error="", files={n: file_record(tmp / n) for n in CASE_FILES})
+    except Exception as exc:  # a failing case is recorded and does not stop the others
+        info.update(status="failed", error=one_sentence(exc),
+                    traceback=traceback.format_exc(limit=8))
+    info["seconds"] = round(time.perf_counter() - t0, 6)
+    write_json(tmp / STATUS_FILE, info)
+    final = cases_dir / case.key
+    if final.exists():  # an earlier failed attempt
+        shutil.rmtree(final, ignore_errors=True)
+    os.replace(tmp, final)
+    return {k: info[k] for k in ("key", "status", "error", "seconds")}
+
+
+def _run(runner: Callable, scenario: dict, folder: Path) -> dict:
+    """Run the runner into ``folder``; its table, written to ``folder/results.parquet``."""
+    produced = runner(scenario, folder)
+    results = folder / RESULTS_FILE
+    if isinstance(produced, RunResult):
+        if not results.is_file():
+            raise FileNotFoundError(f"runner returned its table but wrote no {str(results)!r}")
+        return produced.table
+    res = Path(produced)
+    if not res.is_file():
+        raise FileNotFoundError(f"runner returned {str(res)!r}, which is not a file")
+    if res.parent.resolve() != folder.resolve() or res.name != RESULTS_FILE:
+        shutil.copyfile(res, results)
+    return read_table(results)
+
+
+def one_sentence(exc: BaseException) -> str:
+    msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    msg = f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
+    return msg if len(msg) <= 300 else msg[:297] + "..."

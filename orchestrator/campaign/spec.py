@@ -1,0 +1,357 @@
+"""The campaign file, parsed table by table into a :class:`CampaignSpec`.
+
+Each table (``[campaign]``, ``[[events]]``, ``[[configurations]]``, ``[[sweeps]]``,
+``[[instruments]]``, ``[[metrics]]``, ``[[requirements]]``) has its own small parser that
+checks its keys and values and names the culprit in one sentence (:class:`CampaignError`).
+The tables are checked in that order, and the overrides last, case by case, so the error
+reported for a file with several mistakes is the first one a reader would meet.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD
+
+from ..scenario import check_keys, closest
+
+#: Factor from rad to each supported reporting unit.
+ANGLE_UNITS = {
+    "rad": 1.0,
+    "mrad": 1e3,
+    "urad": 1e6,
+    "deg": DEG_PER_RAD,
+    "arcsec": ARCSEC_PER_RAD,
+}
+#: Metric kinds and what their ``windows`` mean.
+METRIC_KINDS = {
+    "peak_to_peak": "windowed peak-to-peak jitter over T (s)",
+    "rms_jitter": "RMS deviation from the window mean over T (s)",
+    "stability": "RMS change across a lag Ts (s)",
+    "rms": "RMS about the record mean (no window)",
+}
+#: Event name of the summary rows holding the RSS over the events.
+RSS_EVENT = "RSS"
+# Valid keys of every table of a campaign file.
+_KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metrics",
+         "requirements")
+_CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm")
+_ITEM_KEYS = {
+    "events": ("name", "overrides"),
+    "configurations": ("name", "overrides"),
+    "sweeps": ("parameter", "values"),
+    "instruments": ("name", "axes", "requirement"),
+    "metrics": ("kind", "windows", "window"),
+    "requirements": ("instrument", "value", "axis", "metric", "window"),
+}
+
+
+class CampaignError(ValueError):
+    """A campaign definition that is malformed or inconsistent."""
+
+
+@dataclass(frozen=True)
+class Variant:
+    """An event or a configuration: a name and its parameter overrides.
+
+    Attributes
+    ----------
+    name : str
+    overrides : dict of str to value
+        ``{"instance.variable": start value}``.
+    """
+
+    name: str
+    overrides: dict
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """A campaign file, checked, before its cases are expanded.
+
+    Attributes
+    ----------
+    name : str
+    scenario : dict
+        Base scenario data (the TOML layout) with the campaign's experiment settings and
+        absolute paths to ``.fmu`` files.
+    events, configurations : tuple of Variant
+    sweeps : tuple of tuple of (str, value)
+        Per sweep, its ``(parameter, value)`` points.
+    instruments, metrics, requirements, unit, skip, base_dir, scenario_dir
+        As in :class:`~orchestrator.campaign.Campaign`.
+    """
+
+    name: str
+    scenario: dict
+    events: tuple
+    configurations: tuple
+    sweeps: tuple
+    instruments: dict
+    metrics: tuple
+    requirements: tuple
+    unit: str
+    skip: float
+    base_dir: Path
+    scenario_dir: Path
+
+
+def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
+    """Check campaign data (the TOML layout) table by table.
+
+    Parameters
+    ----------
+    data : mapping
+        Tables ``campaign``, ``events``, ``configurations``, ``sweeps``, ``instruments``,
+        ``metrics``, ``requirements``.  ``campaign.scenario`` is a path to the base
+        scenario TOML or an inline table (the scenario layout).
+    base_dir : path-like, optional
+        Folder for relative paths (default: current folder).
+
+    Returns
+    -------
+    CampaignSpec
+
+    Raises
+    ------
+    CampaignError
+        Naming the table, the entry and what was expected.
+    """
+    base_dir = Path(base_dir or Path.cwd()).resolve()
+    head = data.get("campaign")
+    if not isinstance(head, dict):
+        raise CampaignError("campaign file has no [campaign] table")
+    _check_keys(data, _KEYS, "campaign file")
+    _check_keys(head, _CAMPAIGN_KEYS, "[campaign]")
+    name = str(head.get("name", "campaign"))
+    scenario, scenario_dir = _base_scenario(head, name, base_dir)
+    unit = str(head.get("unit", "arcsec"))
+    if unit not in ANGLE_UNITS:
+        raise CampaignError(f"[campaign] unit is {unit!r}; expected one of {sorted(ANGLE_UNITS)}")
+    skip = float(head.get("skip", 0.0))
+    if not skip >= 0:
+        raise CampaignError(f"[campaign] skip is {skip!r} s; expected >= 0")
+
+    events = data.get("events", [{"name": "baseline"}])
+    configurations = data.get("configurations", [{"name": "baseline"}])
+    event_names = _named(events, "events")
+    _named(configurations, "configurations")
+    if RSS_EVENT in event_names:
+        raise CampaignError(f"event name {RSS_EVENT!r} is reserved for the RSS total")
+    sweeps = _sweeps(data.get("sweeps", []))
+    instruments, shorthand = _instruments(data.get("instruments"))
+    metrics = _metrics(data.get("metrics", [{"kind": "peak_to_peak", "windows": [1.0]}]))
+    requirements = _requirements(data.get("requirements", []), shorthand, instruments, metrics)
+    events, configurations = _variants(events, configurations, sweeps, scenario["fmus"])
+    return CampaignSpec(name, scenario, events, configurations, sweeps, instruments,
+                        tuple(metrics), requirements, unit, skip, base_dir, scenario_dir)
+
+
+def read_spec(path) -> CampaignSpec:
+    """Read and check a campaign TOML file (see :mod:`orchestrator.campaign`)."""
+    path = Path(path)
+    if not path.is_file():
+        raise CampaignError(f"campaign file {str(path)!r} does not exist")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise CampaignError(f"campaign file {str(path)!r} is not valid TOML: {exc}") from None
+    return parse_spec(data, path.parent)
+
+
+# ----------------------------------------------------------------------------- tables
+
+
+def _base_scenario(head: dict, name: str, base_dir: Path) -> tuple[dict, Path]:
+    """The ``[campaign]`` table's base scenario data and its folder.
+
+    FMU names stay as written; paths to ``.fmu`` files are made absolute so that cases
+    run anywhere.  ``stop``, ``output_interval`` and ``algorithm`` of ``[campaign]``
+    replace those of the scenario's ``[experiment]``.
+    """
+    scen = head.get("scenario")
+    if isinstance(scen, str):
+        path = (base_dir / scen).resolve()
+        if not path.is_file():
+            raise CampaignError(f"base scenario {str(path)!r} of campaign {name!r} does not exist")
+        scenario = tomllib.loads(path.read_text(encoding="utf-8"))
+        scenario_dir = path.parent
+    elif isinstance(scen, dict):
+        scenario, scenario_dir = json.loads(json.dumps(scen)), base_dir
+    else:
+        raise CampaignError("[campaign] scenario must be a path to a TOML file or a table")
+    if not isinstance(scenario.get("fmus"), dict) or not scenario["fmus"]:
+        raise CampaignError(f"base scenario of campaign {name!r} has no [fmus.NAME] tables")
+    for spec in scenario["fmus"].values():
+        fmu = str(spec.get("fmu", ""))
+        if fmu.endswith(".fmu") and not Path(fmu).is_absolute():
+            spec["fmu"] = str((scenario_dir / fmu).resolve())
+    exp = scenario.setdefault("experiment", {})
+    for k in ("stop", "output_interval", "algorithm"):
+        if k in head:
+            exp[k] = head[k]
+    return scenario, scenario_dir
+
+
+def _sweeps(items) -> tuple:
+    """``[[sweeps]]``: per sweep, its ``(parameter, value)`` points."""
+    _table_list(items, "sweeps", _ITEM_KEYS["sweeps"])
+    sweeps = []
+    for i, s in enumerate(items):
+        if not isinstance(s, dict) or "parameter" not in s or not s.get("values"):
+            raise CampaignError(f"sweep {i + 1} needs 'parameter' and a non-empty 'values'")
+        sweeps.append(tuple((str(s["parameter"]), v) for v in s["values"]))
+    return tuple(sweeps)
+
+
+def _instruments(items) -> tuple[dict, list]:
+    """``[[instruments]]``: the axes of each, and requirements given as a shorthand."""
+    if not isinstance(items, list) or not items:
+        raise CampaignError("campaign has no [[instruments]] (name and axes of recorded LOS)")
+    _table_list(items, "instruments", _ITEM_KEYS["instruments"])
+    instruments, shorthand = {}, []
+    for i, it in enumerate(items):
+        if not isinstance(it, dict) or "name" not in it or not isinstance(it.get("axes"), dict):
+            raise CampaignError(f"instrument {i + 1} needs 'name' and 'axes' = {{axis = var}}")
+        if it["name"] in instruments:
+            raise CampaignError(f"instrument {it['name']!r} is defined twice")
+        instruments[str(it["name"])] = {str(a): str(v) for a, v in it["axes"].items()}
+        if "requirement" in it:  # shorthand: one value for every axis, metric and window
+            shorthand.append({"instrument": str(it["name"]), "value": it["requirement"]})
+    return instruments, shorthand
+
+
+def _metrics(items) -> list:
+    """``[[metrics]]``: ``(kind, window)`` pairs, one per window (``None`` for ``rms``)."""
+    _table_list(items, "metrics", _ITEM_KEYS["metrics"])
+    metrics = []
+    for i, m in enumerate(items):
+        kind = m.get("kind") if isinstance(m, dict) else None
+        if kind not in METRIC_KINDS:
+            raise CampaignError(
+                f"metric {i + 1} kind is {kind!r}; expected one of {sorted(METRIC_KINDS)}"
+            )
+        if kind == "rms":
+            metrics.append((kind, None))
+            continue
+        windows = m.get("windows", [m["window"]] if "window" in m else [])
+        if not windows:
+            raise CampaignError(f"metric {i + 1} ({kind}) needs 'windows' (s)")
+        for w in windows:
+            if not (isinstance(w, (int, float)) and w > 0):
+                raise CampaignError(f"metric {i + 1} ({kind}) window {w!r} is not a positive time")
+            metrics.append((kind, float(w)))
+    return metrics
+
+
+def _requirements(items, shorthand: list, instruments: dict, metrics: list) -> tuple:
+    """``[[requirements]]`` then the instruments' shorthand ones, each checked."""
+    explicit = _table_list(items, "requirements", _ITEM_KEYS["requirements"])
+    reqs = []
+    for i, r in enumerate(list(explicit) + shorthand):
+        if "instrument" not in r or "value" not in r:
+            raise CampaignError(f"requirement {i + 1} needs 'instrument' and 'value'")
+        if r["instrument"] not in instruments:
+            raise CampaignError(
+                f"requirement {i + 1} names unknown instrument {r['instrument']!r} "
+                f"(instruments: {sorted(instruments)})"
+            )
+        _check_requirement(r, i + 1, instruments[r["instrument"]], metrics)
+        reqs.append(dict(r))
+    return tuple(reqs)
+
+
+def _check_requirement(r: dict, number: int, axes: dict, metrics: list) -> None:
+    """A requirement's axis, metric and window must match something, else it never applies."""
+    what = f"requirement {number} ({r['instrument']})"
+    if "axis" in r and r["axis"] not in axes:
+        raise CampaignError(f"{what} has axis {r['axis']!r}{closest(r['axis'], axes)}; "
+                            f"expected one of {', '.join(axes)}")
+    if "metric" in r and r["metric"] not in METRIC_KINDS:
+        raise CampaignError(f"{what} has metric {r['metric']!r}{closest(r['metric'], METRIC_KINDS)}"
+                            f"; expected one of {', '.join(METRIC_KINDS)}")
+    if "window" in r:
+        w = r["window"]
+        windows = sorted({win for kind, win in metrics if win is not None
+                          and r.get("metric", kind) == kind})
+        if not (isinstance(w, (int, float)) and not isinstance(w, bool)
+                and any(math.isclose(float(w), win) for win in windows)):
+            raise CampaignError(f"{what} has window {w!r} s, which no [[metrics]] entry "
+                                f"computes; expected one of {windows}")
+    value = r["value"]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
+            or not math.isfinite(value):
+        raise CampaignError(f"{what} has value {value!r}; expected a positive number")
+
+
+def _variants(events: list, configurations: list, sweeps: tuple, fmus: dict) -> tuple:
+    """Events and configurations with their overrides checked, in case order.
+
+    Every override (and swept parameter) must name an instance of the base scenario.
+    The pairs are checked in the order the cases are expanded, so the error is the
+    first case's.
+    """
+    swept = {parameter: None for sweep in sweeps for parameter, _ in sweep}
+    ov_events, ov_configurations = {}, {}
+    for (i, ev), (j, cf) in itertools.product(enumerate(events), enumerate(configurations)):
+        ov_e = ov_events[i] = _overrides(ev, f"event {ev['name']!r}")
+        ov_c = ov_configurations[j] = _overrides(cf, f"configuration {cf['name']!r}")
+        for key in {**ov_c, **ov_e, **swept}:
+            inst, _ = key.split(".", 1)
+            if inst not in fmus:
+                raise CampaignError(
+                    f"override {key!r} names instance {inst!r}, which the base scenario does "
+                    f"not have (instances: {sorted(fmus)})"
+                )
+    # without cases (no events or no configurations) nothing reads the overrides
+    return (tuple(Variant(str(e["name"]), ov_events.get(i, {})) for i, e in enumerate(events)),
+            tuple(Variant(str(c["name"]), ov_configurations.get(j, {}))
+                  for j, c in enumerate(configurations)))
+
+
+def _overrides(item, what: str) -> dict:
+    ov = item.get("overrides", {})
+    if not isinstance(ov, dict):
+        raise CampaignError(f"{what} overrides must be a table of 'instance.variable' = value")
+    for k in ov:
+        if "." not in k:
+            raise CampaignError(f"{what} override {k!r} must have the form 'instance.variable'")
+    return dict(ov)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _check_keys(table, allowed, what: str) -> None:
+    check_keys(table, allowed, what, CampaignError)
+
+
+def _table_list(items, what: str, allowed) -> list:
+    """Check an array of tables ``[[what]]`` and the keys of each of its tables."""
+    if not isinstance(items, list):
+        raise CampaignError(f"{what} must be an array of tables ([[{what}]])")
+    for i, it in enumerate(items):
+        if not isinstance(it, dict):
+            raise CampaignError(f"[[{what}]] entry {i + 1} is a {type(it).__name__}; expected "
+                                "a table")
+        label = f" ({it['name']!r})" if isinstance(it.get("name"), str) else ""
+        _check_keys(it, allowed, f"[[{what}]] entry {i + 1}{label}")
+    return items
+
+
+def _named(items, what: str) -> list:
+    _table_list(items, what, _ITEM_KEYS[what])
+    names = []
+    for i, it in enumerate(items):
+        if "name" not in it:
+            raise CampaignError(f"{what} entry {i + 1} has no 'name'")
+        names.append(str(it["name"]))
+    if len(set(names)) != len(names):
+        raise CampaignError(f"{what} names are not unique: {names}")
+    return names

@@ -1,0 +1,130 @@
+"""The campaign's summary: jitter per case, RSS over the events, margins to requirements."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .. import metrics as M
+from .cases import Campaign
+from .spec import ANGLE_UNITS, RSS_EVENT
+from .store import METRICS_FILE, case_status, write_table
+
+SUMMARY_SCHEMA = pa.schema([
+    ("case", pa.string()), ("key", pa.string()), ("event", pa.string()),
+    ("configuration", pa.string()), ("sweep", pa.string()), ("instrument", pa.string()),
+    ("axis", pa.string()), ("metric", pa.string()), ("window", pa.float64()),
+    ("unit", pa.string()), ("value", pa.float64()), ("requirement", pa.float64()),
+    ("margin", pa.float64()), ("margin_ratio", pa.float64()), ("pass", pa.bool_()),
+    ("share", pa.float64()), ("note", pa.string()),
+])
+# Columns of cases.parquet.
+_CASES_SCHEMA = pa.schema([
+    ("key", pa.string()), ("case", pa.string()), ("event", pa.string()),
+    ("configuration", pa.string()), ("sweep", pa.string()), ("status", pa.string()),
+    ("error", pa.string()), ("seconds", pa.float64()),
+])
+
+
+def summarize(campaign: Campaign, out_dir) -> tuple[pa.Table, pa.Table]:
+    """Build the summary and case tables from the case folders.
+
+    Summary rows: one per successful case × instrument × axis × metric × window, plus
+    one ``event = "RSS"`` row per configuration × sweep point × instrument × axis ×
+    metric × window holding the root-sum-square over the events.  Values, requirements
+    and margins are in ``campaign.unit``; ``margin = requirement − value``,
+    ``margin_ratio = margin / requirement``, ``pass = value <= requirement`` (null without
+    a requirement or for an RSS missing failed events, see ``note``); ``share`` is an
+    event's fraction ``value² / RSS²`` of its group's RSS.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        With its final keys (:func:`~orchestrator.campaign.keyed`).
+    out_dir : path-like
+        Campaign folder (holds ``cases/KEY``).
+
+    Returns
+    -------
+    summary : pyarrow.Table
+        Columns of :data:`SUMMARY_SCHEMA`.
+    cases : pyarrow.Table
+        One row per case: key, case, event, configuration, sweep, status, error, seconds.
+    """
+    cases_dir = Path(out_dir) / "cases"
+    scale = ANGLE_UNITS[campaign.unit]
+    rows, case_rows = [], []
+    groups: dict = {}
+    failed_groups: dict = {}
+    for case in campaign.cases:
+        st = case_status(cases_dir, case.key) or {"status": "missing", "error": "not run"}
+        case_rows.append({"key": case.key, "case": case.label, "event": case.event,
+                          "configuration": case.configuration, "sweep": case.sweep,
+                          "status": st["status"], "error": st.get("error", ""),
+                          "seconds": st.get("seconds")})
+        gk = (case.configuration, case.sweep)
+        if st["status"] != "ok":
+            failed_groups.setdefault(gk, []).append(case.event)
+            continue
+        mt = pq.read_table(cases_dir / case.key / METRICS_FILE).to_pylist()
+        for r in mt:
+            v = r["value"] * scale
+            rows.append({"case": case.label, "key": case.key, "event": case.event,
+                         "configuration": case.configuration, "sweep": case.sweep,
+                         "instrument": r["instrument"], "axis": r["axis"],
+                         "metric": r["metric"], "window": r["window"], "value": v})
+            line = (r["instrument"], r["axis"], r["metric"], r["window"])
+            groups.setdefault(gk, {}).setdefault(line, []).append(len(rows) - 1)
+    for (cf, sw), lines in groups.items():
+        missing = failed_groups.get((cf, sw), [])
+        for (inst, axis, metric, window), idx in lines.items():
+            total = float(M.rss([rows[i]["value"] for i in idx]))
+            for i in idx:
+                rows[i]["share"] = rows[i]["value"] ** 2 / total**2 if total > 0 else 0.0
+            label = " | ".join(x for x in (RSS_EVENT, cf, sw) if x)
+            rows.append({"case": label, "key": "", "event": RSS_EVENT, "configuration": cf,
+                         "sweep": sw, "instrument": inst, "axis": axis, "metric": metric,
+                         "window": window, "value": total, "share": 1.0,
+                         "note": f"incomplete: failed event(s) {missing}" if missing else ""})
+    for r in rows:
+        req = campaign.requirement(r["instrument"], r["axis"], r["metric"], r["window"])
+        r["unit"] = campaign.unit
+        r["requirement"] = req
+        r.setdefault("note", "")
+        if math.isnan(req):
+            r["margin"] = r["margin_ratio"] = math.nan
+            r["pass"] = None
+        else:
+            a, ratio = M.margin(r["value"], req)
+            r["margin"], r["margin_ratio"] = float(a), float(ratio)
+            r["pass"] = None if r["note"] else bool(r["value"] <= req)
+    summary = pa.Table.from_pylist(rows, schema=SUMMARY_SCHEMA)
+    cases = pa.Table.from_pylist(case_rows, schema=_CASES_SCHEMA)
+    return summary, cases
+
+
+def write_summary(campaign: Campaign, out_dir) -> Path:
+    """Write summary.parquet/.csv and cases.parquet/.csv atomically.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        With its final keys.
+    out_dir : path-like
+        Campaign folder.
+
+    Returns
+    -------
+    Path
+        ``out_dir/summary.parquet``.
+    """
+    out = Path(out_dir)
+    summary, cases = summarize(campaign, out)
+    write_table(summary, out / "summary.parquet")
+    write_table(summary, out / "summary.csv", csv=True)
+    write_table(cases, out / "cases.parquet")
+    write_table(cases, out / "cases.csv", csv=True)
+    return out / "summary.parquet"

@@ -548,6 +548,15 @@ class FmuSlave(Fmi2Slave):
         return self._real_values[self._real_index(vrs)].tolist()
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
+        """Set Real variables by value reference (``fmi2SetReal``).
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+        values : list of float
+            One value per reference, in the variable's unit.
+        """
         self._real_values[self._real_index(vrs)] = values
 
     def _get_other(self, vrs, var_type, py_type):
@@ -572,18 +581,45 @@ class FmuSlave(Fmi2Slave):
         return self._get_other(vrs, Integer, int)
 
     def set_integer(self, vrs: list[int], values: list[int]) -> None:
+        """Set Integer variables by value reference (``fmi2SetInteger``).
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+        values : list of int
+            One value per reference, in the variable's unit.
+        """
         self._set_other(vrs, values, Integer, int)
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
         return self._get_other(vrs, Boolean, bool)
 
     def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        """Set Boolean variables by value reference (``fmi2SetBoolean``).
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+        values : list of bool
+            One value per reference.
+        """
         self._set_other(vrs, values, Boolean, bool)
 
     def get_string(self, vrs: list[int]) -> list[str]:
         return self._get_other(vrs, String, str)
 
     def set_string(self, vrs: list[int], values: list[str]) -> None:
+        """Set String variables by value reference (``fmi2SetString``).
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+        values : list of str
+            One value per reference.
+        """
         self._set_other(vrs, values, String, str)
 
     # ------------------------------------------------------------------ FMU state

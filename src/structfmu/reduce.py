@@ -120,9 +120,12 @@ def eigenpairs(K, M, n_modes: int, shift: float = 0.0, truss=None):
         lam, phi = la.eigh(K.toarray(), M.toarray(), subset_by_index=[0, n_modes - 1])
     else:
         op = spla.LinearOperator((n, n), matvec=fac.solve, dtype=float)
+        # a fixed start vector: ARPACK's default is random, and a basis drawn anew in each
+        # run makes every build of a model with repeated or close modes differ
+        v0 = np.random.default_rng(0).standard_normal(n)
         try:
             lam, phi = spla.eigsh(K, k=n_modes, M=M, sigma=shift, which="LM", OPinv=op,
-                                  tol=1e-12)
+                                  tol=1e-12, v0=v0)
         except spla.ArpackError as exc:  # pragma: no cover - rare
             raise ReductionError(f"the eigensolver did not converge ({exc}); check that the "
                                  "mass matrix is positive definite") from None

@@ -37,14 +37,21 @@ Example
 from __future__ import annotations
 
 import ast
+import importlib
 import math
 import tempfile
+import warnings
 import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
+
+from orchestrator import prepare
+from orchestrator.scenario import load_scenario
+from piezofmu.amplifier import _coefficients, substeps
+from structfmu.discrete import discretize, step
 
 __all__ = [
     "AnalysisError",
@@ -123,8 +130,6 @@ def _lift(A, B, n):
 
 
 def _structure_block(slave, name, period, h, ft):
-    from structfmu.discrete import discretize, step
-
     stepper = slave.stepper
     model = stepper.model
     dm = discretize(model, h)
@@ -136,8 +141,6 @@ def _structure_block(slave, name, period, h, ft):
 
 
 def _piezo_block(slave, name, period, h, ft):
-    from piezofmu.amplifier import _coefficients, substeps
-
     act = slave.actuator()
     if act.hysteresis is not None:
         raise AnalysisError(f"instance {name!r} has hysteresis on; the linear analysis "
@@ -241,8 +244,6 @@ def _slave_class(resources: Path, fmu_name: str):
     project's packages, imported from the installed packages; its class attributes
     (plain literals) are set on a subclass.
     """
-    import importlib
-
     scripts = sorted(resources.glob("fmuslave_*.py"))
     if not scripts:
         raise AnalysisError(f"FMU {fmu_name} was not built by this project (no generated "
@@ -770,11 +771,6 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
     -------
     LinearScenario
     """
-    import warnings
-
-    from orchestrator import prepare
-    from orchestrator.scenario import load_scenario
-
     # the models are read from the Python FMUs' resources (model.npz, law.npz), which
     # the native twins carry in another form: the same FMUs, their Python build
     sc = load_scenario(scenario).with_overrides(overrides or {}) \

@@ -221,6 +221,7 @@ def _plain_log_labels(axis, lo, hi, minor_decades=2.0):
 
     Minor ticks are labelled only when the axis spans fewer than ``minor_decades``.
     """
+    # deferred: plotting only
     from matplotlib.ticker import FuncFormatter, NullFormatter
 
     axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
@@ -239,6 +240,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
     scale, values written in the cells), and one heat map per further configuration of
     its change against the first (%, blue = less jitter, red = more; cells written).
     """
+    # deferred: plotting only
     from matplotlib.colors import LogNorm, Normalize
 
     grid = budget_grid(rows, instruments)

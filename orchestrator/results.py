@@ -14,6 +14,9 @@ from importlib import metadata as _md
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
 from .files import atomic_write
 
 __all__ = ["RunResult", "write_table", "read_table", "write_metadata", "package_versions"]
@@ -50,8 +53,6 @@ class RunResult:
 
     def to_arrow(self):
         """Return the table as a ``pyarrow.Table``."""
-        import pyarrow as pa
-
         return pa.table({k: np.asarray(v) for k, v in self.table.items()})
 
 
@@ -77,9 +78,6 @@ def write_table(table: dict, path, csv: bool = False) -> Path:
                     data = np.column_stack([cols[n].astype(float) for n in names])
                     np.savetxt(f, data, delimiter=",", fmt="%.17g")
     else:
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
         arrow = pa.table(cols)
 
         def writer(tmp):
@@ -96,7 +94,6 @@ def read_table(path) -> dict:
             names = f.readline().strip().split(",")
         data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
         return {n: data[:, j] for j, n in enumerate(names)}
-    import pyarrow.parquet as pq
 
     t = pq.read_table(path)
     return {n: t.column(n).to_numpy() for n in t.column_names}

@@ -173,6 +173,7 @@ def _run_local(todo, args, workers, on_done):
 def _run_dask(todo, args, scheduler, on_done):
     # distributed is an optional extra ("cluster"), imported only when a scheduler is given
     try:
+        # deferred: optional dependency (the cluster extra)
         from distributed import Client, as_completed
     except ImportError:
         raise CampaignError(

@@ -4,6 +4,10 @@ Each subcommand lives in its own module of this package and defines ``COMMAND`` 
 name), ``HELP`` (one line), ``add_arguments(parser)`` and ``run(args) -> int``.  The CLI
 parses and calls library functions, nothing more.  Errors print one sentence (the
 exception's message) unless ``--debug`` is given.
+
+A subcommand imports the library inside ``run`` (and ``add_arguments``): building the
+parser imports every subcommand module, so an import at their top would load all of the
+library (scipy, pyarrow, the experiments) before any command, even ``--help``.
 """
 
 from __future__ import annotations

@@ -36,6 +36,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Print the analysis; return 0."""
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from orchestrator.analysis import AnalysisError, ceiling, linearize, report
     from orchestrator.scenario import parse_override
 

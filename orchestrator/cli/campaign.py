@@ -41,6 +41,7 @@ def _import_runner(spec: str):
 
 
 def run(args) -> int:
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from ..campaign import MasterRunner, load_campaign, run_campaign, slug
 
     camp = load_campaign(args.campaign)

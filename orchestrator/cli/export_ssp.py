@@ -18,6 +18,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Export the scenario; return 0."""
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from orchestrator import load_scenario, prepare, write_ssp
 
     with warnings.catch_warnings(record=True) as caught:

@@ -58,6 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Import, reduce and save; print one summary line."""
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from structfmu import nastran
     from structfmu.reduce import Damping
 
@@ -83,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _band(text: str):
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from structfmu.nastran import NastranError
 
     span, sep, zeta = text.partition("=")

@@ -17,6 +17,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from ..report import write_report
 
     path = write_report(args.dir, args.format, args.out)

@@ -10,6 +10,7 @@ HELP = "reproduce one of the paper's experiments (writes DIR/NAME.json and figur
 
 def add_arguments(parser):
     """Declare the options of ``jitterfmu reproduce``."""
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from orchestrator.experiments import EXPERIMENTS
 
     parser.add_argument("name", help=f"experiment: {', '.join(EXPERIMENTS)}")
@@ -27,6 +28,7 @@ def add_arguments(parser):
 
 def run(args) -> int:
     """Run the experiment, print its main numbers; 0, or 1 if a campaign case failed."""
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     import importlib
 
     from orchestrator.experiments import EXPERIMENTS, _clean

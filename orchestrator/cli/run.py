@@ -30,6 +30,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Run the scenario; return 0, or 1 when the run failed part-way."""
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from orchestrator import SimulationError, run_scenario
     from orchestrator.scenario import parse_override
 

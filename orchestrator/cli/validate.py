@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 COMMAND = "validate"
 HELP = ("validate FMUs: FMI 2.0 errors fail; the project's conventions (units, "
@@ -18,6 +17,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print one line per problem; return 1 if any FMU fails, else 0."""
+    # deferred: the parser imports every subcommand (orchestrator.cli)
     from fmutools.validate import check_fmu
 
     bad = 0

@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from fmpy import read_model_description
+
 from ..files import sha256_file
 from ..scenario import Scenario, ScenarioError, closest
 
@@ -64,8 +66,6 @@ def read_fmu_info(path) -> FmuInfo:
     -------
     FmuInfo
     """
-    from fmpy import read_model_description
-
     path = Path(path).resolve()
     st = path.stat()
     key = (str(path), st.st_mtime_ns, st.st_size)

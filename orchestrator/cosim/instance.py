@@ -7,8 +7,10 @@ import itertools
 
 import fmpy.fmi2 as f2
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated
+from fmpy.logging import addLoggerProxy
 
 from fmutools.fmucache import extract_cached
+
 from .fmuinfo import FmuInfo
 
 __all__ = ["FmuInstance", "extracted"]
@@ -64,8 +66,6 @@ class FmuInstance:
         cb.freeMemory = f2.defaultCallbacks.freeMemory
         cb.componentEnvironment = ctypes.c_void_p(self._log_key)
         try:
-            from fmpy.logging import addLoggerProxy
-
             addLoggerProxy(ctypes.byref(cb))
         except Exception:  # pragma: no cover - formatting proxy is optional
             pass

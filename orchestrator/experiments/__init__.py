@@ -13,7 +13,9 @@ The experiments' inputs (scenarios and campaigns) are package data under ``input
 
 from __future__ import annotations
 
+import difflib
 import importlib
+import inspect
 import json
 import math
 from pathlib import Path
@@ -63,11 +65,8 @@ def run(name: str, out_dir, quick: bool = False, fmu_dir=None, **options) -> dic
         Options of that experiment's ``run`` (e.g. ``workers`` for ``eos-budget``); an
         option it does not take is refused in one sentence.
     """
-    import inspect
-
     avail = available()
     if name not in avail:
-        import difflib
         close = difflib.get_close_matches(name, list(avail), 2)
         hint = f"; did you mean {close[0]}?" if close else ""
         raise KeyError(f"unknown experiment {name!r}{hint} Available: {', '.join(avail)}")

@@ -11,6 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from fmutools.ensure import ensure_fmus as _ensure
+from structfmu.fmuspec import spec_from_model
+from structfmu.models import eos_testbed
+
 from . import CAMPAIGNS, SCENARIOS
 
 __all__ = ["SCENARIO", "CAMPAIGN", "STRUCTURE", "MOUNTS_STRUCTURE", "FMUS",
@@ -27,8 +30,6 @@ FMUS = ("eos_testbed_structure", "disturbance", "acs", "piezo_p845_37",
 
 def mounts_structure_model():
     """Reduced EOS testbed with every SWIR/VNIR mount leg active (``ReducedModel``)."""
-    from structfmu.models import eos_testbed
-
     return eos_testbed.reduced(truss=eos_testbed.build(active_legs="all"))
 
 
@@ -43,8 +44,6 @@ def ensure_fmus(fmu_dir="fmus", names=FMUS) -> Path:
     names : iterable of str
         Registry FMUs to build besides ``MOUNTS_STRUCTURE``.
     """
-    from structfmu.fmuspec import spec_from_model
-
     fmu_dir = Path(fmu_dir)
     _ensure(list(names) + [MOUNTS_STRUCTURE], fmu_dir, extra={
         MOUNTS_STRUCTURE: lambda: spec_from_model(

@@ -20,8 +20,14 @@ Command line (what ``make demo`` runs)::
 
 from __future__ import annotations
 
+import csv
+import dataclasses
 import math
 from pathlib import Path
+
+import pyarrow.parquet as pq
+
+from orchestrator.campaign import MasterRunner, load_campaign, run_campaign
 
 from . import INPUTS, eos
 from .eos import CAMPAIGN
@@ -69,10 +75,6 @@ def run_budget(out_dir, *, workers=2, quick=False, fmu_dir="fmus", progress=None
         Campaign file (default ``campaigns/eos_budget.toml``); its requirements are used
         as they are.
     """
-    import dataclasses
-
-    from orchestrator.campaign import MasterRunner, load_campaign, run_campaign
-
     camp = load_campaign(campaign)
     if quick:
         cases = []
@@ -111,8 +113,6 @@ def budget_table(summary_path, metric=METRIC, window=WINDOW) -> list[dict]:
         largest share with isolation off), ``events_off`` / ``events_on`` (event ->
         value) and ``events_reduction_pct`` (event -> 100 (off − on)/off).
     """
-    import pyarrow.parquet as pq
-
     path = Path(summary_path)
     if path.is_dir():
         path = path / "summary.parquet"
@@ -244,8 +244,6 @@ def _requirements_source(campaign) -> str:
 
 
 def _case_seconds(csv_path) -> dict:
-    import csv
-
     if not Path(csv_path).is_file():
         return {}
     vals = [float(r["seconds"]) for r in csv.DictReader(open(csv_path)) if r.get("seconds")]

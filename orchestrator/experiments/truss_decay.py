@@ -20,6 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ctrlfmu.designs import truss10_strain_diag, truss10_strain_long
+from distfmu.excitation import sine_burst
+from fmukit.units import ARCSEC
+from fmutools.ensure import ensure_fmus
+from orchestrator import run_scenario
+from orchestrator.analysis import linearize
+
 from . import SCENARIOS
 
 NAME = "truss-decay"
@@ -51,6 +58,7 @@ def fit_two_modes(t, y, f_guess):
     zetas : ndarray, shape (2,)
         Damping ratios.
     """
+    # deferred: scipy takes about 1 s to load
     from scipy.optimize import least_squares
 
     t = t - t[0]
@@ -102,6 +110,7 @@ def cycles_to_fraction(t, y, f_hz, t0=T_EXC, fraction=0.1):
     float or None
         Cycles of ``f_hz`` from ``t0`` to the first time below the threshold.
     """
+    # deferred: scipy takes about 1 s to load
     from scipy.ndimage import maximum_filter1d
 
     dt = t[1] - t[0]
@@ -143,8 +152,6 @@ def linear_decay(lin, laws=None, after=3.0):
     peak_voltage : float
         Largest controller command after the switch-on (V).
     """
-    from distfmu.excitation import sine_burst
-
     for name, law in (laws or {}).items():
         lin = lin.with_law(name, law)
     off = lin
@@ -195,8 +202,6 @@ def forced_tip_jitter(camp, laws=None) -> float:
     float
         Worst-axis tip jitter (arcsec).
     """
-    from fmukit.units import ARCSEC
-
     for name, law in (laws or {}).items():
         camp = camp.with_law(name, law)
     p2p = [2 * 10.0 * np.abs(camp.frequency_response([src], list(TIP), [f])[:, 0, 0]) / ARCSEC
@@ -235,11 +240,8 @@ def tune(fmu_dir="fmus", maxfev=250):
         ``{"diag": {...}, "long": {...}, "cycles": {...}, "peak_voltage_v": float,
         "forced_tip_arcsec": float}``.
     """
+    # deferred: scipy takes about 1 s to load
     from scipy.optimize import minimize
-
-    from ctrlfmu.designs import truss10_strain_diag, truss10_strain_long
-    from orchestrator.analysis import linearize
-    from fmutools.ensure import ensure_fmus
 
     ensure_fmus(FMUS, fmu_dir)
     lin = linearize(SCENARIO, fmu_dir=fmu_dir)
@@ -289,8 +291,6 @@ def tune(fmu_dir="fmus", maxfev=250):
 
 def linear_prediction(fmu_dir="fmus") -> dict:
     """What the linear closed loop predicts for the shipped laws (see ``analyze``)."""
-    from orchestrator.analysis import linearize
-
     lin = linearize(SCENARIO, fmu_dir=fmu_dir)
     cycles, volts = linear_decay(lin)
     margins = {c: lin.gain_margins(c) for c in CONTROLLERS}
@@ -302,8 +302,6 @@ def linear_prediction(fmu_dir="fmus") -> dict:
 
 
 def _run(fmu_dir, stop: float, gain: float):
-    from orchestrator import run_scenario
-
     res = run_scenario(SCENARIO, stop_time=stop, fmu_dir=fmu_dir,
                        overrides={"ctrl_diag.gain": gain, "ctrl_long.gain": gain})
     return res.table
@@ -326,8 +324,6 @@ def compute(fmu_dir="fmus", quick=False):
         in s), open-loop damping ratios and fits, cycles to 90 % decay, peak voltage (V)
         and whether any amplifier or stroke limit saturated.
     """
-    from fmutools.ensure import ensure_fmus
-
     ensure_fmus(FMUS, fmu_dir)
     ol = _run(fmu_dir, 20.0 if quick else 40.0, 0.0)
     cl = _run(fmu_dir, 8.0 if quick else 12.0, 1.0)
@@ -358,9 +354,11 @@ def plot(data, out_dir):
     out_dir : Path
         Folder for ``truss-decay-open-loop.png`` and ``truss-decay-closed-loop.png``.
     """
+    # deferred: plotting only
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: plotting only
     import matplotlib.pyplot as plt
 
     for key, title, fname in (("ol", "open loop (Fig. 5)", "truss-decay-open-loop.png"),

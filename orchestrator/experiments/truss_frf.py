@@ -9,6 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from structfmu.models import truss10
+from structfmu.reduce import Damping, reduce
+from structfmu.statespace import frf, full_frf
+
 NAME = "truss-frf"
 DESCRIPTION = "Fig. 4: ten-bay truss FRF, full FEM vs 6 modes vs 6 modes + 2 Ritz vectors"
 
@@ -51,10 +55,6 @@ def lowest_antiresonance(freqs, H, f_min=F_MIN, f_max=F_MAX):
 
 def compute(n_freq: int = 3000):
     """All the numbers of the experiment (no files)."""
-    from structfmu.models import truss10
-    from structfmu.reduce import Damping, reduce
-    from structfmu.statespace import frf, full_frf
-
     truss = truss10.build()
     freqs = np.geomspace(F_MIN, F_MAX, n_freq)
     ch = truss.active[[a.name for a in truss.active].index("diag")].stack.ch  # N/V
@@ -88,9 +88,11 @@ def plot(data, path):
     path : path-like
         PNG file to write.
     """
+    # deferred: plotting only
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: plotting only
     import matplotlib.pyplot as plt
 
     f = data["freqs_hz"]

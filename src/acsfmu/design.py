@@ -165,6 +165,7 @@ def loop_margins(loop: control.StateSpace) -> tuple[float, float, float]:
         ``1 / |L|`` at the first -180 deg phase crossing above the gain crossover
         (dimensionless); ``inf`` if there is none below Nyquist.
     """
+    # deferred: scipy takes about 1 s to load
     from scipy.optimize import brentq
 
     nyquist = 0.5 / loop.dt

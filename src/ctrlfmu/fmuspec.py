@@ -14,9 +14,9 @@ parameter; per-law FMUs keep each of them exact.
 
 from __future__ import annotations
 
-from fmutools.build import FmuSpec
-
+from ctrlfmu.designs import DESIGNS, design
 from ctrlfmu.law import DiscreteLaw, law_bytes
+from fmutools.build import FmuSpec
 
 __all__ = ["MODELS", "specs", "law_spec"]
 
@@ -24,8 +24,6 @@ PREFIX = "controller_"
 
 
 def _design_names() -> list[str]:
-    from ctrlfmu.designs import DESIGNS
-
     return sorted(DESIGNS)
 
 
@@ -75,7 +73,5 @@ def specs(models: list[str] | None = None) -> list[FmuSpec]:
     list of FmuSpec
         The owned ones, in the order of ``models`` (or of :data:`MODELS`).
     """
-    from ctrlfmu.designs import design
-
     names = list(MODELS) if models is None else [m for m in models if m in MODELS]
     return [law_spec(design(MODELS[name]), name) for name in names]

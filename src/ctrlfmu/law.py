@@ -500,6 +500,7 @@ def backcalculation_gain(law: DiscreteLaw, poles=None) -> np.ndarray:
     ndarray, shape (n, n_out)
         Gain ``L`` for ``aw_gain`` (state units per V).
     """
+    # deferred: scipy takes about 1 s to load
     from scipy.signal import place_poles
 
     n = law.n_states

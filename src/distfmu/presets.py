@@ -17,10 +17,14 @@ about 2 Hz and excite rigid-body and solar-array (0.5 Hz) response.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from distfmu.sources import (
+    BandLimitedRandom,
     Chopper,
     Harmonic,
     ScanMirror,
@@ -254,12 +258,6 @@ def randomized(source: Source, seed: int) -> Source:
     -------
     Source
     """
-    import dataclasses
-
-    import numpy as np
-
-    from distfmu.sources import BandLimitedRandom
-
     if not (isinstance(seed, int) and seed >= 0):
         raise ValueError(f"disturbance seed must be a non-negative integer, got {seed!r}")
     if seed == 0:

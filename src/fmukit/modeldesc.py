@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from xml.etree.ElementTree import Element, SubElement
+from xml.etree.ElementTree import Element, SubElement, fromstring
 
 from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD, LBF, MICRO_G
 
@@ -229,8 +229,6 @@ def check_model_description(xml: bytes | str) -> list[str]:
     list of str
         One sentence per problem; empty if none.
     """
-    from xml.etree.ElementTree import fromstring
-
     root = fromstring(xml)
     problems: list[str] = []
     cs = root.find("CoSimulation")

@@ -47,6 +47,7 @@ from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
 from pythonfmu.variables import Boolean, Integer, Real, String
 
+from fmukit.modeldesc import complete_model_description
 from fmukit.state import FmuStateError, decode_state, encode_state
 
 __all__ = [
@@ -713,8 +714,6 @@ class FmuSlave(Fmi2Slave):
     # ------------------------------------------------------------------ XML
     def to_xml(self, model_options: dict[str, str] | None = None):
         """Return the complete model description (units, ModelStructure, flags)."""
-        from fmukit.modeldesc import complete_model_description
-
         root = super().to_xml(model_options or {})
         complete_model_description(root, self)
         return root

@@ -17,6 +17,7 @@ import os
 import shutil
 import stat
 import tempfile
+import time
 import zipfile
 import zlib
 from pathlib import Path
@@ -252,8 +253,6 @@ def _touch(path: Path) -> None:
 
 def _prune(root: Path) -> None:
     """Remove entries not used for MAX_AGE and old leftovers of killed extractions."""
-    import time
-
     now = time.time()
     for entry in root.iterdir():
         try:

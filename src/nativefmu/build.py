@@ -26,13 +26,13 @@ from importlib import resources as _res
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+import fmpy
+
 from fmutools.build import FmuSpec, build_fmu
 from fmutools.registry import collect_specs
 from fmutools.validate import validate_fmu
-
-from structfmu.fmuspec import build_structure_fmu, spec_from_npz
-
 from nativefmu.data import KERNELS, kernel_of, model_data
+from structfmu.fmuspec import build_structure_fmu, spec_from_npz
 
 __all__ = ["CFLAGS", "NativeBuildError", "NativeReport", "build_native", "build_all_native",
            "build_native_structure",
@@ -60,8 +60,6 @@ def mingw_compiler() -> str | None:
 
 
 def _fmi_header_dir() -> Path:
-    import fmpy
-
     return Path(fmpy.__file__).parent / "c-code"
 
 

@@ -23,7 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ctrlfmu.law import load_law
+from distfmu import sources as S
+from distfmu.presets import PRESETS
+from distfmu.sources import Sum, Zero
 from fmutools.build import FmuSpec
+from piezofmu.actuator import actuator_preset
+from structfmu.discrete import ZohStepper, discretize
+from structfmu.reduced import ReducedModel
+from structfmu.statespace import first_order
 
 __all__ = ["KERNELS", "NativeUnsupportedError", "encode", "kernel_of", "model_data"]
 
@@ -96,10 +104,6 @@ STRUCTURE_STEPS = (1e-3, 4e-3)
 
 def _structure(spec: FmuSpec, vrs: Mapping[str, int],
                steps: tuple[float, ...] = STRUCTURE_STEPS) -> dict:
-    from structfmu.discrete import ZohStepper, discretize
-    from structfmu.reduced import ReducedModel
-    from structfmu.statespace import first_order
-
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "model.npz"
         path.write_bytes(_resource_bytes(spec, "model.npz"))
@@ -140,8 +144,6 @@ def _structure(spec: FmuSpec, vrs: Mapping[str, int],
 
 
 def _piezo(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
-    from piezofmu.actuator import actuator_preset
-
     act = actuator_preset(str(spec.init_kwargs.get("preset_name", "P-243.30")))
     stack = act.stack
     return {"ch": stack.ch, "capacitance": stack.capacitance,
@@ -149,8 +151,6 @@ def _piezo(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
 
 
 def _controller(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
-    from ctrlfmu.law import load_law
-
     law = load_law(io.BytesIO(_resource_bytes(spec, "law.npz")))
     return {"n": law.n_states, "n_in": law.n_inputs, "n_out": law.n_outputs, "dt": law.dt,
             "delayed": float(law.delayed), "A": law.A, "B": law.B, "C": law.C, "D": law.D,
@@ -159,8 +159,6 @@ def _controller(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
 
 def _term(source) -> list[float]:
     """One source as the parameter list csrc/disturbance.c reads (type code first)."""
-    from distfmu import sources as S
-
     def kind(k):
         return 0.0 if k == "force" else 1.0
 
@@ -195,9 +193,6 @@ def _term(source) -> list[float]:
 
 
 def _disturbance(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
-    from distfmu.presets import PRESETS
-    from distfmu.sources import Sum, Zero
-
     out: dict = {"n_presets": len(PRESETS)}
     for i, (name, preset) in enumerate(PRESETS.items()):
         source = preset.source

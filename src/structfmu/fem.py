@@ -15,6 +15,7 @@ A strain gauge in series with the stack is modelled as a separate passive strut 
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -255,7 +256,6 @@ class Truss:
                                  f"nodes are 0..{len(self.nodes) - 1}")
             return int(name_or_index)
         if name_or_index not in self.node_names:
-            import difflib
             close = difflib.get_close_matches(str(name_or_index), self.node_names, 3)
             hint = f"; did you mean {', '.join(close)}?" if close else ""
             raise ModelError(f"truss {self.name!r}: unknown node {name_or_index!r}{hint}")

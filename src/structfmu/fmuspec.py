@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-import io
+import re
+import tempfile
 from pathlib import Path
 
 from fmutools.build import BuildReport, FmuSpec, build_fmu
 from fmutools.validate import validate_fmu
+from structfmu.models import _registry, get_model
 from structfmu.reduced import ReducedModel
 
 MODELS = ("truss10", "eos_testbed")
@@ -30,8 +32,6 @@ def spec_from_model(model: ReducedModel, model_identifier: str, description: str
     FmuSpec
         Spec for :class:`structfmu.slave.StructureSlave` with the model as a resource.
     """
-    import tempfile
-
     with tempfile.TemporaryDirectory() as tmp:
         path = model.save(Path(tmp) / "model.npz")
         data = path.read_bytes()
@@ -77,8 +77,6 @@ def build_structure_fmu(npz, out_dir, model_identifier: str | None = None):
     fmutools.build.BuildReport
         The FMU path and its validation problems (one line each).
     """
-    import re
-
     npz = Path(npz)
     ident = model_identifier or re.sub(r"\W", "_", npz.stem) + "_structure"
     if ident[0].isdigit():
@@ -89,8 +87,6 @@ def build_structure_fmu(npz, out_dir, model_identifier: str | None = None):
 
 def specs(models=None) -> list[FmuSpec]:
     """Specs of the structure FMUs of the built-in models (``<model>_structure``)."""
-    from structfmu.models import get_model, _registry
-
     names = [m for m in MODELS if m in _registry()]
     if models:
         names = [m.removesuffix("_structure") for m in models

@@ -33,16 +33,19 @@ Conventions
 
 from __future__ import annotations
 
+import difflib
 import re
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
 from fmukit.units import INCH, LBF, MM
+from piezofmu import preset
 from structfmu.errors import DimensionError, ModelError, ReductionError
+from structfmu.fem import assemble
 from structfmu.reduce import Damping, reduce_matrices, reduced_from_basis
 from structfmu.reduced import ReducedModel
 
@@ -143,8 +146,6 @@ class Stack:
     @classmethod
     def preset(cls, name: str) -> "Stack":
         """A piezofmu datasheet preset (``"P-243.30"``, ``"P-243.40"``, ``"P-845.37"``)."""
-        from piezofmu import preset
-
         try:
             s = preset(name)
         except KeyError as exc:
@@ -356,6 +357,7 @@ def _pynastran():
     if lent:
         np.in1d = np.isin
     try:
+        # deferred: optional dependency (the nastran extra)
         from pyNastran.bdf.bdf import BDF
         from pyNastran.op2.op2 import OP2
         from pyNastran.op4.op4 import OP4
@@ -419,7 +421,6 @@ class Deck:
             Prefix of the error message naming what refers to the grid.
         """
         if grid not in self.grids and grid not in self.spoints:
-            import difflib
             close = difflib.get_close_matches(str(grid), [str(g) for g in self.grids], 3)
             hint = f"; close ids: {', '.join(close)}" if close else ""
             raise NastranError(f"{what}grid {grid} is not in {self.path}{hint}")
@@ -921,8 +922,6 @@ def import_nastran(bdf, *, units, op4=None, op2=None, n_modes: int, actuators=()
 
 
 def _band_damping(model: ReducedModel, damping: Damping, bands) -> ReducedModel:
-    from dataclasses import replace
-
     f = model.frequencies_hz
     zeta = np.array(np.broadcast_to(np.asarray(damping.zeta, float), f.shape))
     for lo, hi, z in bands:
@@ -1075,6 +1074,7 @@ def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
     """
     u = unit_system(units)
     _, OP2, _ = _pynastran()
+    # deferred: optional dependency (the nastran extra)
     from pyNastran.op2.tables.oug.oug_eigenvectors import RealEigenvectorArray
 
     grids = np.asarray(grids, int)
@@ -1121,8 +1121,6 @@ def write_truss_deck(truss, bdf_path, op4_path, *, units="SI", rotated=(), e_ref
     e_ref : float
         Young's modulus of the CONROD material (Pa).
     """
-    from structfmu.fem import assemble
-
     u = unit_system(units)
     BDF, _, OP4 = _pynastran()
     model = BDF(debug=None)

@@ -17,6 +17,7 @@ Equations of motion, with ``u`` the inputs (N)::
 
 from __future__ import annotations
 
+import difflib
 import json
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -246,7 +247,6 @@ def _index(names, name, what, model):
     try:
         return names.index(name)
     except ValueError:
-        import difflib
         close = difflib.get_close_matches(name, names, 3)
         hint = f"; did you mean {', '.join(close)}?" if close else f"; known: {', '.join(names)}"
         raise ModelError(f"reduced model {model!r} has no {what} {name!r}{hint}") from None

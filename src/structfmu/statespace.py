@@ -68,6 +68,7 @@ def first_order(model: ReducedModel):
 
 def to_statespace(model: ReducedModel):
     """The reduced model as a python-control ``StateSpace`` with named signals."""
+    # deferred: python-control takes about 1 s to load
     import control
 
     A, B, C, D = first_order(model)

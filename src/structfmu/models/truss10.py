@@ -41,10 +41,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from piezofmu import preset
 from fmukit.units import INCH, LB
-from structfmu.fem import ActiveMember, Truss, transverse_link
-from structfmu.reduce import Damping, reduce
+from piezofmu import preset
+from structfmu.fem import ActiveMember, Truss, assemble, transverse_link
+from structfmu.reduce import Damping, eigenpairs, reduce
+from structfmu.statespace import to_statespace
 
 BAY = 10 * INCH
 E_AL = 70e9
@@ -252,9 +253,6 @@ def frequencies_hz(truss: Truss, n: int = 6) -> np.ndarray:
     ndarray, shape (n,)
         Natural frequencies (Hz), ascending.
     """
-    from structfmu.fem import assemble
-    from structfmu.reduce import eigenpairs
-
     K, M = assemble(truss)
     lam, _, _ = eigenpairs(K, M, n, 0.0, truss)
     return np.sqrt(lam) / (2 * np.pi)
@@ -267,6 +265,7 @@ def calibrate(target=TARGET_HZ):
     -------
     (eta_tower, eta_arm) : tuple of float
     """
+    # deferred: scipy takes about 1 s to load
     from scipy.optimize import brentq
 
     f_ratio = target[1] / target[0]
@@ -297,8 +296,6 @@ def plant(actuator: str, model=None):
     control.StateSpace
         Includes ``f_c = c h v`` of the member's stack; no amplifier dynamics.
     """
-    from structfmu.statespace import to_statespace
-
     model = model or reduced()
     if actuator not in ("diag", "long"):
         raise KeyError(f"unknown active member {actuator!r}; expected 'diag' or 'long'")

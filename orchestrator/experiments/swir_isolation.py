@@ -29,12 +29,23 @@ are those of the full-scale spacecraft, and full-scale forces are the testbed's 
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from acsfmu.design import pid_gains_for
+from acsfmu.pid import AcsConfig, PidGains, acs_advance, acs_outputs, initial_state
+from ctrlfmu.analysis import frequency_response, mode_damping, to_statespace
+from ctrlfmu.designs import design
+from distfmu.presets import get_preset
 from fmukit.units import ARCSEC, LBF
+from orchestrator import UnconnectedInputWarning, run_scenario
+from orchestrator.metrics import peak_to_peak
+from piezofmu import preset
+from structfmu.models import eos_testbed
+from structfmu.statespace import first_order
 
 from . import eos
 from .eos import mounts_structure_model as structure_model
@@ -66,15 +77,11 @@ TARGET = {"pitch": 50.0, "yaw": 50.0, "roll": (15.0, 45.0), "misr": (3.0, 20.0),
 # -- the model ------------------------------------------------------------------------------
 def law(gain: float = GAIN):
     """The mount law: ``eos_isolation`` defaults times ``gain`` (``DiscreteLaw``)."""
-    from ctrlfmu.designs import design
-
     return design("eos_isolation").with_gain(gain)
 
 
 def force_per_volt() -> float:
     """Blocked force per volt ``c h`` of the P-845.37 stack (N/V)."""
-    from piezofmu import preset
-
     s = preset("P-845.37")
     return s.k_e * s.stroke / s.rated_voltage
 
@@ -131,9 +138,8 @@ class Plant:
 
 def linear_plant(model=None) -> Plant:
     """Exact ZOH discretisation of the structure (inputs and outputs this study uses)."""
+    # deferred: scipy takes about 1 s to load
     import scipy.linalg as la
-
-    from structfmu.statespace import first_order
 
     model = structure_model() if model is None else model
     ins = ([f"vnir_{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")]
@@ -185,8 +191,6 @@ def closed_loop(plant: Plant, law_, gain: float = 1.0):
     C_force : ndarray, shape (12, n)
         Stack forces of ``LEGS`` (N).
     """
-    from ctrlfmu.analysis import to_statespace
-
     k = to_statespace(law_, include_delay=True)
     Ak, Bk, Ck, Dk = (np.asarray(m) for m in (k.A, k.B, k.C, k.D))
     nl, ns, nk = len(LEGS), plant.A.shape[0], Ak.shape[0]
@@ -212,9 +216,6 @@ def closed_loop(plant: Plant, law_, gain: float = 1.0):
 
 def acs_config():
     """The ACS of the scenario (0.1 Hz PID per axis at 10 Hz, inertias ``ACS_INERTIA``)."""
-    from acsfmu.design import pid_gains_for
-    from acsfmu.pid import AcsConfig, PidGains
-
     g = [pid_gains_for(j, 0.1, 50.0, 0.1) for j in ACS_INERTIA]
     kp, ki, kd = (list(x) for x in zip(*g))
     return AcsConfig(PidGains(kp, ki, kd), sample_time=0.1)
@@ -235,8 +236,6 @@ def vnir_wrench(t, preset="vnir_pointing"):
     ndarray, shape (n, 6)
         Forces (N) then moments (N m).
     """
-    from distfmu.presets import get_preset
-
     w = np.asarray(get_preset(preset).source.wrench(np.asarray(t)), float)
     return LOAD_SCALE * (w.T if w.shape[0] == 6 and w.shape[-1] != 6 else w)
 
@@ -268,8 +267,6 @@ def simulate_linear(plant: Plant, law_=None, gain: float = 0.0, stop: float = 6.
         ``"time"`` (s) and the columns above; angles in rad, rates in rad/s, strains
         (-), elongations in m.
     """
-    from acsfmu.pid import acs_advance, acs_outputs, initial_state
-
     if law_ is None or gain == 0.0:
         A, Bw, C, Cl, Cr = plant.A, plant.Bw, plant.C, plant.C_low, plant.C_rigid
         Cf = np.zeros((len(LEGS), A.shape[0]))
@@ -325,8 +322,6 @@ def jitter(tab, inst, prefix="structure.") -> dict:
     dict of str to float
         Jitter per axis of ``AXES`` (arcsec), window ``WINDOW`` s.
     """
-    from orchestrator.metrics import peak_to_peak
-
     t = np.asarray(tab["time"])
     m = t >= SKIP - 1e-9
     dt = float(t[1] - t[0])
@@ -440,8 +435,6 @@ def ls_ceiling(plant: Plant, lin_off: dict, stroke_limit=5e-6,
         ``"within_limits_pct"`` and ``"within_limits"`` per axis (None when no ``rho``
         fits), and the ``"limits"`` (um, lbf full scale).
     """
-    from orchestrator.metrics import peak_to_peak
-
     t = np.asarray(lin_off["time"])
     n = t.size
     los = plant.rows("los_swir_", AXES)
@@ -518,8 +511,6 @@ def margins(plant: Plant, law_, gain: float = GAIN) -> dict:
         ``"per_leg"`` gain margin (dB), phase margin (deg) and crossovers (Hz), their
         minima, and ``"mimo_gain_margin_db"``.
     """
-    from ctrlfmu.analysis import frequency_response
-
     f = np.geomspace(0.5, 499.0, 3000)
     z = np.exp(2j * np.pi * f * H)
     lam, V = np.linalg.eig(plant.A)
@@ -564,6 +555,28 @@ def spectral_radius(A) -> float:
     return float(np.abs(np.linalg.eigvals(A)).max())
 
 
+def flexible(A: np.ndarray, plant: Plant) -> np.ndarray:
+    """A closed-loop matrix without the rigid-body states of ``plant``.
+
+    The rigid-body modes are double poles at z = 1 (Jordan blocks) that the loops neither
+    see nor move; round-off of 1e-16 in their coupling splits such a pole by its square
+    root, 1e-8, which a stability test would read as instability.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        A matrix whose first states are the plant's (:func:`closed_loop`).
+    plant : Plant
+        Gives ``rigid_states``.
+
+    Returns
+    -------
+    ndarray, shape (n - len(rigid_states), n - len(rigid_states))
+    """
+    keep = np.setdiff1d(np.arange(A.shape[0]), plant.rigid_states)
+    return A[np.ix_(keep, keep)]
+
+
 def mimo_gain_margin(plant: Plant, law_, gain: float = GAIN) -> float:
     """Common factor on all twelve loops (dB over ``gain``) at which one pole leaves the unit
     circle; bisection on the spectral radius of the closed loop.
@@ -584,7 +597,7 @@ def mimo_gain_margin(plant: Plant, law_, gain: float = GAIN) -> float:
         ``1e4 gain``.
     """
     def stable(g):
-        return spectral_radius(closed_loop(plant, law_, g)[0]) < 1.0 + RIGID_TOL
+        return spectral_radius(flexible(closed_loop(plant, law_, g)[0], plant)) < 1.0 + RIGID_TOL
 
     if not stable(gain):
         return -np.inf
@@ -619,8 +632,6 @@ def damping(plant: Plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
         Largest open-loop and smallest closed-loop damping ratio, the number of
         closed-loop modes above 1 %, and the five most damped (Hz, ratio).
     """
-    from ctrlfmu.analysis import mode_damping
-
     def poles(g):
         A = plant.A if g == 0 else closed_loop(plant, law_, g)[0]
         f, z = mode_damping(np.linalg.eigvals(A), H)
@@ -688,10 +699,6 @@ def cosim(fmu_dir, gain: float, stop: float) -> dict:
     dict of str to ndarray, shape (n_t,)
         ``"time"`` (s) and the recorded ``instance.variable`` columns.
     """
-    import warnings
-
-    from orchestrator import UnconnectedInputWarning, run_scenario
-
     ov = {f"ctrl_{leg}.gain": gain for leg in LEGS}
     with warnings.catch_warnings():
         # by design: the other load locations, the MISR struts, the laws' enable and
@@ -734,11 +741,6 @@ def modal_breakdown(model, plant: Plant, law_, axis="pitch", stop=3.5, top=4) ->
         Mode number, ``f_hz`` (Hz), ``p2p_arcsec``, strain-energy share (%) and the
         open- and closed-loop damping ratios, largest contribution first.
     """
-    from acsfmu.pid import acs_advance, acs_outputs, initial_state
-    from ctrlfmu.analysis import mode_damping
-    from orchestrator.metrics import peak_to_peak
-    from structfmu.models import eos_testbed
-
     n = int(round(stop / H)) + 1
     t = np.arange(n) * H
     w = vnir_wrench(t)
@@ -798,8 +800,6 @@ def reduction_with_damping(model, zeta: float = 0.05, above_hz: float = 20.0,
     dict of str to float
         SWIR jitter reduction per axis (%).
     """
-    from dataclasses import replace
-
     base = jitter(simulate_linear(linear_plant(model), stop=stop), "swir", "")
     f = model.omega / (2 * np.pi)
     z = np.where(f > above_hz, zeta, model.modal_damping / np.maximum(2 * model.omega, 1e-300))
@@ -925,9 +925,11 @@ def plot(off, on, out_dir):
     out_dir : path-like
         Folder for ``swir-isolation.png``.
     """
+    # deferred: plotting only
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: plotting only
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)

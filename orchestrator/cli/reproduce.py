@@ -24,6 +24,9 @@ def add_arguments(parser):
     parser.add_argument("--campaign", default=None,
                         help="campaign file whose [[requirements]] the budget uses "
                              "(eos-budget; default: campaigns/eos_budget.toml)")
+    parser.add_argument("--variant", default=None, choices=("stiff", "hybrid"),
+                        help="testbed-isolation: mount #3 as the paper describes it (stiff, "
+                             "default) or the hybrid isolator (stack + elastomer)")
 
 
 def run(args) -> int:
@@ -34,8 +37,8 @@ def run(args) -> int:
     from orchestrator.experiments import EXPERIMENTS, _clean
     from orchestrator.experiments import run as run_experiment
 
-    options = {k: v for k, v in (("workers", args.workers), ("campaign", args.campaign))
-               if v is not None}
+    options = {k: v for k, v in (("workers", args.workers), ("campaign", args.campaign),
+                                 ("variant", args.variant)) if v is not None}
     result = run_experiment(args.name, args.out, quick=args.quick, fmu_dir=args.fmu_dir,
                             **options)
     module = importlib.import_module(EXPERIMENTS[args.name])

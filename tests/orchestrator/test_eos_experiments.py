@@ -142,6 +142,42 @@ def test_testbed_isolation_reaches_the_papers_attenuation(testbed):
 
 
 @pytest.fixture(scope="module")
+def testbed_hybrid(out, suite_fmu_dir):
+    from orchestrator.experiments import testbed_isolation
+
+    # the full 9.6 s run: the quick one measures 2.4 s after switch-on,
+    # while the switch-on transient still rings (70.1 % there against 78.6 %)
+    return testbed_isolation.run(out, quick=False, fmu_dir=suite_fmu_dir, variant="hybrid")
+
+
+def test_testbed_isolation_hybrid_mount3_reaches_the_papers_attenuation(testbed_hybrid, out):
+    # mount #3 a hybrid isolator (stack + elastomer, eos_testbed.build(iso3="hybrid")),
+    # the law exactly as stated at 7 times its gains: the paper's "about 80 %" with
+    # mount #3 alone, at >= 6 dB gain margin and inside +-50 V
+    res = testbed_hybrid
+    red, lin = res["jitter_reduction_pct"], res["linear_reduction_pct"]
+    assert res["variant"] == "hybrid"
+    assert min(res["gain_margin_db"].values()) >= 6.0
+    assert 0.0 < res["max_voltage_v"] < 50.0
+    assert lin["mount3"] >= 80.0
+    assert red["mount3"] >= 70.0
+    assert res["boresight_rms"]["mount3"]["before_after_reduction_pct"] >= 70.0
+    # no controller can beat the least-squares bound
+    assert lin["mount3"] <= res["optimal_bound_pct"]["mount3"] + 1e-6
+    assert (out / "testbed-isolation-hybrid.png").is_file()
+
+
+@pytest.mark.xfail(strict=True, reason="with the hybrid mount #3, iso1 and iso2 stay stiff: "
+                   "all three loops together allow only 0.35 of the gains at 6 dB (5 %), and "
+                   "the isolation bandwidth is 30 Hz, not 45 (docs/eos_experiments.md)")
+def test_testbed_isolation_hybrid_reaches_the_papers_all_mounts_and_bandwidth(testbed_hybrid):
+    red = testbed_hybrid["jitter_reduction_pct"]
+    assert 50.0 <= red["all_mounts"] <= 80.0
+    assert testbed_hybrid["isolation_bandwidth_hz"] == pytest.approx(45.0, abs=7.0)
+    assert testbed_hybrid["reproduced"] is True
+
+
+@pytest.fixture(scope="module")
 def swir(out, suite_fmu_dir):
     return run_experiment("swir-isolation", out, quick=True, fmu_dir=suite_fmu_dir)
 

@@ -83,6 +83,33 @@ def test_calibration_reproduces_stored_constants():
     assert ea == pytest.approx(eos.EA_ARRAY, rel=1e-3)
 
 
+def test_hybrid_mount3_calibration_and_elastomer_mode():
+    # build(iso3="hybrid"): mount #3's stack in series with an elastomer stage; the bus
+    # and array keep their paper frequencies with their own stored constants
+    eta, ea = eos.calibrate(iso3="hybrid")
+    assert eta == pytest.approx(eos.ETA_BUS_HYBRID, rel=1e-3)
+    assert ea == pytest.approx(eos.EA_ARRAY_HYBRID, rel=1e-3)
+    t = eos.build(iso3="hybrid")
+    assert eos.first_mode_of("bus", t)[1] == pytest.approx(23.0, rel=1e-3)
+    assert eos.first_mode_of("array", t)[1] == pytest.approx(0.5, rel=1e-3)
+    # one elastomer element, in iso3 only; its share of the element's energy is the
+    # series compliance ratio
+    (i, share), = eos._elastomer_elements(t)
+    assert set(t.elements[i]) == {t.node("misr_fit_iso3"), t.node("misr_p2")}
+    _, length = t.element_geometry()
+    k_rod = eos.E_AL * eos.ROD_AREA / length[i]
+    assert share == pytest.approx(k_rod / (k_rod + eos.ISO3_SERIES_K), rel=1e-9)
+    assert eos._elastomer_elements(eos.build()) == []
+    # the mount mode: MISR plate pitch on the elastomer at about 15.7 Hz, damped by the
+    # modal strain energy method (loss factor / 2 x its elastomer energy fraction)
+    f, phi = eos.modes(t, 40)
+    frac = eos.elastomer_fractions(t, phi)
+    m = int(np.argmax(frac))
+    assert 15.0 < f[m] < 16.5 and frac[m] > 0.8
+    d = eos.damping(40, t)
+    assert d.zeta[m] == pytest.approx(eos.ZETA + 0.5 * eos.ISO3_LOSS_FACTOR * frac[m])
+
+
 # -- sensors and loads -----------------------------------------------------------------------
 def test_angle_outputs_read_a_rigid_rotation(truss):
     theta = np.array([3e-6, -2e-6, 5e-6])

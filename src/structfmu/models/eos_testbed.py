@@ -64,6 +64,13 @@ MISR gimbal            two-axis gimballed payload (paper: 2 arcsec, about 8 Hz):
                        ``misr_cg`` 0.15 m above the plate; roll and pitch springs to the
                        plate J (2 pi 8 Hz)^2 (servo, modes 7.9 Hz, damping 5 %), yaw
                        1000 x stiffer; ``los_misr_*`` read the gimballed body
+hybrid mount #3        ``build(iso3="hybrid")`` only (not the default): iso3's rod in     C
+                       series with an elastomer stage ``ISO3_SERIES_K`` = 3.0e4 N/m, loss
+                       factor ``ISO3_LOSS_FACTOR`` = 0.2 (modal strain energy damping in
+                       :func:`damping`; plate pitch mode 15.7 Hz, 9 %), bus and array
+                       recalibrated (``ETA_BUS_HYBRID``, ``EA_ARRAY_HYBRID``).  Fitted to
+                       "mount #3 alone about 80 %" with the stated law: 78.6 % co-simulated
+                       (docs/eos_testbed.md, "Hybrid mount #3")
 SWIR, VNIR mounts      kinematic as TIR; the inclined leg of bipod 1 carries a P-845.37   P/A
                        stack in series (``swir_mount``, ``vnir_mount``); with
                        ``active_legs="all"`` every leg does (``swir_mount1..6`` ...);
@@ -123,8 +130,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from piezofmu import preset
 from fmukit.units import G0, INCH
+from piezofmu import preset
 from structfmu.errors import ModelError
 from structfmu.fem import ActiveMember, Channel, Spring, Truss, assemble, transverse_link
 from structfmu.reduce import Damping, eigenpairs, reduce
@@ -147,6 +154,11 @@ CG_FRACTION = 0.6
 FITTING_MASS = 0.05
 STACK = "P-845.37"
 K_LAT_STACK_LEG = 2e5
+# build(iso3="hybrid"): mount #3 (iso3) a hybrid isolator, its stack in series with a
+# soft, damped elastomer stage (axial stiffness N/m, loss factor); see _stacked_leg,
+# damping() and docs/eos_testbed.md ("Hybrid mount #3")
+ISO3_SERIES_K = 3.0e4
+ISO3_LOSS_FACTOR = 0.2
 ARRAY_BAYS = 9
 ARRAY_BAY = 2 * BAY
 ARRAY_DEPTH = 0.05
@@ -170,6 +182,9 @@ SHIFT = -100.0
 # calibrated by calibrate(): first bus mode 23 Hz, first array mode 0.5 Hz
 ETA_BUS = 0.7720308
 EA_ARRAY = 2.349375e5
+# the same for build(iso3="hybrid") (calibrate(iso3="hybrid"))
+ETA_BUS_HYBRID = 0.7421872
+EA_ARRAY_HYBRID = 2.349441e5
 N_MODES = 70
 
 INSTRUMENTS = ("ceres", "tir", "misr", "swir", "vnir")
@@ -205,7 +220,7 @@ def _bus_name(i, j, k):
 
 
 def build(eta_bus: float | None = None, ea_array: float | None = None, *,
-          suspension: bool = False, active_legs: str = "one",
+          suspension: bool = False, active_legs: str = "one", iso3: str = "stiff",
           mass_type: str = "consistent") -> Truss:
     """Full FEM of the EOS-like testbed (free-free unless ``suspension``).
 
@@ -221,6 +236,11 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
     active_legs : {"one", "all"}
         SWIR and VNIR mounts: one stack per mount (``swir_mount``, ``vnir_mount``) or one
         in each of the six kinematic legs (``swir_mount1..6``, ``vnir_mount1..6``).
+    iso3 : {"stiff", "hybrid"}
+        MISR mount #3: the stack + rod leg as the other two (default), or a hybrid
+        isolator with an elastomer stage of ``ISO3_SERIES_K`` in series (loss factor
+        ``ISO3_LOSS_FACTOR``, applied by :func:`damping`); ``eta_bus``/``ea_array`` then
+        default to ``ETA_BUS_HYBRID``/``EA_ARRAY_HYBRID`` (first modes 23 and 0.5 Hz).
     mass_type : {"consistent", "lumped"}
 
     Returns
@@ -234,8 +254,12 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
     """
     if active_legs not in ("one", "all"):
         raise ModelError(f"active_legs is {active_legs!r}; expected 'one' or 'all'")
-    eta_bus = ETA_BUS if eta_bus is None else float(eta_bus)
-    ea_array = EA_ARRAY if ea_array is None else float(ea_array)
+    if iso3 not in ("stiff", "hybrid"):
+        raise ModelError(f"iso3 is {iso3!r}; expected 'stiff' or 'hybrid'")
+    hybrid = iso3 == "hybrid"
+    eta_bus = (ETA_BUS_HYBRID if hybrid else ETA_BUS) if eta_bus is None else float(eta_bus)
+    ea_array = (EA_ARRAY_HYBRID if hybrid else EA_ARRAY) if ea_array is None \
+        else float(ea_array)
     a = BAY
     stack = preset(STACK)
     xyz: list = []
@@ -313,7 +337,8 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
     zn = NZ * a
     for inst in INSTRUMENTS:
         if MOUNTS[inst] == "isolator":
-            _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs)
+            _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs,
+                          ISO3_SERIES_K if hybrid else None)
             continue
         i, j = STATIONS[inst]
         m = INSTRUMENT_MASS[inst]
@@ -441,7 +466,8 @@ def payload_nodes(inst: str) -> list:
     return [f"{inst}_cg"] + [f"{inst}_p{c}" for c in range(4)]
 
 
-def _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs):
+def _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs,
+                  iso3_series_k=None):
     """The MISR isolator station: diamond of four vertical legs, gimballed payload.
 
     Legs (``MISR_FEET``): three P-845.37 stack legs ``iso1..3`` and one solid aluminium
@@ -454,6 +480,7 @@ def _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs):
     octahedron ``misr_g0..g5`` (+-x, +-y, +-z at ``GIMBAL_RADIUS``) around the pivot, free to
     rotate about it but for three springs: roll and pitch at ``gimbal_stiffness()`` (the
     8 Hz servo) and yaw at ``GIMBAL_YAW_FACTOR`` times that (no yaw axis).
+    ``iso3_series_k`` (N/m): an elastomer stage in series in leg iso3 (hybrid mount #3).
     """
     m = INSTRUMENT_MASS[inst]
     order = ("iso1", "iso2", "iso3", "tube")
@@ -505,7 +532,8 @@ def _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs):
             k_lat = 12 * E_AL * ROD_I / MOUNT_HEIGHT**3
         else:
             active.append(_stacked_leg(leg, feet[c], plate[c], stack, add_node, rod,
-                                       springs, xyz, None, inst))
+                                       springs, xyz, None, inst,
+                                       iso3_series_k if leg == "iso3" else None))
             k_lat = K_LAT_STACK_LEG
         legs[leg] = (feet[c], plate[c])
         springs.extend(transverse_link(np.array(xyz), B(fi, fj, NZ - 1), feet[c], plate[c],
@@ -524,10 +552,13 @@ def gimbal_stiffness(mass: float | None = None) -> float:
     return J * (2 * np.pi * GIMBAL_HZ) ** 2
 
 
-def _stacked_leg(name, n_bus, n_pay, stack, add_node, rod, springs, xyz, node_mass, inst):
+def _stacked_leg(name, n_bus, n_pay, stack, add_node, rod, springs, xyz, node_mass, inst,
+                 k_series=None):
     """A leg made of a piezo stack (bus side) + fitting node + passive rod (payload side).
 
-    Returns ``(name, stack element, gauge element)``; the gauge is on the stack.
+    ``k_series`` (N/m): a soft stage (elastomer) in series with the passive rod, lumped
+    into the rod element (series stiffness of the two).  Returns ``(name, stack element,
+    gauge element)``; the gauge is on the stack.
     """
     d = xyz[n_pay] - xyz[n_bus]
     length = float(np.linalg.norm(d))
@@ -535,7 +566,10 @@ def _stacked_leg(name, n_bus, n_pay, stack, add_node, rod, springs, xyz, node_ma
     fit = add_node(f"{inst}_fit_{name}", xyz[n_bus] + d / length * lp, FITTING_MASS)
     el = rod(n_bus, fit, stack.k_e * lp, stack.mass / lp)
     ls = length - lp
-    rod(fit, n_pay, E_AL * ROD_AREA, RHO_AL * ROD_AREA)
+    ea = E_AL * ROD_AREA
+    if k_series is not None:
+        ea = ls / (ls / ea + 1.0 / k_series)
+    rod(fit, n_pay, ea, RHO_AL * ROD_AREA)
     k = 3 * E_AL * ROD_I * length / (lp**2 * ls**2)
     springs.extend(transverse_link(np.array(xyz), n_bus, n_pay, fit, k))
     return name, el, el
@@ -752,11 +786,58 @@ def describe_modes(truss: Truss | None = None, n: int = 12) -> list:
 
 def damping(n_modes: int, truss: Truss | None = None) -> Damping:
     """Modal 0.5 % (0 on rigid modes since ``c = 2 zeta omega``), Ritz 2 %; with
-    ``truss``, ``ZETA_GIMBAL`` on its MISR gimbal modes (:func:`gimbal_modes`)."""
+    ``truss``, ``ZETA_GIMBAL`` on its MISR gimbal modes (:func:`gimbal_modes`) and, on
+    every flexible mode, the elastomer's share by the modal strain energy method:
+    ``ISO3_LOSS_FACTOR / 2`` times the mode's strain-energy fraction in the elastomer
+    stage of a hybrid mount #3 (:func:`elastomer_fractions`; none in the default
+    stiff build)."""
     zeta = np.full(n_modes, ZETA)
     if truss is not None:
         zeta[gimbal_modes(truss, n_modes)] = ZETA_GIMBAL
+        if _elastomer_elements(truss):
+            f, phi = modes(truss, n_modes)
+            flexible = f > 1e-3
+            zeta[flexible] += (0.5 * ISO3_LOSS_FACTOR
+                               * elastomer_fractions(truss, phi)[flexible])
     return Damping(zeta=zeta, zeta_ritz=ZETA_RITZ)
+
+
+def _elastomer_elements(truss: Truss) -> list:
+    """``(element, elastomer share of its strain energy)`` of the MISR stack legs whose
+    passive part carries an elastomer stage (softer than the bare rod)."""
+    _, length = truss.element_geometry()
+    out = []
+    for c, leg in enumerate(("iso1", "iso2", "iso3")):
+        name = f"misr_fit_{leg}"
+        if name not in truss.node_names:
+            continue
+        ends = {truss.node(name), truss.node(f"misr_p{c}")}
+        for i, (n1, n2) in enumerate(truss.elements):
+            if {int(n1), int(n2)} == ends:
+                k_rod = E_AL * ROD_AREA / length[i]
+                share = 1.0 - truss.axial_stiffness[i] / k_rod  # 1/k = 1/k_rod + 1/k_s
+                if share > 1e-9:
+                    out.append((i, float(share)))
+    return out
+
+
+def elastomer_fractions(truss: Truss, phi_full: np.ndarray) -> np.ndarray:
+    """Fraction of each mode's strain energy in the elastomer stages of the MISR legs.
+
+    The elastomer is lumped with its passive rod in one element (fitting to plate); its
+    share of that element's energy is ``1 - k / k_rod`` (series springs carry one
+    force).  Shape (n_modes,); zeros without a hybrid mount or without strain energy.
+    """
+    e, _ = truss.element_geometry()
+    du = phi_full.reshape(len(truss.nodes), 3, -1)
+    out = np.zeros(phi_full.shape[1])
+    total = 0.5 * np.einsum("im,im->m", phi_full, _stiffness(truss) @ phi_full)
+    for i, share in _elastomer_elements(truss):
+        n1, n2 = truss.elements[i]
+        d = e[i] @ (du[n2] - du[n1])
+        out += share * 0.5 * truss.axial_stiffness[i] * d**2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.nan_to_num(np.where(total > 0, out / total, 0.0))
 
 
 def gimbal_modes(truss: Truss, n_modes: int = N_MODES, threshold: float = 0.5) -> np.ndarray:
@@ -824,7 +905,7 @@ def reduced(n_modes: int = N_MODES, ritz: bool = True, truss: Truss | None = Non
 
 
 def calibrate(target_bus=TARGET_BUS_HZ, target_array=TARGET_ARRAY_HZ, tol=1e-4,
-              max_iter=20):
+              max_iter=20, iso3: str = "stiff"):
     """Solve ``(eta_bus, ea_array)`` for the first bus and array modes (Hz).
 
     A fixed-point iteration on ``f ~ sqrt(stiffness)`` for each subsystem.
@@ -833,9 +914,9 @@ def calibrate(target_bus=TARGET_BUS_HZ, target_array=TARGET_ARRAY_HZ, tol=1e-4,
     -------
     (eta_bus, ea_array) : tuple of float
     """
-    eta, ea = ETA_BUS, EA_ARRAY
+    eta, ea = (ETA_BUS_HYBRID, EA_ARRAY_HYBRID) if iso3 == "hybrid" else (ETA_BUS, EA_ARRAY)
     for _ in range(max_iter):
-        t = build(eta, ea)
+        t = build(eta, ea, iso3=iso3)
         _, fb = first_mode_of("bus", t)
         _, fa = first_mode_of("array", t)
         eta *= (target_bus / fb) ** 2

@@ -232,3 +232,29 @@ def test_a_damaged_ssp_archive_is_read_or_refused_in_one_sentence(ssp_file, data
             read_ssp(path)
         except ScenarioError as exc:
             assert "\n" not in str(exc).strip()
+
+
+def test_written_archive_follows_the_ssp_schemas_and_reads_in_fmpy(fmu_dir, tmp_path):
+    """The archive is checked against the SSP 1.0 schemas fmpy ships, and fmpy's own SSD
+    reader (an independent implementation) finds the same components and connections."""
+    import zipfile
+
+    from fmpy.ssp.ssd import read_ssd, validate_tree
+    from lxml import etree
+
+    ssp = write_ssp(prepare(load_scenario(mixed()), fmu_dir), tmp_path / "mixed.ssp")
+    with zipfile.ZipFile(ssp) as z:
+        validate_tree(etree.fromstring(z.read("SystemStructure.ssd")),
+                      "SystemStructureDescription.xsd")
+        ssvs = [n for n in z.namelist() if n.endswith(".ssv")]
+        assert ssvs
+        for name in ssvs:
+            validate_tree(etree.fromstring(z.read(name)), "SystemStructureParameterValues.xsd")
+    ssd = read_ssd(str(ssp), validate=True)
+    comps = {c.name for c in ssd.system.elements}
+    assert comps == set(mixed()["fmus"])
+    conns = {(f"{c.startElement}.{c.startConnector}", f"{c.endElement}.{c.endConnector}")
+             for c in ssd.system.connections}
+    assert conns == {(c["from"], c["to"]) for c in mixed()["connections"]}
+    mine = read_ssp(ssp)
+    assert {i.name for i in mine.instances} == comps

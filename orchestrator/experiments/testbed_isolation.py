@@ -28,9 +28,10 @@ and the discrete law with its Eq. (11) delay (``delayed=False`` in
 * :func:`design_gains` -- the gain direction (payload, bus) that removes the most
   boresight jitter at 6 dB gain margin (the stored gains come from it).
 
-``variant="hybrid"`` (``jitterfmu reproduce testbed-isolation --variant hybrid``) runs the same with mount #3 a hybrid isolator (``eos_testbed.build(iso3=
-"hybrid")``: stack + elastomer stage, structure FMU ``HYBRID_STRUCTURE``) and the law at
-``HYBRID_GAINS`` times its own gains (docs/eos_experiments.md).
+``variant="hybrid"`` (``jitterfmu reproduce testbed-isolation --variant hybrid``) runs the
+same with mount #3 a hybrid isolator (``eos_testbed.build(iso3="hybrid")``: stack +
+elastomer stage, structure FMU ``HYBRID_STRUCTURE``) and the law at ``HYBRID_GAINS`` times
+its own gains (docs/eos_experiments.md).
 """
 
 from __future__ import annotations
@@ -100,6 +101,11 @@ def ensure_fmus(fmu_dir="fmus", variant="stiff") -> Path:
         FMU folder (native FMUs in it, Python twins in its ``python/``).
     variant : {"stiff", "hybrid"}
         Mount #3 as the paper describes it, or the hybrid isolator.
+
+    Returns
+    -------
+    Path
+        The FMU folder, resolved.
     """
     if variant not in VARIANTS:
         raise ValueError(f"variant is {variant!r}; expected one of {VARIANTS}")
@@ -114,7 +120,20 @@ def ensure_fmus(fmu_dir="fmus", variant="stiff") -> Path:
 
 def linear_model(fmu_dir="fmus", variant="stiff"):
     """The reduced structure packed in the structure FMU (a ReducedModel), read from its
-    Python build (``fmu_dir/python/``: the native twin packs it in another form)."""
+    Python build (``fmu_dir/python/``: the native twin packs it in another form).
+
+    Parameters
+    ----------
+    fmu_dir : path-like
+        FMU folder; the FMUs are built there first if needed (:func:`ensure_fmus`).
+    variant : {"stiff", "hybrid"}
+        Structure FMU ``eos.STRUCTURE`` or, with the hybrid mount #3, ``HYBRID_STRUCTURE``.
+
+    Returns
+    -------
+    ReducedModel
+        The model in the FMU's ``resources/model.npz``.
+    """
     name = HYBRID_STRUCTURE if variant == "hybrid" else eos.STRUCTURE
     fmu = ensure_fmus(fmu_dir, variant) / PYTHON_SUBDIR / f"{name}.fmu"
     with zipfile.ZipFile(fmu) as z, tempfile.TemporaryDirectory() as tmp:
@@ -163,7 +182,27 @@ def _law(gain):
 
 
 def closed_loop(plant, mounts, gain=1.0, law=None):
-    """Plant with the isolation law (times ``gain``) closed on the ``mounts`` struts."""
+    """Plant with the isolation law (times ``gain``) closed on the ``mounts`` struts.
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        :func:`linear_plant`: discrete (``DT``), inputs the three strut commands (V) and
+        ``swir_fz`` (N), nine outputs.
+    mounts : sequence of int
+        Mounts (1, 2, 3 for ``iso1..3``) whose loops are closed; the others stay open.
+    gain : float
+        Factor on the law's design gains (dimensionless); ignored when ``law`` is given.
+    law : control.StateSpace, optional
+        Discrete law (``DT``) used at each closed mount: inputs payload and bus
+        acceleration (m/s^2), output strut command (V).  Default: the design law
+        (``ctrlfmu.designs.testbed_isolation``, with its Eq. (11) delay) times ``gain``.
+
+    Returns
+    -------
+    control.StateSpace
+        Closed loop (positive feedback, ``u = r + K y``), inputs and outputs as ``plant``.
+    """
     # deferred: python-control takes about 1 s to load
     import control
 
@@ -185,6 +224,25 @@ def gain_margin_db(plant, mounts, gain=1.0, law=None, max_factor=64.0) -> float:
 
     The largest factor ``g`` (bisection to 0.5 %) such that ``g`` times the loops is still
     stable; ``-inf`` when the nominal loop is unstable.
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        :func:`linear_plant`.
+    mounts : sequence of int
+        Mounts (1, 2, 3) whose loops are closed and scaled together.
+    gain : float
+        Factor on the law's design gains (dimensionless); ignored when ``law`` is given.
+    law : control.StateSpace, optional
+        Law as in :func:`closed_loop`; default the design law times ``gain``.
+    max_factor : float
+        Upper end of the search (factors doubled from 1): once the loops are stable at a
+        factor whose double exceeds it, ``20 log10(max_factor)`` is returned.
+
+    Returns
+    -------
+    float
+        Gain margin (dB); ``-inf`` if the nominal loop is unstable.
     """
     base = _law(gain) if law is None else law
 
@@ -212,7 +270,20 @@ def _at(sys, f):
 
 
 def plant_frf(plant, freqs) -> np.ndarray:
-    """Frequency response of :func:`linear_plant`, shape (n_freq, 9, 4) complex."""
+    """Frequency response of :func:`linear_plant`, shape (n_freq, 9, 4) complex.
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        :func:`linear_plant`.
+    freqs : float or array_like, shape (n_freq,)
+        Frequencies (Hz).
+
+    Returns
+    -------
+    ndarray of complex, shape (n_freq, 9, 4)
+        Outputs (m/s^2, rad; order of :func:`linear_plant`) per input (V, N).
+    """
     return np.stack([_at(plant, f) for f in np.atleast_1d(freqs)])
 
 
@@ -221,9 +292,22 @@ def accel_frf(plant, freqs) -> np.ndarray:
 
     One eigendecomposition instead of a solve per frequency.  The free-free rigid-body
     modes sample to Jordan blocks at ``z = 1``, so the modal form is ill-conditioned for
-    the boresight angles; the accelerations do not see rigid-body displacement and come
+    the boresight angles; the accelerations do not see rigid-body displacement and
     agree with :func:`plant_frf` to about 1e-8 relative.  The angle rows are
     NaN.  Shape (n_freq, 9, 4) complex.
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        :func:`linear_plant`.
+    freqs : array_like, shape (n_freq,)
+        Frequencies (Hz).
+
+    Returns
+    -------
+    ndarray of complex, shape (n_freq, 9, 4)
+        As :func:`plant_frf`, with rows 6 and 7 (``los_misr_roll``, ``los_misr_pitch``)
+        NaN.
     """
     A, B, C, D = (np.asarray(m) for m in (plant.A, plant.B, plant.C, plant.D))
     lam, V = np.linalg.eig(A)
@@ -247,6 +331,12 @@ def closed_frf(Gf, law_f, mounts) -> np.ndarray:
     law_f : ndarray, shape (n_freq, 1, 2)
         Law response (V per m/s^2), delay included.
     mounts : sequence of int
+        Mounts (1, 2, 3) whose loops are closed.
+
+    Returns
+    -------
+    ndarray of complex, shape (n_freq, 9)
+        The nine outputs (m/s^2, rad) per N of ``swir_fz``, loops closed.
     """
     out = []
     for g, k in zip(Gf, law_f):
@@ -259,7 +349,22 @@ def closed_frf(Gf, law_f, mounts) -> np.ndarray:
 
 
 def law_frf(freqs, gain=1.0, law=None) -> np.ndarray:
-    """Response of the isolation law (times ``gain``), shape (n_freq, 1, 2)."""
+    """Response of the isolation law (times ``gain``), shape (n_freq, 1, 2).
+
+    Parameters
+    ----------
+    freqs : float or array_like, shape (n_freq,)
+        Frequencies (Hz).
+    gain : float
+        Factor on the law's design gains (dimensionless); ignored when ``law`` is given.
+    law : control.StateSpace, optional
+        Law as in :func:`closed_loop`; default the design law times ``gain``.
+
+    Returns
+    -------
+    ndarray of complex, shape (n_freq, 1, 2)
+        Strut command per payload and per bus acceleration (V per m/s^2).
+    """
     law = _law(gain) if law is None else law
     return np.stack([_at(law, f) for f in np.atleast_1d(freqs)])
 
@@ -268,6 +373,25 @@ def boresight_reduction(plant, mounts, gain=1.0, law=None, Gh=None) -> float:
     """Steady-state reduction (%) of the boresight RMS (roll, pitch) over the harmonics.
 
     ``Gh``: :func:`plant_frf` at ``HARMONICS`` (computed if not given).
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        :func:`linear_plant`.
+    mounts : sequence of int
+        Mounts (1, 2, 3) whose loops are closed.
+    gain : float
+        Factor on the law's design gains (dimensionless); ignored when ``law`` is given.
+    law : control.StateSpace, optional
+        Law as in :func:`closed_loop`; default the design law times ``gain``.
+    Gh : ndarray of complex, shape (3, 9, 4), optional
+        :func:`plant_frf` at the ``HARMONICS`` frequencies (22, 44, 66 Hz), in that order.
+
+    Returns
+    -------
+    float
+        ``100 (1 - rms_closed / rms_open)`` (%) of the linear model's boresight (roll and
+        pitch), the harmonics weighted by their ``HARMONICS`` amplitudes (N).
     """
     f = np.array(list(HARMONICS))
     a = np.array(list(HARMONICS.values()))
@@ -284,6 +408,21 @@ def ideal_ceiling(plant, mounts, Gh=None) -> dict:
     ``accel_null``: the payload accelerometers of those mounts held at exactly zero at
     each harmonic (perfect cancellation of the fed-back signals); ``optimal``: the
     least-squares best strut commands at each harmonic (a bound for any controller).
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        :func:`linear_plant`.
+    mounts : sequence of int
+        Mounts (1, 2, 3) whose struts may act.
+    Gh : ndarray of complex, shape (3, 9, 4), optional
+        :func:`plant_frf` at the ``HARMONICS`` frequencies; computed if not given.
+
+    Returns
+    -------
+    dict of str to float
+        ``accel_null`` and ``optimal``: reduction of the boresight RMS (%), the harmonics
+        weighted by their ``HARMONICS`` amplitudes (N).
     """
     cols = [k - 1 for k in mounts]
     rows = [2 * (k - 1) for k in mounts]
@@ -306,6 +445,27 @@ def design_gains(plant, mounts, n_dir=36, margin_db=6.0, delayed=True):
     For each direction ``(cos t, sin t)`` the stability limit is found by bisection and
     the gains are set ``margin_db`` below it; returns ``(reduction %, payload, bus)`` of
     the best direction.  ``delayed=False``: the law without its Eq. (11) sample.
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        :func:`linear_plant`.
+    mounts : sequence of int
+        Mounts (1, 2, 3) closed, all with the same gains.
+    n_dir : int
+        Number of directions ``t`` scanned, evenly spaced over [0, 2 pi).
+    margin_db : float
+        Gain margin kept below each direction's stability limit (dB).
+    delayed : bool
+        Law with the one-sample delay of Eq. (11) (default) or acting on the current
+        sample.
+
+    Returns
+    -------
+    (reduction, payload_gain, bus_gain) : tuple of float
+        Boresight reduction (%, :func:`boresight_reduction`) and the gains of the best
+        direction (V per m/s^2 at the band centre); ``(-inf, 0, 0)`` if every direction
+        is unstable at unit gains.
     """
     best = (-np.inf, 0.0, 0.0)
     for t in np.linspace(0, 2 * np.pi, n_dir, endpoint=False):
@@ -337,6 +497,17 @@ def loop_shape(Gf, freqs=FREQS, mount=3) -> dict:
     ----------
     Gf : ndarray, shape (n_freq, 9, 4)
         :func:`plant_frf` or :func:`accel_frf` at ``freqs`` (Hz).
+    freqs : ndarray, shape (n_freq,)
+        Frequencies of ``Gf``, ascending (Hz); default ``FREQS``.
+    mount : int
+        Mount (1, 2, 3) whose payload loop is examined.
+
+    Returns
+    -------
+    dict
+        ``loop_phase_22hz_deg`` (deg) and ``phase_crossover_hz`` (Hz; None when the phase
+        does not cross 0 above 30 Hz, and then no other keys), ``crossover_to_22hz_ratio``
+        and ``max_loop_gain_22hz_at_6db`` (dimensionless).
     """
     law = to_statespace(design("testbed_isolation", payload_gain=1.0, bus_gain=0.0))
     rows = [2 * (mount - 1), 2 * (mount - 1) + 1]
@@ -356,7 +527,22 @@ def loop_shape(Gf, freqs=FREQS, mount=3) -> dict:
 
 def isolation_bandwidth(ratio, freqs=FREQS):
     """Upper end (Hz) of the band around 22 Hz where open/closed > 1; None if 22 Hz is not
-    isolated."""
+    isolated.
+
+    Parameters
+    ----------
+    ratio : ndarray, shape (n_freq,)
+        Open- over closed-loop magnitude at ``freqs`` (dimensionless), e.g. of
+        accelerometer #6 (:func:`frequency_responses`).
+    freqs : ndarray, shape (n_freq,)
+        Frequencies, ascending (Hz); default ``FREQS``.
+
+    Returns
+    -------
+    float or None
+        The highest frequency of ``freqs`` (Hz) up to which ``ratio`` stays above 1 from
+        the one nearest 22 Hz (``freqs[-1]`` if it never falls to 1).
+    """
     k = int(np.argmin(np.abs(freqs - 22.0)))
     if ratio[k] <= 1.0:
         return None
@@ -367,7 +553,24 @@ def isolation_bandwidth(ratio, freqs=FREQS):
 def frequency_responses(Gf, mounts, gain, freqs=FREQS):
     """Accelerometer #6 (payload side of mount #3) per SWIR vertical force, open and
     closed loop (m/s^2 per N), shape (2, n_freq) complex; ``Gf`` from :func:`plant_frf`
-    or :func:`accel_frf` (the loops read accelerations only)."""
+    or :func:`accel_frf` (the loops read accelerations only).
+
+    Parameters
+    ----------
+    Gf : ndarray of complex, shape (n_freq, 9, 4)
+        :func:`plant_frf` or :func:`accel_frf` at ``freqs``.
+    mounts : sequence of int
+        Mounts (1, 2, 3) closed for the closed-loop response.
+    gain : float
+        Factor on the law's design gains (dimensionless).
+    freqs : array_like, shape (n_freq,)
+        Frequencies (Hz); default ``FREQS``.
+
+    Returns
+    -------
+    ndarray of complex, shape (2, n_freq)
+        Open loop (row 0) and closed loop (row 1), (m/s^2)/N.
+    """
     return np.array([Gf[:, 8, 3], closed_frf(Gf, law_frf(freqs, gain), mounts)[:, 8]])
 
 
@@ -399,7 +602,23 @@ def _highpassed(t, x):
 
 
 def boresight_rms(t, roll, pitch, t0, t1):
-    """RMS of the high-passed boresight (roll, pitch) over [t0, t1) (rad)."""
+    """RMS of the high-passed boresight (roll, pitch) over [t0, t1) (rad).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s), equally spaced (the filter's rate is ``1 / (t[1] - t[0])``).
+    roll, pitch : ndarray, shape (n,)
+        Boresight angles (rad).
+    t0, t1 : float
+        Window start (included) and end (excluded) (s).
+
+    Returns
+    -------
+    float
+        ``sqrt(mean(roll^2 + pitch^2))`` over the window (rad), after a zero-phase
+        2nd-order Butterworth high-pass at ``HP_HZ`` (5 Hz) of the whole record.
+    """
     m = (t >= t0) & (t < t1)
     r, p = _highpassed(t, roll), _highpassed(t, pitch)
     return float(np.sqrt(np.mean(r[m] ** 2 + p[m] ** 2)))
@@ -413,7 +632,28 @@ def _off_rms(Gh):
 
 
 def compute(quick=False, fmu_dir="fmus", variant="stiff"):
-    """Linear design numbers and the two co-simulations (mount #3, all mounts)."""
+    """Linear design numbers and the two co-simulations (mount #3, all mounts).
+
+    Parameters
+    ----------
+    quick : bool
+        6.0 s instead of 9.6 s of co-simulation (see :func:`run`).
+    fmu_dir : path-like
+        Folder of the FMUs (built there first if needed).
+    variant : {"stiff", "hybrid"}
+        Mount #3 with the stiff strut, or the hybrid isolator (gains ``HYBRID_GAINS``).
+
+    Returns
+    -------
+    dict
+        ``runs`` (per configuration, ``"mount3"`` and ``"all_mounts"``, its result table,
+        dict of str to ndarray), ``off`` (the table with isolation off), ``stop`` (s),
+        ``reduction`` (%), ``before_after`` (arcsec RMS, %), ``max_voltage`` (V),
+        ``linear`` (gain margin in dB, reduction in %, :func:`ideal_ceiling`), ``frf``
+        (:func:`frequency_responses` at ``FREQS``), ``ratio`` (open/closed, mount #3),
+        ``bandwidth`` (Hz or None), ``loop_shape``, ``gains`` and
+        ``off_linear_full_scale_arcsec_rms`` (arcsec).
+    """
     fdir = ensure_fmus(fmu_dir, variant)
     model = linear_model(fdir, variant)
     plant = linear_plant(model)
@@ -454,6 +694,17 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff"):
 
 # -- figures -----------------------------------------------------------------------------
 def plot(data, out_dir, stem="testbed-isolation"):
+    """Figs. 13-16 style figure of :func:`compute`'s data, written to ``<stem>.png``.
+
+    Parameters
+    ----------
+    data : dict
+        The result of :func:`compute`.
+    out_dir : path-like
+        Output folder (must exist).
+    stem : str
+        File name without ``.png``.
+    """
     # deferred: plotting only
     import matplotlib
 
@@ -539,6 +790,13 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff") -> dict:
         The model as documented (stiff struts) or with the hybrid mount #3
         (``eos_testbed.build(iso3="hybrid")``, gains ``HYBRID_GAINS``); the hybrid
         variant writes ``testbed-isolation-hybrid.png``.
+
+    Returns
+    -------
+    dict
+        Co-simulated and linear reductions (%), gain margins (dB), isolation bandwidth
+        (Hz), strut voltages (V), boresight RMS (arcsec), the paper's values,
+        ``reproduced`` and a ``note``.
     """
     data = compute(quick, fmu_dir, variant)
     plot(data, out_dir, "testbed-isolation" + ("-hybrid" if variant == "hybrid" else ""))

@@ -615,6 +615,12 @@ def wrench_matrix(truss: Truss, nodes, point=None) -> np.ndarray:
         Node set (at least three non-collinear nodes).
     point : array_like, shape (3,), optional
         Reference point (m).
+
+    Returns
+    -------
+    ndarray, shape (3 k, 6)
+        Column ``c``: the nodal forces (N) of a unit force (1 N, ``c`` < 3) or unit
+        moment (1 N m, ``c`` >= 3).
     """
     idx = np.array([truss.node(n) for n in nodes])
     x = truss.nodes[idx]
@@ -636,6 +642,28 @@ def wrench_channels(truss: Truss, prefix, nodes, point=None, names=WRENCH,
 
     Forces (``fx, fy, fz``, N) and couples (``mx, my, mz``, N m) are spread over the
     nodes with :func:`wrench_matrix`, so each channel has exactly the one resultant.
+
+    Parameters
+    ----------
+    truss : Truss
+        Model whose nodes carry the loads.
+    prefix : str
+        Channel name prefix, e.g. the location (``"swir"``).
+    nodes : sequence of int or str, length k
+        Node set (at least three non-collinear nodes).
+    point : array_like, shape (3,), optional
+        Reference point of the moments (m); default the centroid of ``nodes``.
+    names : sequence of str
+        Channel name suffixes, paired in order with ``components``; default ``WRENCH``
+        (``fx .. mz``).
+    components : sequence of int
+        Wrench components, 0-5 for ``fx, fy, fz, mx, my, mz``; default all six.
+
+    Returns
+    -------
+    tuple of Channel
+        One per ``(name, component)`` pair on the ``3 k`` DOFs of ``nodes``: kind
+        ``"force"`` (N) for components 0-2, ``"torque"`` (N m) for 3-5.
     """
     W = wrench_matrix(truss, nodes, point)
     idx = np.array([truss.node(n) for n in nodes])
@@ -646,7 +674,25 @@ def wrench_channels(truss: Truss, prefix, nodes, point=None, names=WRENCH,
 
 
 def torque_channel(truss: Truss, name, nodes, axis) -> Channel:
-    """A pure couple of 1 N m about ``axis`` spread over a node set (zero net force)."""
+    """A pure couple of 1 N m about ``axis`` spread over a node set (zero net force).
+
+    Parameters
+    ----------
+    truss : Truss
+        Model whose nodes carry the couple.
+    name : str
+        Channel name.
+    nodes : sequence of int or str, length k
+        Node set (at least three non-collinear nodes).
+    axis : array_like, shape (3,)
+        Axis of the couple (body axes); normalised here, so only its direction counts
+        (must be non-zero).
+
+    Returns
+    -------
+    Channel
+        Kind ``"torque"`` (N m) on the ``3 k`` DOFs of ``nodes``.
+    """
     W = wrench_matrix(truss, nodes)
     ax = np.asarray(axis, float)
     ax = ax / np.linalg.norm(ax)
@@ -737,9 +783,17 @@ def strain_energy_fractions(truss: Truss, phi_full: np.ndarray) -> dict:
 def modes(truss: Truss, n: int = 40):
     """First ``n`` natural frequencies (Hz) and mode shapes on all DOFs.
 
+    Parameters
+    ----------
+    truss : Truss
+        Full model (e.g. :func:`build`).
+    n : int
+        Number of modes, lowest first, rigid-body modes included.
+
     Returns
     -------
     f : ndarray, shape (n,)
+        Natural frequencies (Hz); 0 for rigid-body modes.
     phi : ndarray, shape (n_dof, n)
         Mass-normalised, zero on fixed DOFs.
     """
@@ -751,13 +805,51 @@ def modes(truss: Truss, n: int = 40):
 
 
 def frequencies_hz(truss: Truss | None = None, n: int = 12) -> np.ndarray:
-    """First ``n`` natural frequencies of the full FEM (Hz), rigid-body modes included."""
+    """First ``n`` natural frequencies of the full FEM (Hz), rigid-body modes included.
+
+    Parameters
+    ----------
+    truss : Truss, optional
+        Full model; default :func:`build` (built on each call).
+    n : int
+        Number of frequencies, lowest first.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Natural frequencies (Hz); 0 for rigid-body modes.
+    """
     return modes(truss or build(), n)[0]
 
 
 def first_mode_of(region: str, truss: Truss | None = None, n: int = 60, threshold=0.5):
     """Index and frequency (Hz) of the first flexible mode with >= ``threshold`` of its
-    strain energy in ``region`` (``"bus"`` or ``"array"``)."""
+    strain energy in ``region`` (``"bus"`` or ``"array"``).
+
+    Parameters
+    ----------
+    region : str
+        A region key of :func:`strain_energy_fractions`: ``"bus"``, ``"array"``, ``"hga"``,
+        ``"mount_<inst>"`` ...
+    truss : Truss, optional
+        Full model; default :func:`build`.
+    n : int
+        Number of lowest modes searched, rigid-body modes included.
+    threshold : float
+        Minimum fraction (0 to 1) of the mode's strain energy in ``region``.
+
+    Returns
+    -------
+    index : int
+        Index of the mode among the first ``n`` (0-based, rigid-body modes counted).
+    f : float
+        Its natural frequency (Hz).
+
+    Raises
+    ------
+    ModelError
+        If no flexible mode (above 1 mHz) among the first ``n`` qualifies.
+    """
     f, phi = modes(truss or build(), n)
     frac = strain_energy_fractions(truss or build(), phi)[region]
     flexible = f > 1e-3
@@ -769,7 +861,21 @@ def first_mode_of(region: str, truss: Truss | None = None, n: int = 60, threshol
 
 
 def describe_modes(truss: Truss | None = None, n: int = 12) -> list:
-    """One line per mode: frequency and where the strain energy is."""
+    """One line per mode: frequency and where the strain energy is.
+
+    Parameters
+    ----------
+    truss : Truss, optional
+        Full model; default :func:`build`.
+    n : int
+        Number of lowest modes described, rigid-body modes included.
+
+    Returns
+    -------
+    list of str, length n
+        ``"<mode number from 1> <f> Hz  <region> <share>, ..."``: the up to three regions
+        with at least 5 % of the strain energy, largest first; ``rigid body`` below 1 mHz.
+    """
     truss = truss or build()
     f, phi = modes(truss, n)
     frac = strain_energy_fractions(truss, phi)
@@ -790,7 +896,20 @@ def damping(n_modes: int, truss: Truss | None = None) -> Damping:
     every flexible mode, the elastomer's share by the modal strain energy method:
     ``ISO3_LOSS_FACTOR / 2`` times the mode's strain-energy fraction in the elastomer
     stage of a hybrid mount #3 (:func:`elastomer_fractions`; none in the default
-    stiff build)."""
+    stiff build).
+
+    Parameters
+    ----------
+    n_modes : int
+        Number of eigenvectors of the reduced model, rigid-body modes included.
+    truss : Truss, optional
+        Full model the reduction is made from; without it, no gimbal or elastomer damping.
+
+    Returns
+    -------
+    Damping
+        ``zeta``, shape (n_modes,), the modal damping ratios; ``zeta_ritz`` = ``ZETA_RITZ``.
+    """
     zeta = np.full(n_modes, ZETA)
     if truss is not None:
         zeta[gimbal_modes(truss, n_modes)] = ZETA_GIMBAL
@@ -827,6 +946,18 @@ def elastomer_fractions(truss: Truss, phi_full: np.ndarray) -> np.ndarray:
     The elastomer is lumped with its passive rod in one element (fitting to plate); its
     share of that element's energy is ``1 - k / k_rod`` (series springs carry one
     force).  Shape (n_modes,); zeros without a hybrid mount or without strain energy.
+
+    Parameters
+    ----------
+    truss : Truss
+        Full model (:func:`build`; only ``iso3="hybrid"`` has an elastomer stage).
+    phi_full : ndarray, shape (n_dof, n_modes)
+        Mode shapes on all DOFs (:func:`modes`).
+
+    Returns
+    -------
+    ndarray, shape (n_modes,)
+        Fraction of each mode's strain energy in the elastomer stages.
     """
     e, _ = truss.element_geometry()
     du = phi_full.reshape(len(truss.nodes), 3, -1)
@@ -846,6 +977,22 @@ def gimbal_modes(truss: Truss, n_modes: int = N_MODES, threshold: float = 0.5) -
     The gimbal servo is modelled as springs between the gimballed body and its plate
     (:func:`_misr_station`); its two modes (roll, pitch, near ``GIMBAL_HZ``) get the
     servo's damping ``ZETA_GIMBAL`` instead of the structural 0.5 %.
+
+    Parameters
+    ----------
+    truss : Truss
+        Full model with the MISR gimbal (nodes ``misr_g0..g5``, as :func:`build`).
+    n_modes : int
+        Number of lowest modes examined, rigid-body modes included.
+    threshold : float
+        Minimum fraction (0 to 1) of a mode's strain energy in the springs attached to
+        the gimballed body.
+
+    Returns
+    -------
+    ndarray of int
+        Indices (0-based, among the first ``n_modes``) of the gimbal modes; only flexible
+        modes below ``2 GIMBAL_HZ`` (16 Hz) qualify.
     """
     f, phi = modes(truss, n_modes)
     body = {truss.node(f"misr_g{c}") for c in range(6)}
@@ -910,9 +1057,25 @@ def calibrate(target_bus=TARGET_BUS_HZ, target_array=TARGET_ARRAY_HZ, tol=1e-4,
 
     A fixed-point iteration on ``f ~ sqrt(stiffness)`` for each subsystem.
 
+    Parameters
+    ----------
+    target_bus : float
+        First bus mode to reach (Hz); default ``TARGET_BUS_HZ`` = 23.
+    target_array : float
+        First array mode to reach (Hz); default ``TARGET_ARRAY_HZ`` = 0.5.
+    tol : float
+        Relative tolerance on both frequencies.
+    max_iter : int
+        Maximum number of iterations; the last values are returned, without an error,
+        if they have not converged by then.
+    iso3 : {"stiff", "hybrid"}
+        MISR mount #3 as in :func:`build`; the iteration starts from that build's stored
+        constants (``ETA_BUS``, ``EA_ARRAY`` or their ``_HYBRID`` versions).
+
     Returns
     -------
     (eta_bus, ea_array) : tuple of float
+        Bus EA knock-down (dimensionless) and array longeron ``EA`` (N), for :func:`build`.
     """
     eta, ea = (ETA_BUS_HYBRID, EA_ARRAY_HYBRID) if iso3 == "hybrid" else (ETA_BUS, EA_ARRAY)
     for _ in range(max_iter):

@@ -31,7 +31,7 @@ demo: setup
 	$(VENV)/bin/jitterfmu report out/demo/eos-budget-campaign
 
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 --dist loadfile   # two workers; a file's tests share one
 
 build: setup
 	$(VENV)/bin/jitterfmu build

@@ -14,7 +14,13 @@ from __future__ import annotations
 import json
 import shutil
 from collections.abc import Callable, Iterable, Mapping
+from contextlib import contextmanager
 from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX: builds are not serialised
+    fcntl = None
 
 from fmutools.build import build_fmu
 from fmutools.registry import SOURCE_PACKAGES, collect_specs, sources_hash
@@ -102,9 +108,24 @@ def record_built(folder, names: Iterable[str], kind: str) -> None:
     tmp.replace(stamp_file)
 
 
-def _ensure(names, folder: Path, progress, extra, packages, build) -> dict:
-    """Build the missing or stale ``names`` into ``folder`` with ``build(spec)``."""
+@contextmanager
+def _locked(folder: Path):
+    """Hold an exclusive lock on ``folder`` (another process building there waits)."""
     folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / ".lock", "a+") as f:
+        if fcntl is not None:
+            fcntl.flock(f, fcntl.LOCK_EX)
+        yield
+
+
+def _ensure(names, folder: Path, progress, extra, packages, build) -> dict:
+    """Build the missing or stale ``names`` into ``folder`` with ``build(spec)``; two
+    processes that ensure the same folder take turns (the second finds them built)."""
+    with _locked(folder):
+        return _ensure_unlocked(names, folder, progress, extra, packages, build)
+
+
+def _ensure_unlocked(names, folder: Path, progress, extra, packages, build) -> dict:
     stamp_file = folder / ".sources"
     stamps = json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
     current = sources_hash(packages)

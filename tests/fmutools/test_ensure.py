@@ -45,3 +45,19 @@ def test_bad_names_and_kinds_are_one_sentence(tmp_path):
         ensure_fmus(["nosuch_fmu"], tmp_path)
     with pytest.raises(ValueError, match="FMU kind 'c' is unknown"):
         ensure_fmus(["excitation"], tmp_path, kind="c")
+
+
+def test_two_processes_ensuring_one_folder_build_each_fmu_once(tmp_path):
+    import subprocess
+    import sys
+
+    code = ("import sys; from fmutools.ensure import ensure_fmus; "
+            "ensure_fmus(['excitation'], sys.argv[1], progress=print)")
+    procs = [subprocess.Popen([sys.executable, "-c", code, str(tmp_path)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [e for _, e in outs]
+    builds = [line for out, _ in outs for line in out.splitlines() if line.startswith("building")]
+    assert len(builds) == 2   # the Python twin and the native FMU, by one of the two
+    assert is_native(tmp_path / "excitation.fmu")

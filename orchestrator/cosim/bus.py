@@ -151,13 +151,28 @@ class Bus:
         Afterwards :attr:`readers`, :attr:`writers` and :attr:`pre_readers` map an
         instance name to a function of no argument: read its outputs into ``latest``,
         set its inputs from the bus, read a feedthrough source's outputs into
-        ``pre_step``.
+        ``pre_step``.  :attr:`read_parts`, :attr:`pre_read_parts` and
+        :attr:`write_parts` describe the same calls for the compiled loop: per instance
+        ``[(type, getter, vr, nv, index into values)]`` and ``[(setter, vr, nv, idx,
+        gain, offset, scaled, type)]``.
         """
         n = self.n
         dbl_p = ctypes.POINTER(ctypes.c_double)
         base_addr = self.values.ctypes.data
         self.readers, self.writers, self.pre_readers = {}, {}, {}
+        self.read_parts, self.pre_read_parts, self.write_parts = {}, {}, {}
         keep = self._keep = []
+
+        def read_desc(s, reads, region):
+            out = []
+            for t, getter in (("Real", s.getReal), ("Integer", s.getInteger),
+                              ("Boolean", s.getBoolean)):
+                off, vs = reads[t]
+                if vs:
+                    vr = (ctypes.c_uint32 * len(vs))(*[v.vr for v in vs])
+                    keep.append(vr)
+                    out.append((t, getter, vr, len(vs), region + off))
+            return out
 
         def reader_parts(s, reads, region):
             """Getter calls writing ``s``'s outputs into ``values[region:]`` (n or 2n)."""
@@ -184,7 +199,9 @@ class Bus:
             reads = self.reads[name]
             self.readers[name] = self._make_reader(s, reader_parts(s, reads, n), fail, now)
             self.writers[name] = self._make_writer(s, self.inputs[name], fail, now)
+            self.read_parts[name] = read_desc(s, reads, n)
             if name in self.ft_sources:
+                self.pre_read_parts[name] = read_desc(s, reads, 2 * n)
                 self.pre_readers[name] = self._make_reader(s, reader_parts(s, reads, 2 * n),
                                                            fail, now)
 
@@ -225,6 +242,9 @@ class Bus:
                 ptr = buf
             self._keep += [vr, fbuf, buf, ptr]
             parts.append((setter, vr, len(items), idx, gain, offset, scaled, fbuf, ibuf, ptr, t))
+        self.write_parts[s.name] = [(setter, vr, nv, idx, gain, offset, scaled, t)
+                                    for setter, vr, nv, idx, gain, offset, scaled, _, _, _, t
+                                    in parts]
 
         def write():
             for setter, vr, nv, idx, gain, offset, scaled, fbuf, ibuf, ptr, t in parts:

@@ -135,6 +135,82 @@ class Schedule:
                         pass
         return step
 
+    def _groups(self):
+        """``(groups, loops, jacobi)``: the step groups in order and those iterated."""
+        plan, sc = self.plan, self.plan.scenario
+        jacobi = sc.experiment.algorithm == "jacobi"
+        if jacobi:
+            return [(i.name,) for i in sc.instances], set(), True
+        groups = plan.groups
+        loops = {g for g in groups if len(g) > 1 or any(g == l.members for l in plan.loops)}
+        return groups, loops, False
+
+    def _calls(self, k, groups, loops, jacobi):
+        """The calls of tick ``k``: ``(snap_idx, [(phase, kind, group, due)])``.
+
+        ``phase`` is ``"first"``, ``"then"`` or ``"settle"``; ``kind`` is ``"loop"``,
+        ``"step"`` (Jacobi: set, step, read), ``"set"`` (Gauss-Seidel phase 1) or
+        ``"advance"`` (step and read).
+        """
+        pt = self.plan.timebase.period_ticks
+        calls = []
+        for g in groups:
+            due = tuple(m for m in g if k % pt[m] == 0)
+            if not due:
+                continue
+            if g in loops:
+                calls.append(("first", "loop", g, due))
+            elif jacobi:
+                calls.append(("then", "step", g, due))
+            else:
+                calls.append(("first", "set", g, due))
+                calls.append(("settle", "set", g, due))
+                calls.append(("then", "advance", g, due))
+        # outputs stamped t_k: those of instances whose step ends now, i.e. due now
+        due_all = [m for m in pt if k % pt[m] == 0]
+        if len(due_all) == len(pt):
+            snap_idx = None
+        else:
+            slots = self._slots()
+            snap_idx = np.array(sorted(i for m in due_all for i in slots[m]), dtype=np.intp)
+        return snap_idx, calls
+
+    def _slots(self):
+        if not hasattr(self, "_slot_lists"):
+            self._slot_lists = {m: [] for m in self.plan.timebase.period_ticks}
+            for (m, _), i in self.bus.slot.items():
+                self._slot_lists[m].append(i)
+        return self._slot_lists
+
+    def layout(self):
+        """The hyperperiod pattern as names of calls, for the compiled loop.
+
+        Returns
+        -------
+        tuple or None
+            ``(programs, program_of_tick)``: ``programs`` a list of ``(snap_idx, first,
+            then)`` with ``first`` and ``then`` lists of ``(kind, instance)`` (kind
+            ``"set"``, ``"advance"`` or ``"step"``), ``program_of_tick`` the program
+            number of each tick of the hyperperiod.  None when the schedule has an
+            algebraic loop or no precomputed pattern (the Python loop runs then).
+        """
+        tb = self.plan.timebase
+        groups, loops, jacobi = self._groups()
+        if loops or tb.hyperperiod > MAX_PATTERN:
+            return None
+        pt = tb.period_ticks
+        cache, programs, of_tick = {}, [], []
+        for k in range(tb.hyperperiod):
+            key = tuple(k % pt[m] == 0 for m in pt)
+            if key not in cache:
+                snap_idx, calls = self._calls(k, groups, loops, jacobi)
+                cache[key] = len(programs)
+                programs.append((snap_idx,
+                                 [(kind, g[0]) for ph, kind, g, _ in calls if ph == "first"],
+                                 [(kind, g[0]) for ph, kind, g, _ in calls if ph == "then"]))
+            of_tick.append(cache[key])
+        return programs, of_tick
+
     def pattern(self) -> Callable:
         """``at(k) -> (snap_idx, first, then, settle)`` for every tick ``k``.
 
@@ -142,53 +218,30 @@ class Schedule:
         else the slots stamped ``t_k`` (those of the instances due now); ``first``,
         ``then`` and ``settle`` are tuples of ``call(t)``.
         """
-        plan, sc = self.plan, self.plan.scenario
-        tb = plan.timebase
-        if sc.experiment.algorithm == "jacobi":
-            groups = [(i.name,) for i in sc.instances]
-            loops = set()
-        else:
-            groups = plan.groups
-            loops = {g for g in groups if len(g) > 1 or any(g == l.members for l in plan.loops)}
-        progs, advance = {}, {}
-        jacobi = sc.experiment.algorithm == "jacobi"
+        tb = self.plan.timebase
+        groups, loops, jacobi = self._groups()
+        progs = {}
         for g in groups:
             if g in loops:
-                progs[g] = self.loop_program(g)
+                progs[("loop", g)] = self.loop_program(g)
             elif jacobi:
-                progs[g] = self.step_program(g[0])
+                progs[("step", g)] = self.step_program(g[0])
             else:
-                progs[g] = self.set_program(g[0])
-                advance[g] = self.advance_program(g[0])
+                progs[("set", g)] = self.set_program(g[0])
+                progs[("advance", g)] = self.advance_program(g[0])
         pt = tb.period_ticks
-        slots = {m: [] for m in pt}
-        for (m, _), i in self.bus.slot.items():
-            slots[m].append(i)
 
         def due_at(k):
-            first, then, settle = [], [], []
-            for g in groups:
-                due = tuple(m for m in g if k % pt[m] == 0)
-                if not due:
-                    continue
-                if g in loops:
-                    first.append(_bind_loop(progs[g], due))
-                elif jacobi:
-                    then.append(progs[g])
-                else:
-                    first.append(progs[g])
-                    settle.append(progs[g])
-                    then.append(advance[g])
-            # outputs stamped t_k: those of instances whose step ends now, i.e. due now
-            due_all = [m for m in pt if k % pt[m] == 0]
-            if len(due_all) == len(pt):
-                snap_idx = None
-            else:
-                snap_idx = np.array(sorted(i for m in due_all for i in slots[m]), dtype=np.intp)
             # Gauss-Seidel: `first` sets inputs and reads feedthrough outputs at t_k (sources
             # first; loops are solved there), `then` steps; Jacobi: `then` does whole steps.
             # `settle` is what runs at the stop time: set/read only, no step.
-            return snap_idx, tuple(first), tuple(then), tuple(settle)
+            snap_idx, calls = self._calls(k, groups, loops, jacobi)
+            phases = {"first": [], "then": [], "settle": []}
+            for phase, kind, g, due in calls:
+                prog = progs[(kind, g)]
+                phases[phase].append(_bind_loop(prog, due) if kind == "loop" else prog)
+            return snap_idx, tuple(phases["first"]), tuple(phases["then"]), \
+                tuple(phases["settle"])
 
         if tb.hyperperiod <= MAX_PATTERN:
             cache, pattern = {}, []

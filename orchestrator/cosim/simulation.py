@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import gc
 import math
+import os
 
 import numpy as np
 
 from .bus import Bus
 from .errors import STATUS, SimulationError, TerminationRequested
+from .fastloop import RUN_FMI_STATUS, RUN_NOT_FINITE, RUN_OK, fast_loop
 from .graph import AlgebraicLoopError, init_order
 from .instance import FmuInstance, extracted
 from .plan import Plan
@@ -28,6 +30,9 @@ class Simulation:
         Fixed-point iterations allowed per algebraic-loop solve.
     loop_tolerance : float
         Convergence test ``|x_new - x_old| <= tol * (1 + |x_new|)`` on loop signals.
+    fast : bool
+        Step in the compiled loop when the schedule allows (bit-identical results);
+        False always runs the Python loop.
 
     Examples
     --------
@@ -39,8 +44,12 @@ class Simulation:
     >>> table = sim.table()
     """
 
-    def __init__(self, plan: Plan, max_iterations: int = 100, loop_tolerance: float = 1e-12):
+    def __init__(self, plan: Plan, max_iterations: int = 100, loop_tolerance: float = 1e-12,
+                 fast: bool = True):
         self.plan = plan
+        self.fast = fast
+        #: True when :meth:`run` stepped in the compiled loop
+        self.compiled_loop = False
         self.max_iterations = max_iterations
         self.loop_tolerance = loop_tolerance
         self.slaves = {}
@@ -52,8 +61,13 @@ class Simulation:
         tb = plan.timebase
         self.n_rows = tb.n_ticks // tb.output_ticks + 1
         self.rec = np.full((self.n_rows, len(plan.scenario.record)), np.nan)
-        self.times = np.array(
-            [tb.time(r * tb.output_ticks) for r in range(self.n_rows)], dtype=float)
+        # tb.time(k) as (a + k b) / d with Python ints: the same correctly rounded value,
+        # without a Fraction per row
+        t0 = tb.start + 0 * tb.base
+        d = t0.denominator * tb.base.denominator
+        a = t0.numerator * tb.base.denominator
+        b = tb.base.numerator * t0.denominator * tb.output_ticks
+        self.times = np.array([(a + r * b) / d for r in range(self.n_rows)], dtype=float)
 
     # -- lifecycle -----------------------------------------------------------------
 
@@ -159,6 +173,10 @@ class Simulation:
         fmi2Terminated is true) ends the run normally at that communication point:
         the rows up to it are kept and :attr:`terminated` names the instance.
 
+        Without algebraic loops the ticks between actions run in compiled C
+        (:mod:`orchestrator.cosim.fastloop`; ``fast=False`` or ``JITTERFMU_FAST_LOOP=0``
+        turns this off), making the same calls with the same arithmetic.
+
         Parameters
         ----------
         progress : callable, optional
@@ -167,8 +185,9 @@ class Simulation:
         plan = self.plan
         tb = plan.timebase
         bus = self.bus
-        schedule = Schedule(plan, bus, self.slaves, self._fail, self.max_iterations,
-                            self.loop_tolerance).pattern()
+        sched = Schedule(plan, bus, self.slaves, self._fail, self.max_iterations,
+                         self.loop_tolerance)
+        schedule = sched.pattern()
         values = bus.values
         cur, watched, snap = bus.latest, bus.watched, bus.snapshot
         rec, rec_idx = self.rec, bus.record_idx
@@ -182,33 +201,76 @@ class Simulation:
         n_ticks = tb.n_ticks
         isfinite = math.isfinite
         order = [m for g in plan.groups for m in g]
+        fast = None
+        if self.fast and os.environ.get("JITTERFMU_FAST_LOOP", "1") != "0":
+            fast = fast_loop(sched.layout(), bus, self.slaves, tb, rec)
+        self.compiled_loop = fast is not None
+        action_ticks = sorted(k for k in actions if 0 <= k <= n_ticks)
+
+        def python_tick(k):
+            """One tick as the Python loop runs it; False after the last."""
+            self.tick = k
+            t = (a + k * b) / d
+            snap_idx, first, then, settle = schedule(k)
+            if snap_idx is None:
+                snap[:] = cur
+            elif len(snap_idx):
+                snap[snap_idx] = cur[snap_idx]
+            if k in actions:
+                for s, vals in actions[k]:
+                    s.set_values(vals)
+            for call in (settle if k == n_ticks else first):
+                call(t)
+            if k % out_ticks == 0:
+                self.rows = k // out_ticks + 1
+                if len(rec_idx):
+                    rec[self.rows - 1] = values[rec_idx]
+            if k == n_ticks:
+                return False
+            for call in then:
+                call(t)
+            if not isfinite(float(watched.sum())):
+                self._check_finite(t, order)
+            if progress is not None and not k & 2047:
+                progress(k / n_ticks)
+            return True
+
         k = 0
         try:
-            for k in range(n_ticks + 1):
-                self.tick = k
-                t = (a + k * b) / d
-                snap_idx, first, then, settle = schedule(k)
-                if snap_idx is None:
-                    snap[:] = cur
-                elif len(snap_idx):
-                    snap[snap_idx] = cur[snap_idx]
-                if k in actions:
-                    for s, vals in actions[k]:
-                        s.set_values(vals)
-                for call in (settle if k == n_ticks else first):
-                    call(t)
-                if k % out_ticks == 0:
-                    self.rows = k // out_ticks + 1
-                    if len(rec_idx):
-                        rec[self.rows - 1] = values[rec_idx]
-                if k == n_ticks:
-                    break
-                for call in then:
-                    call(t)
-                if not isfinite(float(watched.sum())):
-                    self._check_finite(t, order)
-                if progress is not None and not k & 2047:
-                    progress(k / n_ticks)
+            if fast is None:
+                for k in range(n_ticks + 1):
+                    if not python_tick(k):
+                        break
+            else:
+                next_action = 0
+                while k <= n_ticks:
+                    while next_action < len(action_ticks) and action_ticks[next_action] < k:
+                        next_action += 1
+                    stop = action_ticks[next_action] if next_action < len(action_ticks) \
+                        else n_ticks
+                    if k == stop:
+                        if not python_tick(k):
+                            break
+                        k += 1
+                        continue
+                    # ticks k..k1 in C: up to the next progress tick, action or stop
+                    k1 = min((k + 2047) & ~2047, stop - 1)
+                    times = [(a + j * b) / d for j in range(k, k1 + 1)]
+                    code = fast.run(k, k1, np.array(times), self.rows)
+                    self.rows = fast.result.rows
+                    if code != RUN_OK:
+                        t = times[fast.result.tick - k]
+                        k = self.tick = fast.result.tick
+                    if code == RUN_FMI_STATUS:
+                        self._fast_failure(fast, t)
+                    elif code == RUN_NOT_FINITE:
+                        self._check_finite(t, order)
+                    else:
+                        k = k1
+                    self.tick = k
+                    if progress is not None and not k & 2047:
+                        progress(k / n_ticks)
+                    k += 1
         except SimulationError:
             raise
         except AlgebraicLoopError as exc:
@@ -217,6 +279,16 @@ class Simulation:
             self.terminated = (req.instance, req.time, req.message)
         if progress is not None:
             progress(1.0)
+
+    def _fast_failure(self, fast, t):
+        """Raise what the Python loop raises for the compiled loop's failed FMI call."""
+        s, what = fast.parts[fast.result.part]
+        st = int(fast.result.status)
+        if what == "fmi2DoStep":
+            if st == 2 and s.asks_to_terminate():
+                raise TerminationRequested(s.name, t, s.last_message())
+            raise self._fail(s, what, t, st)
+        raise self._fail(s, what, self._now(), st)
 
     def _actions(self):
         plan, sc = self.plan, self.plan.scenario

@@ -257,7 +257,7 @@ def _prune(root: Path) -> None:
     for entry in root.iterdir():
         try:
             if entry.name.startswith((".fmu-partial-", ".ssp-partial-", ".loader-partial-",
-                                      ".discarded-")):
+                                      ".fastloop-partial-", ".discarded-")):
                 if now - entry.lstat().st_mtime > _PARTIAL_AGE:
                     shutil.rmtree(entry, ignore_errors=True)
             elif entry.name.startswith(("fmu-", "ssp-")) and entry not in _VERIFIED:

@@ -245,6 +245,10 @@ def _slave_class(resources: Path, fmu_name: str):
     (plain literals) are set on a subclass.
     """
     scripts = sorted(resources.glob("fmuslave_*.py"))
+    if not scripts and any(resources.glob("*.dat")):
+        raise AnalysisError(f"FMU {fmu_name} is a native build and its Python twin is not "
+                            "beside it in python/; the linear analysis reads the Python "
+                            "build: run 'jitterfmu build' (it writes both)")
     if not scripts:
         raise AnalysisError(f"FMU {fmu_name} was not built by this project (no generated "
                             "slave module); the linear analysis knows only its own FMUs")

@@ -166,3 +166,16 @@ def test_ceiling_properties(fmus):
     with pytest.raises(AnalysisError, match="not an output of a source"):
         ceiling(lin, ["structure.strain_long"], "structure.strain_diag", freqs,
                 actuators=["ctrl_long"])
+
+
+def test_native_fmus_without_their_python_twins_are_named(fmus, tmp_path):
+    """The linear analysis reads the Python build; a folder of native FMUs alone gets one
+    sentence saying so and what to run."""
+    import shutil
+
+    from orchestrator.experiments.truss_decay import FMUS
+
+    for name in FMUS:
+        shutil.copy(fmus / f"{name}.fmu", tmp_path / f"{name}.fmu")   # native ones only
+    with pytest.raises(AnalysisError, match="is a native build .* run 'jitterfmu build'"):
+        linearize(SCENARIO, fmu_dir=tmp_path)

@@ -24,6 +24,10 @@ def add_arguments(parser):
     parser.add_argument("--campaign", default=None,
                         help="campaign file whose [[requirements]] the budget uses "
                              "(eos-budget; default: campaigns/eos_budget.toml)")
+    parser.add_argument("--python-fmus", action="store_const", const="python",
+                        dest="fmu_kind", default=None,
+                        help="run the Python build of the suite's FMUs (FMU_DIR/python/) "
+                             "instead of the native ones")
     parser.add_argument("--variant", default=None, choices=("stiff", "hybrid"),
                         help="testbed-isolation: mount #3 as the paper describes it (stiff, "
                              "default) or the hybrid isolator (stack + elastomer)")
@@ -38,7 +42,8 @@ def run(args) -> int:
     from orchestrator.experiments import run as run_experiment
 
     options = {k: v for k, v in (("workers", args.workers), ("campaign", args.campaign),
-                                 ("variant", args.variant)) if v is not None}
+                                 ("variant", args.variant), ("fmu_kind", args.fmu_kind))
+               if v is not None}
     result = run_experiment(args.name, args.out, quick=args.quick, fmu_dir=args.fmu_dir,
                             **options)
     module = importlib.import_module(EXPERIMENTS[args.name])

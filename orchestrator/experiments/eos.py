@@ -33,7 +33,7 @@ def mounts_structure_model():
     return eos_testbed.reduced(truss=eos_testbed.build(active_legs="all"))
 
 
-def ensure_fmus(fmu_dir="fmus", names=FMUS) -> Path:
+def ensure_fmus(fmu_dir="fmus", names=FMUS, kind="native") -> Path:
     """Build the named FMUs and the all-legs structure into ``fmu_dir`` when missing or
     stale; returns the folder, resolved.
 
@@ -43,10 +43,12 @@ def ensure_fmus(fmu_dir="fmus", names=FMUS) -> Path:
         Folder of built FMUs.
     names : iterable of str
         Registry FMUs to build besides ``MOUNTS_STRUCTURE``.
+    kind : {"native", "python"}
+        Which build (the Python twins are built for either).
     """
     fmu_dir = Path(fmu_dir)
     _ensure(list(names) + [MOUNTS_STRUCTURE], fmu_dir, extra={
         MOUNTS_STRUCTURE: lambda: spec_from_model(
             mounts_structure_model(), MOUNTS_STRUCTURE,
-            "EOS testbed, every SWIR/VNIR mount leg active")})
+            "EOS testbed, every SWIR/VNIR mount leg active")}, kind=kind)
     return fmu_dir.resolve()

@@ -53,7 +53,8 @@ PAPER_ISOLATION = {
 event with active SWIR and VNIR mounts ("significantly lower" SWIR pitch and yaw, SWIR
 roll only 30 %, MISR "also reduced by about 10 percent").  Shown next to our numbers."""
 
-def run_budget(out_dir, *, workers=2, quick=False, fmu_dir="fmus", progress=None,
+def run_budget(out_dir, *, workers=2, quick=False, fmu_dir="fmus", fmu_kind="native",
+               progress=None,
                campaign=CAMPAIGN):
     """Run the budget campaign into ``out_dir``; returns (campaign, CampaignResult).
 
@@ -69,6 +70,8 @@ def run_budget(out_dir, *, workers=2, quick=False, fmu_dir="fmus", progress=None
         Three events (VNIR pointing, SWIR cryocooler, SAD) and ``QUICK_STOP`` s.
     fmu_dir : path-like
         Folder of the built FMUs (built there when missing or stale).
+    fmu_kind : {"native", "python"}
+        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
     progress : bool, optional
         Progress bar on stderr (default: when stderr is a terminal).
     campaign : path-like
@@ -85,7 +88,8 @@ def run_budget(out_dir, *, workers=2, quick=False, fmu_dir="fmus", progress=None
             sc["experiment"] = {**sc["experiment"], "stop": QUICK_STOP}
             cases.append(dataclasses.replace(c, scenario=sc, key=c.key + "-quick"))
         camp = dataclasses.replace(camp, cases=tuple(cases))
-    runner = MasterRunner(camp.scenario_dir, fmu_dir=eos.ensure_fmus(fmu_dir))
+    runner = MasterRunner(camp.scenario_dir, fmu_dir=eos.ensure_fmus(fmu_dir, kind=fmu_kind),
+                          fmu_kind=fmu_kind)
     res = run_campaign(camp, out_dir, runner, workers=workers, progress=progress)
     return camp, res
 
@@ -181,7 +185,7 @@ def format_table(table: list[dict], source: str = "") -> str:
     return "\n".join(lines)
 
 
-def run(out_dir, quick: bool = False, fmu_dir="fmus", *, workers: int = 2,
+def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native", *, workers: int = 2,
         campaign=CAMPAIGN) -> dict:
     """Run the budget and return its JSON dict (table also written as text).
 
@@ -193,6 +197,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", *, workers: int = 2,
         Three events and ``QUICK_STOP`` s (see :func:`run_budget`).
     fmu_dir : path-like
         Folder of the built FMUs (built there when missing or stale).
+    fmu_kind : {"native", "python"}
+        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
     workers : int
         Worker processes.
     campaign : path-like
@@ -201,6 +207,7 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", *, workers: int = 2,
     out_dir = Path(out_dir)
     camp_dir = out_dir / ("eos-budget-campaign-quick" if quick else "eos-budget-campaign")
     camp, res = run_budget(camp_dir, workers=workers, quick=quick, fmu_dir=fmu_dir,
+                           fmu_kind=fmu_kind,
                            progress=False, campaign=campaign)
     table = budget_table(res.summary)
     source = _requirements_source(campaign)

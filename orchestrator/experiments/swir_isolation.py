@@ -649,10 +649,22 @@ def damping(plant: Plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
 
 
 # -- co-simulation ----------------------------------------------------------------------------
-def ensure_fmus(fmu_dir="fmus") -> Path:
+def ensure_fmus(fmu_dir="fmus", kind="native") -> Path:
     """Build the FMUs this experiment runs into ``fmu_dir`` (the structure with all legs
-    active under ``STRUCTURE``); the folder to pass to the master."""
-    return eos.ensure_fmus(fmu_dir, OTHER_FMUS)
+    active under ``STRUCTURE``); the folder to pass to the master.
+
+    Parameters
+    ----------
+    fmu_dir : path-like
+        FMU folder (native FMUs in it, Python twins in its ``python/``).
+    kind : {"native", "python"}
+        Which build (the Python twins are built for either).
+
+    Returns
+    -------
+    Path
+    """
+    return eos.ensure_fmus(fmu_dir, OTHER_FMUS, kind)
 
 
 def scenario(stop: float) -> dict:
@@ -682,13 +694,15 @@ def scenario(stop: float) -> dict:
             "connections": conns, "record": {"variables": rec}}
 
 
-def cosim(fmu_dir, gain: float, stop: float) -> dict:
+def cosim(fmu_dir, gain: float, stop: float, fmu_kind="native") -> dict:
     """Co-simulate with every leg's law at ``gain``; the recorded table.
 
     Parameters
     ----------
     fmu_dir : path-like
         Folder holding the built FMUs (:func:`ensure_fmus`).
+    fmu_kind : {"native", "python"}
+        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
     gain : float
         Factor on every leg's law (-); 0 for isolation off.
     stop : float
@@ -704,7 +718,8 @@ def cosim(fmu_dir, gain: float, stop: float) -> dict:
         # by design: the other load locations, the MISR struts, the laws' enable and
         # reference inputs keep their zero start values
         warnings.simplefilter("ignore", UnconnectedInputWarning)
-        return run_scenario(scenario(stop), overrides=ov, fmu_dir=fmu_dir).table
+        return run_scenario(scenario(stop), overrides=ov, fmu_dir=fmu_dir,
+                            fmu_kind=fmu_kind).table
 
 
 def _stroke_force(tab, prefix_elong="structure.elong_", prefix_force="piezo_"):
@@ -807,7 +822,7 @@ def reduction_with_damping(model, zeta: float = 0.05, above_hz: float = 20.0,
     return _pct(base, jitter(simulate_linear(linear_plant(damped), stop=stop), "swir", ""))
 
 
-def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
+def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native") -> dict:
     """Linear design figures, then the co-simulation off/on; the JSON dict.
 
     Parameters
@@ -819,6 +834,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
     fmu_dir : path-like
         Folder the FMUs are built into (default ``fmus``; a private folder avoids racing
         other builds).
+    fmu_kind : {"native", "python"}
+        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
     """
     stop = 3.5 if quick else 6.0
     model = structure_model()
@@ -834,8 +851,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
     damped = reduction_with_damping(model, 0.05, 20.0, stop)
     lin_red = _pct(jitter(lin_off, "swir", ""), jitter(lin_on, "swir", ""))
 
-    fdir = ensure_fmus(fmu_dir)
-    off, on = cosim(fdir, 0.0, stop), cosim(fdir, GAIN, stop)
+    fdir = ensure_fmus(fmu_dir, fmu_kind)
+    off, on = cosim(fdir, 0.0, stop, fmu_kind), cosim(fdir, GAIN, stop, fmu_kind)
     sw_off, sw_on = jitter(off, "swir"), jitter(on, "swir")
     mi_off, mi_on = jitter(off, "misr"), jitter(on, "misr")
     red = _pct(sw_off, sw_on)

@@ -91,7 +91,7 @@ def hybrid_model():
     return eos_testbed.reduced(truss=eos_testbed.build(iso3="hybrid"))
 
 
-def ensure_fmus(fmu_dir="fmus", variant="stiff") -> Path:
+def ensure_fmus(fmu_dir="fmus", variant="stiff", kind="native") -> Path:
     """Build the FMUs of the experiment into ``fmu_dir`` (for ``variant="hybrid"`` also
     the structure with the hybrid mount #3, ``HYBRID_STRUCTURE``); the folder, resolved.
 
@@ -101,6 +101,8 @@ def ensure_fmus(fmu_dir="fmus", variant="stiff") -> Path:
         FMU folder (native FMUs in it, Python twins in its ``python/``).
     variant : {"stiff", "hybrid"}
         Mount #3 as the paper describes it, or the hybrid isolator.
+    kind : {"native", "python"}
+        Which build (the Python twins are built for either).
 
     Returns
     -------
@@ -109,12 +111,13 @@ def ensure_fmus(fmu_dir="fmus", variant="stiff") -> Path:
     """
     if variant not in VARIANTS:
         raise ValueError(f"variant is {variant!r}; expected one of {VARIANTS}")
-    fdir = eos.ensure_fmus(fmu_dir)
+    fdir = eos.ensure_fmus(fmu_dir, kind=kind)
     if variant == "hybrid":
         _ensure([HYBRID_STRUCTURE], fdir, extra={
             HYBRID_STRUCTURE: lambda: spec_from_model(
                 hybrid_model(), HYBRID_STRUCTURE,
-                "EOS testbed, MISR mount #3 a hybrid isolator (stack + elastomer)")})
+                "EOS testbed, MISR mount #3 a hybrid isolator (stack + elastomer)")},
+                kind=kind)
     return fdir
 
 
@@ -584,13 +587,13 @@ def _scenario(variant):
     return sc
 
 
-def _cosim(fmu_dir, mounts, gain, stop, variant="stiff"):
+def _cosim(fmu_dir, mounts, gain, stop, variant="stiff", fmu_kind="native"):
     ov = {"dist_swir.preset": "swir_cryocooler"}
     for i in (1, 2, 3):
         ov[f"ctrl_iso{i}.gain"] = gain if i in mounts else 0.0
         ov[f"ctrl_iso{i}.t_on"] = T_ON
     return run_scenario(_scenario(variant), stop_time=stop, overrides=ov,
-                        fmu_dir=fmu_dir).table
+                        fmu_dir=fmu_dir, fmu_kind=fmu_kind).table
 
 
 def _highpassed(t, x):
@@ -631,7 +634,7 @@ def _off_rms(Gh):
                  * ARCSEC_PER_RAD)
 
 
-def compute(quick=False, fmu_dir="fmus", variant="stiff"):
+def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
     """Linear design numbers and the two co-simulations (mount #3, all mounts).
 
     Parameters
@@ -640,6 +643,8 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff"):
         6.0 s instead of 9.6 s of co-simulation (see :func:`run`).
     fmu_dir : path-like
         Folder of the FMUs (built there first if needed).
+    fmu_kind : {"native", "python"}
+        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
     variant : {"stiff", "hybrid"}
         Mount #3 with the stiff strut, or the hybrid isolator (gains ``HYBRID_GAINS``).
 
@@ -654,7 +659,7 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff"):
         ``bandwidth`` (Hz or None), ``loop_shape``, ``gains`` and
         ``off_linear_full_scale_arcsec_rms`` (arcsec).
     """
-    fdir = ensure_fmus(fmu_dir, variant)
+    fdir = ensure_fmus(fmu_dir, variant, fmu_kind)
     model = linear_model(fdir, variant)
     plant = linear_plant(model)
     gains = HYBRID_GAINS if variant == "hybrid" else GAINS
@@ -670,8 +675,8 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff"):
     bw = isolation_bandwidth(ratio)
     shape = loop_shape(Gf)
     stop = 6.0 if quick else 9.6
-    runs = {k: _cosim(fdir, MOUNTS[k], gains[k], stop, variant) for k in MOUNTS}
-    off = _cosim(fdir, (), 0.0, stop, variant)
+    runs = {k: _cosim(fdir, MOUNTS[k], gains[k], stop, variant, fmu_kind) for k in MOUNTS}
+    off = _cosim(fdir, (), 0.0, stop, variant, fmu_kind)
     t = off["time"]
     ref = boresight_rms(t, off["structure.los_misr_roll"], off["structure.los_misr_pitch"],
                         stop - 1.2, stop)
@@ -774,7 +779,8 @@ def plot(data, out_dir, stem="testbed-isolation"):
     plt.close(fig)
 
 
-def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff") -> dict:
+def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff",
+        fmu_kind="native") -> dict:
     """Run the experiment into ``out_dir``; returns the JSON-able result.
 
     Parameters
@@ -786,6 +792,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff") -> dict:
         6 s after switch-on; the 23 Hz bus mode, 0.5 % damped, settles in about 1.4 s).
     fmu_dir : path-like
         Folder of the built FMUs (built there if missing or stale).
+    fmu_kind : {"native", "python"}
+        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
     variant : {"stiff", "hybrid"}
         The model as documented (stiff struts) or with the hybrid mount #3
         (``eos_testbed.build(iso3="hybrid")``, gains ``HYBRID_GAINS``); the hybrid
@@ -798,7 +806,7 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff") -> dict:
         (Hz), strut voltages (V), boresight RMS (arcsec), the paper's values,
         ``reproduced`` and a ``note``.
     """
-    data = compute(quick, fmu_dir, variant)
+    data = compute(quick, fmu_dir, variant, fmu_kind)
     plot(data, out_dir, "testbed-isolation" + ("-hybrid" if variant == "hybrid" else ""))
     red, lin = data["reduction"], data["linear"]
     lo, hi = PAPER["all_mounts"]

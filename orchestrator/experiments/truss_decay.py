@@ -301,13 +301,13 @@ def linear_prediction(fmu_dir="fmus") -> dict:
             "poles_3_20_hz": [{"freq_hz": p.freq_hz, "damping": p.zeta} for p in poles]}
 
 
-def _run(fmu_dir, stop: float, gain: float):
-    res = run_scenario(SCENARIO, stop_time=stop, fmu_dir=fmu_dir,
+def _run(fmu_dir, stop: float, gain: float, fmu_kind="native"):
+    res = run_scenario(SCENARIO, stop_time=stop, fmu_dir=fmu_dir, fmu_kind=fmu_kind,
                        overrides={"ctrl_diag.gain": gain, "ctrl_long.gain": gain})
     return res.table
 
 
-def compute(fmu_dir="fmus", quick=False):
+def compute(fmu_dir="fmus", quick=False, fmu_kind="native"):
     """Co-simulate open and closed loop; identify the decay.
 
     Parameters
@@ -316,6 +316,8 @@ def compute(fmu_dir="fmus", quick=False):
         Folder of the FMUs (built there if missing or stale).
     quick : bool
         Shorter runs: 20 s open loop and 8 s closed loop instead of 40 s and 12 s.
+    fmu_kind : {"native", "python"}
+        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
 
     Returns
     -------
@@ -324,9 +326,9 @@ def compute(fmu_dir="fmus", quick=False):
         in s), open-loop damping ratios and fits, cycles to 90 % decay, peak voltage (V)
         and whether any amplifier or stroke limit saturated.
     """
-    ensure_fmus(FMUS, fmu_dir)
-    ol = _run(fmu_dir, 20.0 if quick else 40.0, 0.0)
-    cl = _run(fmu_dir, 8.0 if quick else 12.0, 1.0)
+    ensure_fmus(FMUS, fmu_dir, kind=fmu_kind)
+    ol = _run(fmu_dir, 20.0 if quick else 40.0, 0.0, fmu_kind)
+    cl = _run(fmu_dir, 8.0 if quick else 12.0, 1.0, fmu_kind)
     t_ol = ol["time"]
     decay = t_ol > T_EXC + 0.2
     damping, fitted = {}, {}
@@ -378,7 +380,7 @@ def plot(data, out_dir):
         plt.close(fig)
 
 
-def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
+def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native") -> dict:
     """Run the experiment and draw its figures; the JSON dict.
 
     Parameters
@@ -389,6 +391,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
         Shorter runs (see :func:`compute`).
     fmu_dir : path-like
         Folder of the FMUs (built there if missing or stale).
+    fmu_kind : {"native", "python"}
+        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
 
     Returns
     -------
@@ -396,7 +400,7 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
         Damping, cycles to 90 % decay, peak voltage (V), the linear prediction and the
         paper's values.
     """
-    data = compute(fmu_dir, quick)
+    data = compute(fmu_dir, quick, fmu_kind)
     plot(data, Path(out_dir))
     cycles = data["closed_loop_cycles_to_90pct"]
     reproduced = (all(c is not None and c <= 2.0 for c in cycles.values())

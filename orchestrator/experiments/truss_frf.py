@@ -119,7 +119,7 @@ def plot(data, path):
     plt.close(fig)
 
 
-def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
+def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native") -> dict:
     """Compute the FRFs, draw the figure into ``out_dir``; returns the JSON dict.
 
     Parameters
@@ -131,6 +131,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus") -> dict:
     fmu_dir : path-like
         Not used: the FRFs come from the finite-element and reduced models, no FMU runs;
         taken so that every experiment is called alike.
+    fmu_kind : {"native", "python"}
+        Not used either, for the same reason.
     """
     data = compute(800 if quick else 3000)
     plot(data, out_dir / f"{NAME}.png")

@@ -4,7 +4,8 @@ Variables
 ---------
 parameters
     ``preset`` (String, fixed): a name of :data:`distfmu.presets.PRESETS`, e.g.
-    ``"vnir_pointing"``, ``"swir_cryocooler"`` or ``"none"``;
+    ``"vnir_pointing"``, ``"swir_cryocooler"`` or ``"none"``, or ``"custom"``: the
+    source stored in ``resources/source.json`` by :func:`distfmu.fmuspec.spec_with_source`;
     ``seed`` (Integer, fixed): 0 keeps the preset's phases, otherwise phases are drawn
     from it (:func:`distfmu.presets.randomized`);
     ``use_speed_input`` (Boolean, fixed): drive the ``rwa`` preset from ``wheel_speed``;
@@ -28,10 +29,10 @@ from typing import ClassVar
 
 import numpy as np
 
+from distfmu.custom import CUSTOM_PRESET, SOURCE_FILE, CustomSourceError, source_from_json
 from distfmu.presets import get_preset, randomized
 from distfmu.sources import WRENCH_NAMES
-from distfmu.step import DisturbanceConfig, DisturbanceState, disturbance_output, \
-    disturbance_step
+from distfmu.step import DisturbanceConfig, DisturbanceState, disturbance_output, disturbance_step
 from fmukit.slave import FmuSlave
 
 __all__ = ["DisturbanceSlave"]
@@ -89,11 +90,21 @@ class DisturbanceSlave(FmuSlave):
 
     def _config(self) -> DisturbanceConfig:
         if self._source is None:
-            self._source = randomized(get_preset(self.preset).source, int(self.seed))
+            self._source = randomized(self._preset_source(), int(self.seed))
         stop = self.stop_time if self.stop_time > self.start_time else math.inf
         return DisturbanceConfig(self._source, scale=float(self.scale),
                                  start=float(self.start_time), stop=float(stop),
                                  speed_input=bool(self.use_speed_input))
+
+    def _preset_source(self):
+        if self.preset != CUSTOM_PRESET:
+            return get_preset(self.preset).source
+        path = self.resource_dir / SOURCE_FILE if self.resources is not None else None
+        if path is None or not path.is_file():
+            raise CustomSourceError(f"disturbance preset {CUSTOM_PRESET!r} needs the FMU's "
+                                    f"own {SOURCE_FILE}; build the FMU with "
+                                    "distfmu.fmuspec.spec_with_source")
+        return source_from_json(path.read_bytes())
 
     def _state(self, time: float) -> DisturbanceState:
         return DisturbanceState(time=time, theta=float(self.x[1]), omega=float(self.x[2]))

@@ -25,6 +25,7 @@ import numpy as np
 
 from ctrlfmu.law import load_law
 from distfmu import sources as S
+from distfmu.custom import CUSTOM_PRESET, SOURCE_FILE, source_from_json
 from distfmu.presets import PRESETS
 from distfmu.sources import Sum, Zero
 from fmutools.build import FmuSpec
@@ -187,15 +188,33 @@ def _term(source) -> list[float]:
         return [6, n, *source.harmonics, *source.force_coeffs, *source.torque_coeffs,
                 *(source.axial_coeffs or zeros), *(source.phases or zeros),
                 *np.asarray(source._frame).ravel(), source.speed]
+    if isinstance(source, S.Table):
+        n = source.times.size
+        return [7, float(source.fill == "hold"), n, *source.times,
+                *source.values.T.ravel()]
+    if isinstance(source, S.BandLimitedRandom):
+        n = source.n_samples
+        if n & (n - 1):
+            raise NativeUnsupportedError(f"band-limited random source: n_samples {n} is not "
+                                         "a power of two, which the native FFT needs")
+        if not (isinstance(source.seed, int) and 0 <= source.seed < 2**32):
+            raise NativeUnsupportedError(f"band-limited random source: seed {source.seed!r} "
+                                         "must be an integer in [0, 2**32) natively")
+        m = len(source.psd_freqs)
+        return [8, source.seed, source.sample_rate, n, kind(source.kind),
+                *S._unit(source.direction, "b"), m, *source.psd_freqs, *source.psd_values]
     raise NativeUnsupportedError(f"disturbance source {type(source).__name__} has no native "
                                  "form (supported: harmonic, chopper, scan mirror, slew, "
-                                 "stepper, constant-speed wheel imbalance, and their sum)")
+                                 "stepper, constant-speed wheel imbalance, table, "
+                                 "band-limited random, and their sum)")
 
 
 def _disturbance(spec: FmuSpec, vrs: Mapping[str, int]) -> dict:
-    out: dict = {"n_presets": len(PRESETS)}
-    for i, (name, preset) in enumerate(PRESETS.items()):
-        source = preset.source
+    sources = {name: preset.source for name, preset in PRESETS.items()}
+    if SOURCE_FILE in spec.resources:  # the FMU's own source (distfmu.fmuspec.spec_with_source)
+        sources[CUSTOM_PRESET] = source_from_json(_resource_bytes(spec, SOURCE_FILE))
+    out: dict = {"n_presets": len(sources)}
+    for i, (name, source) in enumerate(sources.items()):
         terms = [] if isinstance(source, Zero) else (
             list(source.sources) if isinstance(source, Sum) else [source])
         if any(isinstance(t, (Sum, Zero)) for t in terms):

@@ -1,11 +1,14 @@
 /* Disturbance kernel: one preset of distfmu.presets at its mount (distfmu.slave).
  *
  * resources/disturbance.dat holds every preset as a list of terms (harmonic, chopper,
- * scan mirror, slew, stepper, wheel imbalance; a preset is one term or their sum),
- * written from distfmu.presets at build time.  Each term is a line-by-line port of its
+ * scan mirror, slew, stepper, wheel imbalance, table, band-limited random; a preset is
+ * one term or their sum), written from distfmu.presets at build time, plus the FMU's own
+ * source as preset "custom" when it carries one.  Each term is a line-by-line port of its
  * wrench(t) in distfmu.sources.  A non-zero `seed` draws the phases exactly as
  * distfmu.presets.randomized does: numpy's SeedSequence (spawned per term of a sum)
- * and PCG64 with Generator.uniform, ported here bit for bit.
+ * and PCG64 with Generator.uniform, ported here bit for bit.  A band-limited random
+ * term synthesises its record the same way: phases from default_rng(seed), then an
+ * inverse FFT (radix 2 here, pocketfft in numpy: equal to round-off).
  * State: [time, theta, omega] (the input-driven wheel's rotor angle and held speed).
  */
 #include <math.h>
@@ -19,11 +22,13 @@
 #define PI 3.141592653589793
 #define MAX_TERMS 16
 
-enum { HARMONIC = 1, CHOPPER = 2, SCAN = 3, SLEW = 4, STEPPER = 5, WHEEL = 6 };
+enum { HARMONIC = 1, CHOPPER = 2, SCAN = 3, SLEW = 4, STEPPER = 5, WHEEL = 6, TABLE = 7,
+       RANDOM = 8 };
 
 typedef struct {
     size_t len;
-    double *p; /* [type, parameters...] as written by nativefmu.data */
+    double *p;   /* [type, parameters...] as written by nativefmu.data */
+    double *rec; /* a band-limited random term's record, built by choose() */
 } Term;
 
 typedef struct {
@@ -220,7 +225,11 @@ int model_instantiate(JfInstance *inst) {
 
 static void free_active(Dist *m) {
     size_t j;
-    for (j = 0; j < m->n_active; j++) free(m->active[j].p);
+    for (j = 0; j < m->n_active; j++) {
+        free(m->active[j].p);
+        free(m->active[j].rec);
+        m->active[j].rec = NULL;
+    }
     m->n_active = 0;
 }
 
@@ -254,9 +263,109 @@ static void randomise_term(Term *t, uint32_t seed) {
     case CHOPPER: /* [2, f, amp, kind, d(3), rise, duty, phase] */
         p[9] = pcg_uniform(&g, 0.0, 1.0);
         break;
+    case RANDOM: /* [8, seed, ...]: the record is drawn from the seed itself */
+        p[1] = (double)seed;
+        break;
     default:
         break;
     }
+}
+
+/* numpy.interp(x, xp, fp, left, right), the same formula and branches (n >= 2). */
+static double interp(double x, const double *xp, const double *fp, size_t n, double left,
+                     double right) {
+    size_t lo = 0, hi = n - 1;
+    double slope, r;
+    if (x != x) return x;
+    if (x > xp[n - 1]) return right;
+    if (x < xp[0]) return left;
+    if (x == xp[n - 1]) return fp[n - 1];
+    while (hi - lo > 1) { /* xp[lo] <= x < xp[hi] */
+        size_t mid = lo + (hi - lo) / 2;
+        if (xp[mid] <= x) lo = mid;
+        else hi = mid;
+    }
+    if (xp[lo] == x) return fp[lo];
+    slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo]);
+    r = slope * (x - xp[lo]) + fp[lo];
+    if (r != r) {
+        r = slope * (x - xp[lo + 1]) + fp[lo + 1];
+        if (r != r && fp[lo] == fp[lo + 1]) r = fp[lo];
+    }
+    return r;
+}
+
+/* In-place inverse DFT, x_j = sum_k X_k exp(+2 pi i j k / n), n a power of two. */
+static void inverse_fft(double *re, double *im, const double *wr, const double *wi, size_t n) {
+    size_t i, j = 0, len, k, step;
+    for (i = 1; i < n; i++) { /* bit-reversal permutation */
+        size_t bit = n >> 1;
+        for (; j & bit; bit >>= 1) j ^= bit;
+        j ^= bit;
+        if (i < j) {
+            double t = re[i];
+            re[i] = re[j];
+            re[j] = t;
+            t = im[i];
+            im[i] = im[j];
+            im[j] = t;
+        }
+    }
+    for (len = 2; len <= n; len <<= 1) {
+        step = n / len;
+        for (i = 0; i < n; i += len)
+            for (k = 0; k < len / 2; k++) {
+                size_t a = i + k, b = a + len / 2;
+                double c = wr[k * step], s = wi[k * step];
+                double tr = re[b] * c - im[b] * s, ti = re[b] * s + im[b] * c;
+                re[b] = re[a] - tr;
+                im[b] = im[a] - ti;
+                re[a] += tr;
+                im[a] += ti;
+            }
+    }
+}
+
+/* BandLimitedRandom.record: [8, seed, fs, n, kind, d(3), m, f(m), S(m)]. */
+static int random_record(JfInstance *inst, Term *t) {
+    const double *p = t->p, *f = p + 9, *S = f + (size_t)p[8];
+    size_t n = (size_t)p[3], half = n / 2, m = (size_t)p[8], k;
+    double df = p[2] / (double)n;
+    double *re = (double *)jf_alloc(inst, n, sizeof(double));
+    double *im = (double *)jf_alloc(inst, n, sizeof(double));
+    double *wr = (double *)jf_alloc(inst, half, sizeof(double));
+    double *wi = (double *)jf_alloc(inst, half, sizeof(double));
+    Pcg64 g;
+    int ok = re && im && wr && wi;
+    if (ok) {
+        pcg_seed(&g, (uint32_t)p[1]);
+        for (k = 0; k <= half; k++) { /* spectrum = 0.5 n amp exp(i phase) */
+            double phase = pcg_uniform(&g, 0.0, 2 * PI);
+            double amp = (k == 0 || k == half) ? 0.0
+                         : sqrt(2.0 * interp((double)k * df, f, S, m, 0.0, 0.0) * df);
+            double a = 0.5 * (double)n * amp;
+            re[k] = a * cos(phase);
+            im[k] = a * sin(phase);
+            if (k > 0 && k < half) { /* Hermitian: irfft of the half spectrum */
+                re[n - k] = re[k];
+                im[n - k] = -im[k];
+            }
+        }
+        im[0] = im[half] = 0.0;
+        for (k = 0; k < half; k++) {
+            wr[k] = cos(2 * PI * (double)k / (double)n);
+            wi[k] = sin(2 * PI * (double)k / (double)n);
+        }
+        inverse_fft(re, im, wr, wi, n);
+        for (k = 0; k < n; k++) re[k] = re[k] / (double)n;
+        t->rec = re;
+        re = NULL;
+    }
+    free(re);
+    free(im);
+    free(wr);
+    free(wi);
+    return ok ? JF_OK : JF_ERROR;
 }
 
 /* The chosen preset with distfmu.presets.randomized(source, seed) applied. */
@@ -300,6 +409,9 @@ static int choose(JfInstance *inst) {
             randomise_term(&m->active[0], (uint32_t)seed);
         }
     }
+    for (j = 0; j < m->n_active; j++)
+        if ((int)m->active[j].p[0] == RANDOM && random_record(inst, &m->active[j]) != JF_OK)
+            return JF_ERROR;
     m->input_driven = inst->bv[m->use_speed] && m->n_active == 1 && !m->chosen->is_sum &&
                       (int)m->active[0].p[0] == WHEEL;
     return JF_OK;
@@ -406,6 +518,25 @@ static void wheel(const double *p, double t, double w[6]) {
     wheel_at(p, speed * t, speed, w);
 }
 
+static void table(const double *p, double t, double w[6]) {
+    size_t n = (size_t)p[2], k;
+    const double *times = p + 3, *values = times + n; /* values: 6 columns of n */
+    int hold = p[1] != 0.0;
+    for (k = 0; k < 6; k++) {
+        const double *col = values + k * n;
+        w[k] += interp(t, times, col, n, hold ? col[0] : 0.0, hold ? col[n - 1] : 0.0);
+    }
+}
+
+/* BandLimitedRandom.signal: the periodic record, linear between grid points. */
+static void band_random(const Term *term, double t, double w[6]) {
+    const double *p = term->p, *rec = term->rec;
+    size_t n = (size_t)p[3], i;
+    double x = pymod(t * p[2], (double)n), fi = floor(x), frac = x - fi;
+    i = (size_t)fi % n;
+    along((1 - frac) * rec[i] + frac * rec[(i + 1) % n], p + 5, p[4], w);
+}
+
 static void term_wrench(const Term *term, double t, double w[6]) {
     switch ((int)term->p[0]) {
     case HARMONIC: harmonic(term->p, t, w); break;
@@ -414,6 +545,8 @@ static void term_wrench(const Term *term, double t, double w[6]) {
     case SLEW: slew(term->p, t, w); break;
     case STEPPER: stepper(term->p, t, w); break;
     case WHEEL: wheel(term->p, t, w); break;
+    case TABLE: table(term->p, t, w); break;
+    case RANDOM: band_random(term, t, w); break;
     default: break;
     }
 }

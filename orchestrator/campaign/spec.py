@@ -206,7 +206,12 @@ def _sweeps(items) -> tuple:
     for i, s in enumerate(items):
         if not isinstance(s, dict) or "parameter" not in s or not s.get("values"):
             raise CampaignError(f"sweep {i + 1} needs 'parameter' and a non-empty 'values'")
-        sweeps.append(tuple((str(s["parameter"]), v) for v in s["values"]))
+        parameter = str(s["parameter"])
+        inst, _, var = parameter.partition(".")
+        if not inst or not var:
+            raise CampaignError(f"sweep {i + 1} parameter {parameter!r} must have the form "
+                                "'instance.variable'")
+        sweeps.append(tuple((parameter, v) for v in s["values"]))
     return tuple(sweeps)
 
 

@@ -206,6 +206,10 @@ def test_bad_campaigns_are_rejected_with_the_culprit_named():
     d["requirements"] = [{"instrument": "C", "value": 1.0}]
     with pytest.raises(CampaignError, match="'C'"):
         campaign_from_dict(d)
+    d = campaign_data(sweep=True)
+    d["sweeps"][0]["parameter"] = "mass"   # no instance: one sentence, not a ValueError
+    with pytest.raises(CampaignError, match="sweep 1 parameter 'mass' must have the form"):
+        campaign_from_dict(d)
 
 
 def _set(path, value):

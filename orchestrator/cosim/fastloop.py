@@ -18,16 +18,13 @@ import ctypes
 import functools
 import hashlib
 import json
-import os
 import shutil
-import stat
 import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from fmutools.fmucache import CacheError, cache_root
+from fmutools.compiled import compiled_once, compiler_version
 
 __all__ = ["RUN_FMI_STATUS", "RUN_NOT_FINITE", "RUN_OK", "FastLoop", "compiled_library",
            "fast_loop"]
@@ -69,20 +66,6 @@ class _Result(ctypes.Structure):
 
 
 @functools.cache
-def _compiler_version(cc: str) -> str:
-    return subprocess.run([cc, "--version"], capture_output=True, text=True,
-                          check=False).stdout
-
-
-def _is_our_file(path: Path) -> bool:
-    try:
-        st = os.lstat(path)
-    except OSError:
-        return False
-    return stat.S_ISREG(st.st_mode) and st.st_uid == os.getuid() and st.st_size > 0
-
-
-@functools.cache
 def compiled_library() -> ctypes.CDLL | None:
     """``fastloop.c`` compiled once per configuration, or None without a C compiler.
 
@@ -94,24 +77,19 @@ def compiled_library() -> ctypes.CDLL | None:
     if cc is None:
         return None
     h = hashlib.sha256(SOURCE.read_bytes())
-    h.update(json.dumps({"cc": cc, "cc_version": _compiler_version(cc),
+    h.update(json.dumps({"cc": cc, "cc_version": compiler_version(cc),
                          "flags": [*CFLAGS, *LIBS]}, sort_keys=True).encode())
+
+    def compile_to(out):
+        proc = subprocess.run([cc, *CFLAGS, str(SOURCE), "-o", str(out), *LIBS],
+                              capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            raise OSError(proc.stderr.strip())
+
     try:
-        root = cache_root()
-    except CacheError:
-        root = Path(tempfile.mkdtemp(prefix="jitterfmu_fastloop_"))
-    dest = root / f"fastloop-{h.hexdigest()}.so"
-    if not _is_our_file(dest):
-        partial = Path(tempfile.mkdtemp(prefix=".fastloop-partial-", dir=root))
-        try:
-            out = partial / "fastloop.so"
-            proc = subprocess.run([cc, *CFLAGS, str(SOURCE), "-o", str(out), *LIBS],
-                                  capture_output=True, text=True, check=False)
-            if proc.returncode != 0:
-                return None
-            os.replace(out, dest)
-        finally:
-            shutil.rmtree(partial, ignore_errors=True)
+        dest = compiled_once("fastloop", h.hexdigest(), compile_to)
+    except OSError:   # no usable compiler: the Python loop runs
+        return None
     lib = ctypes.CDLL(str(dest))
     lib.fastloop_run.argtypes = [ctypes.POINTER(_Loop), ctypes.c_int64, ctypes.c_int64,
                                  ctypes.c_void_p, ctypes.POINTER(_Result)]

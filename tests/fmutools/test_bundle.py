@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmutools import loader
+from fmutools import compiled, loader
 from fmutools.build import build_fmu
 from fmutools.registry import collect_specs
 from tests.support.hosts import run_c_host, run_fmpy
@@ -25,7 +25,7 @@ def private_cache(tmp_path, monkeypatch):
     """An empty private cache for this test, and no loader remembered by the process."""
     root = tmp_path / "cache"
     monkeypatch.setenv("JITTERFMU_CACHE", str(root))
-    monkeypatch.setattr(loader, "_COMPILED", {})
+    monkeypatch.setattr(compiled, "_COMPILED", {})
     return root
 
 
@@ -75,7 +75,7 @@ def test_cached_loader_is_the_fresh_compile_and_is_compiled_once(private_cache, 
 
     monkeypatch.setattr(loader, "compile_loader", no_compile)
     assert loader.cached_loader() == cached
-    monkeypatch.setattr(loader, "_COMPILED", {})   # a new process finds it in the cache
+    monkeypatch.setattr(compiled, "_COMPILED", {})   # a new process finds it in the cache
     assert loader.cached_loader() == cached
 
 

@@ -6,26 +6,23 @@ See ``docs/fmu-portability.md`` for what this means on another machine.
 
 The loader depends only on that configuration, never on the FMU, so
 :func:`cached_loader` compiles it once per configuration and keeps it in the
-current user's private cache (:func:`fmutools.fmucache.cache_root`); every FMU gets
+current user's private cache (:func:`fmutools.compiled.compiled_once`); every FMU gets
 a copy of the same bytes.
 """
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
-import os
 import shutil
 import site
-import stat
 import subprocess
 import sys
 import sysconfig
 import tempfile
 from pathlib import Path
 
-from fmutools.fmucache import CacheError, cache_root
+from fmutools.compiled import compiled_once, compiler_version
 
 __all__ = ["LoaderError", "LoaderConfig", "loader_config", "compile_loader", "cached_loader",
            "REAL_BINARY_SUFFIX"]
@@ -41,7 +38,6 @@ CFLAGS = ("-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall")
 LIBS = ("-ldl", "-lpthread")
 
 # Loaders compiled or found in the cache by this process, by cache key.
-_COMPILED: dict[str, Path] = {}
 
 
 class LoaderError(RuntimeError):
@@ -135,12 +131,6 @@ def compile_loader(out: str | Path, config: LoaderConfig | None = None) -> Path:
     return out
 
 
-@functools.lru_cache(maxsize=None)
-def _compiler_version(cc: str) -> str:
-    """What ``cc --version`` prints (asked once per process)."""
-    return subprocess.run([cc, "--version"], capture_output=True, text=True).stdout
-
-
 def _cache_key(config: LoaderConfig, cc: str, include: str) -> str:
     """Hash of everything the compiled loader depends on.
 
@@ -149,20 +139,11 @@ def _cache_key(config: LoaderConfig, cc: str, include: str) -> str:
     """
     h = hashlib.sha256(SOURCE.read_bytes())
     h.update(json.dumps({
-        "config": dict(config), "cc": cc, "cc_version": _compiler_version(cc),
+        "config": dict(config), "cc": cc, "cc_version": compiler_version(cc),
         "flags": [*CFLAGS, *LIBS], "include": include, "python": sys.version,
         "soabi": sysconfig.get_config_var("SOABI"),
     }, sort_keys=True).encode())
     return h.hexdigest()
-
-
-def _is_our_file(path: Path) -> bool:
-    """True if ``path`` is a regular file (not a link) of the current user."""
-    try:
-        st = os.lstat(path)
-    except OSError:
-        return False
-    return stat.S_ISREG(st.st_mode) and st.st_uid == os.getuid() and st.st_size > 0
 
 
 def cached_loader(config: LoaderConfig | None = None) -> Path:
@@ -192,19 +173,4 @@ def cached_loader(config: LoaderConfig | None = None) -> Path:
     config = loader_config() if config is None else config
     cc, include = _toolchain()
     key = _cache_key(config, cc, include)
-    known = _COMPILED.get(key)
-    if known is not None and _is_our_file(known):
-        return known
-    try:
-        root = cache_root()
-    except CacheError:
-        root = Path(tempfile.mkdtemp(prefix="fmutools_loader_"))
-    dest = root / f"loader-{key}.so"
-    if not _is_our_file(dest):
-        partial = Path(tempfile.mkdtemp(prefix=".loader-partial-", dir=root))
-        try:
-            os.replace(compile_loader(partial / "loader.so", config), dest)
-        finally:
-            shutil.rmtree(partial, ignore_errors=True)
-    _COMPILED[key] = dest
-    return dest
+    return compiled_once("loader", key, lambda out: compile_loader(out, config))

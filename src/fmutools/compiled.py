@@ -1,0 +1,80 @@
+"""C libraries compiled once per configuration and kept in the private cache.
+
+The C loader of the Python FMUs (:mod:`fmutools.loader`) and the master's compiled tick
+loop (:mod:`orchestrator.cosim.fastloop`) are both built this way: the cache entry
+``<name>-<key>.so`` is keyed by a hash of everything the library depends on, compiled
+into a temporary folder and renamed into place (a killed build never leaves half a
+library), and used only if it is a regular file of the current user.  When the cache
+cannot be used, the library is compiled into a temporary folder of this process.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import shutil
+import stat
+import subprocess
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from fmutools.fmucache import CacheError, cache_root
+
+__all__ = ["compiler_version", "compiled_once", "is_own_file"]
+
+_COMPILED: dict[str, Path] = {}
+
+
+@functools.cache
+def compiler_version(cc: str) -> str:
+    """What ``cc --version`` prints (asked once per process)."""
+    return subprocess.run([cc, "--version"], capture_output=True, text=True,
+                          check=False).stdout
+
+
+def is_own_file(path: Path) -> bool:
+    """True if ``path`` is a non-empty regular file (not a link) of the current user."""
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    return stat.S_ISREG(st.st_mode) and st.st_uid == os.getuid() and st.st_size > 0
+
+
+def compiled_once(name: str, key: str, compile_to: Callable[[Path], object]) -> Path:
+    """The library ``<name>-<key>.so``, compiled by ``compile_to`` the first time.
+
+    Parameters
+    ----------
+    name : str
+        File name prefix, e.g. ``"loader"``.
+    key : str
+        Hash of everything the library depends on (source, configuration, compiler,
+        flags).
+    compile_to : callable
+        ``compile_to(path)`` writes the library to ``path`` or raises.
+
+    Returns
+    -------
+    Path
+        The cached library; copy or load it, never modify it.
+    """
+    known = _COMPILED.get(f"{name}-{key}")
+    if known is not None and is_own_file(known):
+        return known
+    try:
+        root = cache_root()
+    except CacheError:
+        root = Path(tempfile.mkdtemp(prefix=f"fmutools_{name}_"))
+    dest = root / f"{name}-{key}.so"
+    if not is_own_file(dest):
+        partial = Path(tempfile.mkdtemp(prefix=f".{name}-partial-", dir=root))
+        try:
+            out = partial / f"{name}.so"
+            compile_to(out)
+            os.replace(out, dest)
+        finally:
+            shutil.rmtree(partial, ignore_errors=True)
+    _COMPILED[f"{name}-{key}"] = dest
+    return dest

@@ -286,10 +286,7 @@ def _source_block(name, period, outputs) -> Block:
 def _instance_block(plan, inst, tmp: Path) -> Block:
     info = plan.fmus[inst.name]
     res = tmp / inst.name
-    path = info.path
-    twin = path.parent / "python" / path.name
-    if twin.is_file():  # a native FMU named by path: its Python twin carries the model
-        path = twin
+    path = info.path  # the Python twin where there is one (fmu_kind = "python")
     with zipfile.ZipFile(path) as z:
         for member in z.namelist():
             if member.startswith("resources/") and not member.endswith("/"):

@@ -32,7 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build; return 0, or 1 when an FMU has validation problems."""
     # deferred: the parser imports every subcommand (orchestrator.cli)
-    from fmutools.ensure import PYTHON_SUBDIR, record_built
+    from fmutools import PYTHON_SUBDIR
+    from fmutools.ensure import record_built
     from fmutools.registry import build_all
     from nativefmu.build import build_all_native, build_native_structure
     from structfmu.fmuspec import build_structure_fmu

@@ -7,6 +7,8 @@ from pathlib import Path
 
 from fmpy import read_model_description
 
+from fmutools import PYTHON_SUBDIR
+
 from ..files import sha256_file
 from ..scenario import Scenario, ScenarioError, closest
 
@@ -125,10 +127,10 @@ def find_fmu(name: str, scenario: Scenario, fmu_dir=None) -> Path:
 
     A bare name ``x`` is looked up as ``x.fmu`` in `fmu_dir`, then in ``fmus/`` next to
     the scenario file, next to it, in ``fmus/`` of its parent folder, and in ``fmus/`` of
-    the current folder.  Under ``fmu_kind = "python"`` each folder's ``python/``
-    subfolder (where the Python build of the suite's FMUs lives) is tried before the
-    folder itself.  A name with a suffix or a folder is a path (relative to the scenario
-    folder, then the current folder).
+    the current folder.  A name with a suffix or a folder is a path (relative to the
+    scenario folder, then the current folder).  Under ``fmu_kind = "python"`` the Python
+    twin (``python/`` beside the FMU, where the Python build of the suite's FMUs lives) is
+    tried before each candidate.
 
     Parameters
     ----------
@@ -144,24 +146,30 @@ def find_fmu(name: str, scenario: Scenario, fmu_dir=None) -> Path:
     Path
         The FMU file.
     """
+    python = scenario.experiment.fmu_kind == "python"
+
+    def builds(path: Path) -> tuple:
+        """Where ``path`` may be, its Python twin first under ``fmu_kind = "python"``."""
+        return ((path.parent / PYTHON_SUBDIR / path.name,) if python else ()) + (path,)
+
     p = Path(name)
     if p.suffix.lower() == ".fmu" or len(p.parts) > 1:
         for cand in ([p] if p.is_absolute() else
                      [(scenario.base_dir or Path.cwd()) / p, Path.cwd() / p]):
-            if cand.is_file():
-                return cand
+            found = next((c for c in builds(cand) if c.is_file()), None)
+            if found is not None:
+                return found
         raise ScenarioError(f"FMU file {name!r} does not exist")
     dirs = _search_dirs(scenario, fmu_dir)
-    python = scenario.experiment.fmu_kind == "python"
     for d in dirs:
-        for cand in ((d / "python" / f"{name}.fmu",) if python else ()) + (d / f"{name}.fmu",):
-            if cand.is_file():
-                return cand
-    other = next((d for d in dirs if (d / "python" / f"{name}.fmu").is_file()), None)
+        found = next((c for c in builds(d / f"{name}.fmu") if c.is_file()), None)
+        if found is not None:
+            return found
+    other = next((d for d in dirs if (d / PYTHON_SUBDIR / f"{name}.fmu").is_file()), None)
     if other is not None:
         raise ScenarioError(
-            f"FMU {name!r} has only a Python build (in {other / 'python'}); build the native "
-            "FMUs (jitterfmu build) or run with the Python ones (--python-fmus, or "
+            f"FMU {name!r} has only a Python build (in {other / PYTHON_SUBDIR}); build the "
+            "native FMUs (jitterfmu build) or run with the Python ones (--python-fmus, or "
             "fmu_kind = \"python\" in [experiment])")
     known = sorted({f.stem for d in dirs if d.is_dir() for f in d.glob("*.fmu")})
     where = ", ".join(str(d) for d in dirs)

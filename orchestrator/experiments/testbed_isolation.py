@@ -46,7 +46,7 @@ import numpy as np
 from ctrlfmu.analysis import to_statespace
 from ctrlfmu.designs import design
 from fmukit.units import ARCSEC_PER_RAD
-from fmutools.ensure import PYTHON_SUBDIR
+from fmutools import PYTHON_SUBDIR
 from fmutools.ensure import ensure_fmus as _ensure
 from piezofmu.amplifier import amplifier_preset
 from structfmu.fmuspec import spec_from_model

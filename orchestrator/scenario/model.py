@@ -17,6 +17,8 @@ from fractions import Fraction
 from pathlib import Path
 from types import MappingProxyType
 
+from fmutools import FMU_KINDS
+
 from ..timebase import TimebaseError, to_fraction
 
 __all__ = [
@@ -32,9 +34,8 @@ __all__ = [
 ]
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
-#: Which build of the suite's FMUs a scenario runs: the self-contained C FMUs, or the
-#: Python (pythonfmu) ones, kept in the ``python/`` subfolder of an FMU folder.
-FMU_KINDS = ("native", "python")
+#: Which build of the suite's FMUs a scenario runs (:data:`fmutools.FMU_KINDS`): the
+#: self-contained C FMUs, or the Python (pythonfmu) ones in an FMU folder's ``python/``.
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 

@@ -11,4 +11,13 @@
   archives, compiled loaders).
 
 What an FMU carries at run time is :mod:`fmukit` (and the slave's own packages).
+
+An FMU folder holds each suite FMU in two builds: the native (C99) one in the folder
+itself, its Python (pythonfmu) twin in :data:`PYTHON_SUBDIR`; :data:`FMU_KINDS` names
+them.
 """
+
+#: Subfolder of an FMU folder that holds the Python build of the suite's FMUs.
+PYTHON_SUBDIR = "python"
+#: The two builds of a suite FMU.
+FMU_KINDS = ("native", "python")

@@ -22,16 +22,14 @@ try:
 except ImportError:  # pragma: no cover - not POSIX: builds are not serialised
     fcntl = None
 
+from fmutools import FMU_KINDS, PYTHON_SUBDIR
 from fmutools.build import build_fmu
 from fmutools.registry import SOURCE_PACKAGES, collect_specs, sources_hash
 from nativefmu.build import build_native
 from nativefmu.data import NativeUnsupportedError
 
-__all__ = ["ensure_fmus", "record_built", "PYTHON_SUBDIR", "FMU_KINDS"]
+__all__ = ["ensure_fmus", "record_built"]
 
-#: Subfolder of an FMU folder that holds the Python build of the suite's FMUs.
-PYTHON_SUBDIR = "python"
-FMU_KINDS = ("native", "python")
 
 
 def ensure_fmus(names: Iterable[str], fmu_dir="fmus", progress: Callable | None = None,
@@ -98,11 +96,18 @@ def record_built(folder, names: Iterable[str], kind: str) -> None:
     kind : {"native", "python"}
         Which build they are.
     """
-    folder = Path(folder)
-    stamp_file = folder / ".sources"
-    stamps = json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
     current = sources_hash(NATIVE_PACKAGES if kind == "native" else SOURCE_PACKAGES)
-    stamps.update({n: current for n in names})
+    _write_stamps(Path(folder), {**_stamps(Path(folder)), **{n: current for n in names}})
+
+
+def _stamps(folder: Path) -> dict:
+    """``{name: sources hash}`` of the FMUs built in ``folder`` (``.sources``)."""
+    stamp_file = folder / ".sources"
+    return json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
+
+
+def _write_stamps(folder: Path, stamps: dict) -> None:
+    stamp_file = folder / ".sources"
     tmp = stamp_file.with_suffix(".tmp")
     tmp.write_text(json.dumps(stamps, indent=1))
     tmp.replace(stamp_file)
@@ -126,8 +131,7 @@ def _ensure(names, folder: Path, progress, extra, packages, build) -> dict:
 
 
 def _ensure_unlocked(names, folder: Path, progress, extra, packages, build) -> dict:
-    stamp_file = folder / ".sources"
-    stamps = json.loads(stamp_file.read_text()) if stamp_file.is_file() else {}
+    stamps = _stamps(folder)
     current = sources_hash(packages)
     todo = [n for n in names
             if not (folder / f"{n}.fmu").is_file() or stamps.get(n) != current]
@@ -140,7 +144,5 @@ def _ensure_unlocked(names, folder: Path, progress, extra, packages, build) -> d
                 progress(f"building {folder / n}.fmu")
             build(specs[n] if n in specs else extra[n]())
             stamps[n] = current
-            tmp = stamp_file.with_suffix(".tmp")
-            tmp.write_text(json.dumps(stamps, indent=1))
-            tmp.replace(stamp_file)
+            _write_stamps(folder, stamps)
     return {n: folder / f"{n}.fmu" for n in names}

@@ -123,10 +123,12 @@ def test_testbed_isolation(testbed, out):
     assert res["ideal_ceiling_pct"]["all_mounts"] >= 90.0
     # the isolation attenuates the boresight jitter in the co-simulation, as designed on
     # the linear model (zero gains give 0 %, a flipped sign amplifies or goes unstable)
-    # (the designed values are 22 % and 7 %; the quick run measures 2.4 s after switch-on,
-    # while the 0.5 %-damped 23 Hz bus mode is still settling)
+    # (the designed values are 22 % and 25 %, each mount with its own gain; the quick run
+    # measures 2.4 s after switch-on, while the 0.5 %-damped 23 Hz bus mode still settles)
     assert lin["mount3"] >= 15.0 and red["mount3"] >= 12.0
-    assert lin["all_mounts"] >= 4.0 and red["all_mounts"] >= 3.0
+    assert lin["all_mounts"] >= 18.0 and red["all_mounts"] >= 12.0
+    # even as pure feedforward the stated compensator's bus path could not reach 70 %
+    assert 0.0 < res["feedforward_bound_mount3_pct"] < 70.0
     assert red["mount3"] == pytest.approx(lin["mount3"], abs=8.0)
     assert (out / "testbed-isolation.png").is_file()
 
@@ -150,10 +152,11 @@ def testbed_hybrid(out, suite_fmu_dir):
     return testbed_isolation.run(out, quick=False, fmu_dir=suite_fmu_dir, variant="hybrid")
 
 
-def test_testbed_isolation_hybrid_mount3_reaches_the_papers_attenuation(testbed_hybrid, out):
+def test_testbed_isolation_hybrid_reaches_the_papers_attenuation(testbed_hybrid, out):
     # mount #3 a hybrid isolator (stack + elastomer, eos_testbed.build(iso3="hybrid")),
     # the law exactly as stated at 7 times its gains: the paper's "about 80 %" with
-    # mount #3 alone, at >= 6 dB gain margin and inside +-50 V
+    # mount #3 alone and 50-80 % with all three (each mount its own gain), at >= 6 dB
+    # gain margin and inside +-50 V
     res = testbed_hybrid
     red, lin = res["jitter_reduction_pct"], res["linear_reduction_pct"]
     assert res["variant"] == "hybrid"
@@ -162,19 +165,19 @@ def test_testbed_isolation_hybrid_mount3_reaches_the_papers_attenuation(testbed_
     assert lin["mount3"] >= 80.0
     assert red["mount3"] >= 70.0
     assert res["boresight_rms"]["mount3"]["before_after_reduction_pct"] >= 70.0
+    assert 50.0 <= red["all_mounts"] <= 80.0
+    assert all(g != 0.0 for g in res["gain"]["all_mounts"])
+    assert res["reproduced"] is True
     # no controller can beat the least-squares bound
-    assert lin["mount3"] <= res["optimal_bound_pct"]["mount3"] + 1e-6
+    for k in ("mount3", "all_mounts"):
+        assert lin[k] <= res["optimal_bound_pct"][k] + 1e-6
     assert (out / "testbed-isolation-hybrid.png").is_file()
 
 
-@pytest.mark.xfail(strict=True, reason="with the hybrid mount #3, iso1 and iso2 stay stiff: "
-                   "all three loops together allow only 0.35 of the gains at 6 dB (5 %), and "
-                   "the isolation bandwidth is 30 Hz, not 45 (docs/eos_experiments.md)")
-def test_testbed_isolation_hybrid_reaches_the_papers_all_mounts_and_bandwidth(testbed_hybrid):
-    red = testbed_hybrid["jitter_reduction_pct"]
-    assert 50.0 <= red["all_mounts"] <= 80.0
+@pytest.mark.xfail(strict=True, reason="the isolation bandwidth of the hybrid mount #3 is "
+                   "30 Hz, not the paper's 45 (docs/eos_experiments.md)")
+def test_testbed_isolation_hybrid_reaches_the_papers_bandwidth(testbed_hybrid):
     assert testbed_hybrid["isolation_bandwidth_hz"] == pytest.approx(45.0, abs=7.0)
-    assert testbed_hybrid["reproduced"] is True
 
 
 @pytest.fixture(scope="module")

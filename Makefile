@@ -40,6 +40,8 @@ build: setup
 EXPERIMENTS := truss-frf truss-decay testbed-isolation swir-isolation eos-budget
 reproduce: setup
 	for e in $(EXPERIMENTS); do $(VENV)/bin/jitterfmu reproduce $$e --out out/reproduce || exit 1; done
+	$(VENV)/bin/jitterfmu reproduce testbed-isolation --variant hybrid --out out/reproduce/hybrid
+	$(VENV)/bin/jitterfmu reproduce swir-isolation --variant central --out out/reproduce/central
 
 bench: setup
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

@@ -28,9 +28,12 @@ def add_arguments(parser):
                         dest="fmu_kind", default=None,
                         help="run the Python build of the suite's FMUs (FMU_DIR/python/) "
                              "instead of the native ones")
-    parser.add_argument("--variant", default=None, choices=("stiff", "hybrid"),
+    parser.add_argument("--variant", default=None,
+                        choices=("stiff", "hybrid", "decentralized", "central"),
                         help="testbed-isolation: mount #3 as the paper describes it (stiff, "
-                             "default) or the hybrid isolator (stack + elastomer)")
+                             "default) or the hybrid isolator (stack + elastomer); "
+                             "swir-isolation: the paper's law on each leg (decentralized, "
+                             "default) or one controller on all twelve strains (central)")
 
 
 def run(args) -> int:

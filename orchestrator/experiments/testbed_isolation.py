@@ -112,7 +112,8 @@ def ensure_fmus(fmu_dir="fmus", variant="stiff", kind="native") -> Path:
         The FMU folder, resolved.
     """
     if variant not in VARIANTS:
-        raise ValueError(f"variant is {variant!r}; expected one of {VARIANTS}")
+        raise ValueError(f"variant is {variant!r}; testbed-isolation takes one of "
+                         f"{', '.join(VARIANTS)}")
     fdir = eos.ensure_fmus(fmu_dir, kind=kind)
     if variant == "hybrid":
         _ensure([HYBRID_STRUCTURE], fdir, extra={

@@ -896,6 +896,7 @@ def plot(data, out_dir, stem="testbed-isolation"):
         ax.plot(r[last], p[last], ".", ms=2, label=f"{label}, last 1.2 s")
     ax.set_xlabel("roll (arcsec)")
     ax.set_ylabel("pitch (arcsec)")
+    ax.xaxis.set_major_locator(plt.MaxNLocator(5))
     ax.set_title("Fig. 16 style: image-plane jitter")
     ax.set_aspect("equal", "datalim")
     ax.grid(alpha=0.3)

@@ -22,6 +22,11 @@ Two halves:
 * **Co-simulation** of the same loop with the FMUs (isolation off, then on), the numbers
   the JSON reports as the result.
 
+``variant="central"`` (``jitterfmu reproduce swir-isolation --variant central``) replaces
+the twelve laws by one controller on all twelve strains (:func:`central_law`, an LQG, run
+as the 12-in/12-out controller FMU ``CENTRAL_FMU``): what the same gauges and stacks can
+do when their signals are combined.  The default run reports its linear result too.
+
 Loads are scaled by 1/10 (the testbed's mass and stiffness scale), so strokes and angles
 are those of the full-scale spacecraft, and full-scale forces are the testbed's times 10.
 """

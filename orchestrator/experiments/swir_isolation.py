@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import tomllib
 import warnings
-import zipfile
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -46,10 +45,9 @@ from acsfmu.pid import AcsConfig, PidGains, acs_advance, acs_outputs, initial_st
 from ctrlfmu.analysis import frequency_response, mode_damping, to_statespace
 from ctrlfmu.designs import design
 from ctrlfmu.fmuspec import law_spec
-from ctrlfmu.law import DiscreteLaw, law_bytes
+from ctrlfmu.law import DiscreteLaw
 from distfmu.presets import get_preset
 from fmukit.units import ARCSEC, LBF
-from fmutools import PYTHON_SUBDIR
 from fmutools.ensure import ensure_fmus as _ensure
 from orchestrator import UnconnectedInputWarning, run_scenario
 from orchestrator.metrics import peak_to_peak
@@ -817,15 +815,8 @@ def ensure_fmus(fmu_dir="fmus", kind="native", central=None) -> Path:
     Path
     """
     fdir = eos.ensure_fmus(fmu_dir, OTHER_FMUS, kind)
-    if central is not None:
-        data = law_bytes(central)
-        twin = fdir / PYTHON_SUBDIR / f"{CENTRAL_FMU}.fmu"
-        if twin.is_file():
-            with zipfile.ZipFile(twin) as z:
-                if z.read("resources/law.npz") != data:     # another design: rebuild
-                    for f in (twin, fdir / f"{CENTRAL_FMU}.fmu"):
-                        f.unlink(missing_ok=True)
-        _ensure([CENTRAL_FMU], fdir, extra={CENTRAL_FMU: lambda: law_spec(central, CENTRAL_FMU)},
+    if central is not None:     # a ready spec: another law is another stamp, so a rebuild
+        _ensure([CENTRAL_FMU], fdir, extra={CENTRAL_FMU: law_spec(central, CENTRAL_FMU)},
                 kind=kind)
     return fdir
 

@@ -11,10 +11,12 @@ tests never run stale FMUs.  A scenario chooses the build it runs with
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 from collections.abc import Callable, Iterable, Mapping
 from contextlib import contextmanager
+from dataclasses import fields
 from pathlib import Path
 
 try:
@@ -23,7 +25,7 @@ except ImportError:  # pragma: no cover - not POSIX: builds are not serialised
     fcntl = None
 
 from fmutools import FMU_KINDS, PYTHON_SUBDIR
-from fmutools.build import build_fmu
+from fmutools.build import FmuSpec, build_fmu
 from fmutools.registry import SOURCE_PACKAGES, collect_specs, sources_hash
 from nativefmu.build import build_native
 from nativefmu.data import NativeUnsupportedError
@@ -33,7 +35,8 @@ __all__ = ["ensure_fmus", "record_built"]
 
 
 def ensure_fmus(names: Iterable[str], fmu_dir="fmus", progress: Callable | None = None,
-                extra: Mapping[str, Callable] | None = None, kind: str = "native") -> dict:
+                extra: Mapping[str, Callable | FmuSpec] | None = None,
+                kind: str = "native") -> dict:
     """Paths of the named FMUs of one build, building missing or stale ones.
 
     Parameters
@@ -44,10 +47,12 @@ def ensure_fmus(names: Iterable[str], fmu_dir="fmus", progress: Callable | None 
         FMU folder: the native FMUs in it, the Python ones in ``fmu_dir/python/``.
     progress : callable, optional
         Called with one line of text per FMU built.
-    extra : mapping of str to callable, optional
-        FMUs the registry does not know, as ``name -> () -> FmuSpec`` (e.g. a structure
-        built from a variant of a built-in model); stamped and rebuilt like the others,
-        the spec made only when the FMU is missing or stale.
+    extra : mapping of str to callable or FmuSpec, optional
+        FMUs the registry does not know.  ``name -> () -> FmuSpec`` (e.g. a structure
+        built from a variant of a built-in model) is stamped and rebuilt like the others,
+        the spec made only when the FMU is missing or stale.  ``name -> FmuSpec`` (a
+        spec that is cheap to make, e.g. a controller from a law designed at run time)
+        is also rebuilt when the spec itself changed (its content joins the stamp).
     kind : {"native", "python"}
         Which build to return.  ``"native"`` builds the Python FMUs first (the native
         build reads them); an FMU without a C kernel is then the Python one, copied.
@@ -133,8 +138,9 @@ def _ensure(names, folder: Path, progress, extra, packages, build) -> dict:
 def _ensure_unlocked(names, folder: Path, progress, extra, packages, build) -> dict:
     stamps = _stamps(folder)
     current = sources_hash(packages)
+    want = {n: _stamp(current, extra.get(n)) for n in names}
     todo = [n for n in names
-            if not (folder / f"{n}.fmu").is_file() or stamps.get(n) != current]
+            if not (folder / f"{n}.fmu").is_file() or stamps.get(n) != want[n]]
     if todo:
         known = [n for n in todo if n not in extra]
         # an unknown name raises UnknownModelError, listing the FMUs the project knows
@@ -142,7 +148,29 @@ def _ensure_unlocked(names, folder: Path, progress, extra, packages, build) -> d
         for n in todo:
             if progress:
                 progress(f"building {folder / n}.fmu")
-            build(specs[n] if n in specs else extra[n]())
-            stamps[n] = current
+            spec = specs.get(n) or extra[n]
+            build(spec() if callable(spec) else spec)
+            stamps[n] = want[n]
             _write_stamps(folder, stamps)
     return {n: folder / f"{n}.fmu" for n in names}
+
+
+def _stamp(sources: str, entry) -> str:
+    """The stamp of an FMU: the sources hash, and for a ready spec its content too."""
+    return sources if entry is None or callable(entry) else f"{sources}+{_spec_digest(entry)}"
+
+
+def _spec_digest(spec: FmuSpec) -> str:
+    """SHA-256 of what a build reads from ``spec`` (fields and resource contents)."""
+    h = hashlib.sha256()
+    for f in fields(spec):
+        value = getattr(spec, f.name)
+        if f.name == "resources":
+            for name in sorted(value):
+                data = value[name]
+                data = data if isinstance(data, bytes) else Path(data).read_bytes()
+                h.update(f"{name}:{len(data)}:".encode())
+                h.update(data)
+        else:
+            h.update(f"{f.name}={value!r};".encode())
+    return h.hexdigest()

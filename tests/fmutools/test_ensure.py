@@ -61,3 +61,21 @@ def test_two_processes_ensuring_one_folder_build_each_fmu_once(tmp_path):
     builds = [line for out, _ in outs for line in out.splitlines() if line.startswith("building")]
     assert len(builds) == 2   # the Python twin and the native FMU, by one of the two
     assert is_native(tmp_path / "excitation.fmu")
+
+
+def test_a_ready_spec_is_rebuilt_when_it_changes_and_only_then(tmp_path):
+    # an extra FMU given as a spec (not a factory): its content joins the stamp
+    from ctrlfmu.designs import design
+    from ctrlfmu.fmuspec import law_spec
+
+    law = design("testbed_isolation")
+    built = ensure_fmus(["ctl"], tmp_path, extra={"ctl": law_spec(law, "ctl")},
+                        kind="python")["ctl"]
+    t0 = built.stat().st_mtime_ns
+    ensure_fmus(["ctl"], tmp_path, extra={"ctl": law_spec(law, "ctl")}, kind="python")
+    assert built.stat().st_mtime_ns == t0                     # same spec: not rebuilt
+    other = law_spec(law.with_gain(2.0), "ctl")
+    ensure_fmus(["ctl"], tmp_path, extra={"ctl": other}, kind="python")
+    assert built.stat().st_mtime_ns != t0                     # another law: rebuilt
+    with zipfile.ZipFile(built) as z:
+        assert z.read("resources/law.npz") == other.resources["law.npz"]

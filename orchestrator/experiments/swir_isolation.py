@@ -262,8 +262,8 @@ def central_gains(plant: Plant, rho: float = CENTRAL_WEIGHTS["rho"],
         feedback, ``u = -K xh``) and ``L`` (one-step predictor gain); ``sensors`` and
         ``actuators`` as indices into ``LEGS``.
     """
-    # deferred: scipy takes about 1 s to load
-    import scipy.linalg as la
+    # deferred: python-control takes about 1 s to load
+    import control
 
     si = [LEGS.index(leg) for leg in sensors]
     ai = [LEGS.index(leg) for leg in actuators]
@@ -275,21 +275,20 @@ def central_gains(plant: Plant, rho: float = CENTRAL_WEIGHTS["rho"],
     w = vnir_wrench(np.arange(0.0, 1.1, H))
     bw = plant.Bw[keep, :6] @ np.linalg.svd(w, full_matrices=False)[2][0]
     n, m, ms = A.shape[0], len(ai), len(si)
-    static = la.solve(np.eye(n) - A, np.column_stack([Bf, bw]))
+    static = np.linalg.solve(np.eye(n) - A, np.column_stack([Bf, bw]))
     # the stack FMU's sample: augmented state [x, f], f_{k+1} = u_k
     Aa = np.block([[A, Bf], [np.zeros((m, n + m))]])
     Ba = np.vstack([np.zeros((n, m)), np.eye(m)])
     Ca = np.hstack([Cs, np.zeros((ms, m))])
     Cpa = np.hstack([Cp, np.zeros((1, m))])
     R = rho * np.abs(Cp @ static[:, :m]).max() ** 2 * np.eye(m)
-    X = la.solve_discrete_are(Aa, Ba, Cpa.T @ Cpa, R)
-    K = la.solve(R + Ba.T @ X @ Ba, Ba.T @ X @ Aa)
+    K = control.dlqr(Aa, Ba, Cpa.T @ Cpa, R)[0]
     strain_w, strain_f = np.abs(Cs @ static[:, m]).max(), np.abs(Cs @ static[:, :m]).max()
     Gw = np.vstack([np.column_stack([bw, q * strain_w / strain_f * Bf]),
                     np.zeros((m, 1 + m))])
     V = (snr * strain_w) ** 2 * np.eye(ms)
-    P = la.solve_discrete_are(Aa.T, Ca.T, Gw @ Gw.T, V)
-    L = Aa @ P @ Ca.T @ np.linalg.inv(Ca @ P @ Ca.T + V)
+    # dlqe's gain is the one-step predictor's, A P C' (C P C' + V)^-1
+    L = control.dlqe(Aa, Gw, Ca, np.eye(1 + m), V)[0]
     return {"Aa": Aa, "Ba": Ba, "Ca": Ca, "K": K, "L": L, "sensors": si, "actuators": ai}
 
 

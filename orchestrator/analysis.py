@@ -751,6 +751,46 @@ def _boundary(stable, start, grid, rtol):
     return math.inf if grid[-1] > start else -math.inf
 
 
+def stability_margin_db(stable: Callable[[float], bool], step: float = 2.0,
+                        limit: float = 1e4, tol: float = 1.005,
+                        beyond: float = math.inf) -> float:
+    """Gain margin (dB) from a stability test on a factor on the loop gain(s).
+
+    From factor 1, ``step`` by ``step`` (> 1 up, < 1 down) until ``stable`` fails, then
+    geometric bisection until the bracket's ratio is at most ``tol``; the margin is
+    ``|20 log10|`` of the last stable factor.
+
+    Parameters
+    ----------
+    stable : callable
+        ``stable(factor)``: is the closed loop stable with the gains times ``factor``?
+    step : float
+        Factor between search points: 2 for the upper margin, 0.5 for the lower one.
+    limit : float
+        Largest factor (or smallest, ``1 / limit``, going down) searched (-).
+    tol : float
+        Ratio of the final bracket (-), e.g. 1.005 for 0.5 %.
+    beyond : float
+        Returned (dB) when the loop is still stable past ``limit``.
+
+    Returns
+    -------
+    float
+        Margin (dB); ``-inf`` if unstable at factor 1.
+    """
+    if not stable(1.0):
+        return -math.inf
+    lo, hi = 1.0, step
+    while stable(hi):
+        lo, hi = hi, hi * step
+        if abs(math.log10(hi)) > math.log10(limit):
+            return beyond
+    while max(hi / lo, lo / hi) > tol:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return abs(20 * math.log10(lo))
+
+
 # ---------------------------------------------------------------------------------------
 # Building, ceiling, report
 

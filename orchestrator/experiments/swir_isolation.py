@@ -50,6 +50,7 @@ from distfmu.presets import get_preset
 from fmukit.units import ARCSEC, LBF
 from fmutools.ensure import ensure_fmus as _ensure
 from orchestrator import UnconnectedInputWarning, run_scenario
+from orchestrator.analysis import stability_margin_db
 from orchestrator.metrics import peak_to_peak
 from piezofmu import preset
 from structfmu.models import eos_testbed
@@ -744,18 +745,8 @@ def mimo_gain_margin(plant: Plant, law_, gain: float = GAIN, down: bool = False)
     def stable(g):
         return spectral_radius(flexible(closed_loop(plant, law_, g)[0], plant)) < 1.0 + RIGID_TOL
 
-    if not stable(gain):
-        return -np.inf
-    step = 0.5 if down else 2.0
-    lo, hi = gain, gain * step
-    while stable(hi):
-        lo, hi = hi, hi * step
-        if abs(np.log10(hi / gain)) > 4:
-            return np.inf
-    for _ in range(12):
-        mid = np.sqrt(lo * hi)
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return float(abs(20 * np.log10(lo / gain)))
+    # 1.0002: twelve bisections of a factor-2 bracket
+    return stability_margin_db(lambda f: stable(gain * f), 0.5 if down else 2.0, 1e4, 1.0002)
 
 
 def damping(plant: Plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:

@@ -58,6 +58,7 @@ from structfmu.models import eos_testbed
 from structfmu.reduced import ReducedModel
 from structfmu.statespace import first_order
 
+from ..analysis import stability_margin_db
 from ..run import run_scenario
 from . import eos
 
@@ -331,18 +332,9 @@ def loop_margins_db(plant, mounts, gain=1.0) -> dict:
 
 
 def _margin(stable, max_factor=64.0) -> float:
-    """dB of the largest factor ``f >= 1`` with ``stable(f)`` (bisection to 0.5 %)."""
-    if not stable(1.0):
-        return -np.inf
-    lo, hi = 1.0, 2.0
-    while stable(hi):
-        lo, hi = hi, 2 * hi
-        if hi > max_factor:
-            return 20 * np.log10(max_factor)
-    while hi / lo > 1.005:
-        mid = np.sqrt(lo * hi)
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return float(20 * np.log10(lo))
+    """dB of the largest factor ``f >= 1`` with ``stable(f)`` (bisection to 0.5 %);
+    ``20 log10(max_factor)`` when still stable past it."""
+    return stability_margin_db(stable, 2.0, max_factor, 1.005, 20 * np.log10(max_factor))
 
 
 def _at(sys, f):

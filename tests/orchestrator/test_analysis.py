@@ -179,3 +179,16 @@ def test_native_fmus_without_their_python_twins_are_named(fmus, tmp_path):
         shutil.copy(fmus / f"{name}.fmu", tmp_path / f"{name}.fmu")   # native ones only
     with pytest.raises(AnalysisError, match="is a native build .* run 'jitterfmu build'"):
         linearize(SCENARIO, fmu_dir=tmp_path)
+
+
+def test_stability_margin_db_against_known_limits():
+    from orchestrator.analysis import stability_margin_db
+
+    # stable below a factor of 3.7 (up) and above 0.25 (down): margins 20 log10 of those,
+    # to the bracket tolerance, from the stable side
+    up = stability_margin_db(lambda f: f < 3.7, tol=1.001)
+    assert 20 * np.log10(3.7 / 1.001) <= up <= 20 * np.log10(3.7)
+    down = stability_margin_db(lambda f: f > 0.25, step=0.5, tol=1.001)
+    assert 20 * np.log10(4 / 1.001) <= down <= 20 * np.log10(4.0)
+    assert stability_margin_db(lambda f: False) == -np.inf
+    assert stability_margin_db(lambda f: True, limit=64.0, beyond=36.0) == 36.0

@@ -145,6 +145,10 @@ def _piezo_block(slave, name, period, h, ft):
     if act.hysteresis is not None:
         raise AnalysisError(f"instance {name!r} has hysteresis on; the linear analysis "
                             "needs hysteresis=false")
+    coupling = slave._coupling()
+    if coupling == 1 and abs(h - float(slave.hold_step)) > 1e-9 * h:
+        raise AnalysisError(f"instance {name!r} steps every {h} s but its hold_step is "
+                            f"{slave.hold_step} s; set hold_step to its period")
     amp, stack = act.amplifier, act.stack
     n_sub, hs = substeps(h, amp.internal_step)
     coef = _coefficients(amp, hs)
@@ -154,19 +158,40 @@ def _piezo_block(slave, name, period, h, ft):
     outs = ("force", "voltage", "current", "free_stroke", "strain")
     gl = act.gauge.length
     if amp.order == 1:
-        a = coef[0] ** n_sub
-        A, B = np.array([[a]]), np.array([[1.0 - a, 0.0]])
+        As, Bs = np.array([[coef[0]]]), np.array([[1.0 - coef[0]]])
+    else:
+        a11, a12, a21, a22, b1, b2 = coef
+        As, Bs = np.array([[a11, a12], [a21, a22]]), np.array([[b1], [b2]])
+    A1, B1 = _lift(As, Bs, n_sub)
+    A, B = A1, np.hstack([B1, np.zeros((A1.shape[0], 1))])
+    if amp.order == 1:
         w = amp.omega
         C = np.array([[ch], [1.0], [-cap * w], [act.stroke_per_volt], [0.0]])
         D = np.array([[0, 0], [0, 0], [cap * w, 0], [0, 0], [0, 1.0 / gl]], dtype=float)
     else:
-        a11, a12, a21, a22, b1, b2 = coef
-        A1, B1 = _lift(np.array([[a11, a12], [a21, a22]]), np.array([[b1], [b2]]), n_sub)
-        A, B = A1, np.hstack([B1, np.zeros((2, 1))])
         C = np.array([[ch, 0], [1.0, 0], [0, cap], [act.stroke_per_volt, 0], [0, 0]])
         D = np.zeros((5, 2))
         D[4, 1] = 1.0 / gl
+    if coupling == 1:
+        # force = trapezoidal mean over the coming step (piezofmu.actuator.step_mean)
+        cx, cu = _substep_mean(As, Bs, n_sub)
+        C[0] = ch * cx
+        D[0, 0] = ch * cu
     return Block(name, "piezo", period, A, B, C, D, ins, outs, ft)
+
+
+def _substep_mean(As, Bs, n):
+    """Trapezoidal mean of the first state over ``n`` sub-steps of ``s+ = As s + Bs u``,
+    as ``(cx, cu)``: mean = ``cx @ s0 + cu u``."""
+    m = As.shape[0]
+    Aj, Bj = np.eye(m), np.zeros((m, 1))
+    cx, cu = np.zeros(m), 0.0
+    for _ in range(n):
+        An, Bn = As @ Aj, As @ Bj + Bs
+        cx += 0.5 * (Aj[0] + An[0])
+        cu += 0.5 * (Bj[0, 0] + Bn[0, 0])
+        Aj, Bj = An, Bn
+    return cx / n, cu / n
 
 
 def _law_block(law, name, period, h, ft, factor=1.0):

@@ -6,8 +6,15 @@ Variables
 ---------
 inputs
     ``v_cmd`` (V) voltage command, held over a step; ``elongation`` (m) of the active member.
+outputs (direct feedthrough from ``v_cmd``)
+    ``force`` (N): with ``coupling = 1`` (the default) the mean force over the coming
+    step of ``hold_step`` with ``v_cmd`` held (`piezofmu.actuator.step_mean`), the force a
+    structure holding it over that step must see so that a command reaches it after the
+    amplifier's lag and not one whole step late; recomputed whenever ``v_cmd`` is set and
+    after every step.  With ``coupling = 0`` the force at the end of the last step (the
+    earlier coupling, kept for comparison: it adds one step of delay to every loop).
 outputs (no direct feedthrough: functions of the state)
-    ``force`` (N), ``voltage`` (V), ``current`` (A), ``free_stroke`` (m),
+    ``voltage`` (V), ``current`` (A), ``free_stroke`` (m),
     ``sat_voltage``, ``sat_slew``, ``sat_stroke`` (Real 0/1).
 outputs (direct feedthrough from ``elongation``)
     ``strain`` (-): recomputed whenever an input is set, so a Gauss–Seidel master reads the
@@ -37,6 +44,11 @@ _FLAGS = ("sat_voltage", "sat_slew", "sat_stroke")
 
 class PiezoParameterError(ValueError):
     """An FMU parameter of the piezo slave is out of range."""
+
+
+#: Relative tolerance within which a communication step is ``hold_step`` (host time
+#: arithmetic: ``(k+1) h - k h`` or ``t += h``).
+HOLD_RTOL = 1e-9
 
 
 class PiezoSlave(FmuSlave):
@@ -81,10 +93,16 @@ class PiezoSlave(FmuSlave):
           description="strain gauge noise standard deviation")
         p("resolution", 0.0, unit="1", description="strain quantisation step, 0 for none")
         p("seed", 0, description="seed of the strain gauge noise, >= 0")
+        p("coupling", 1, description="force held by the structure: 1 = mean force over the "
+          "coming step of hold_step with v_cmd held (feedthrough, no added delay); 0 = "
+          "force at the end of the last step (one step of delay, for comparison)")
+        p("hold_step", 1e-3, unit="s", description="communication step of this FMU, over "
+          "which the structure holds the force (coupling = 1 steps only with it)")
         self.add_input("v_cmd", unit="V", description="voltage command to the amplifier")
         self.add_input("elongation", unit="m", description="active-member elongation")
-        self.add_output("force", unit="N", depends_on=[],
-                        description="actuator force on the structure f_c = c h v_eff")
+        self.add_output("force", unit="N", depends_on=["v_cmd"],
+                        description="actuator force on the structure f_c = c h v_eff, "
+                        "held over the step (coupling = 1: its mean over the coming step)")
         self.add_output("voltage", unit="V", depends_on=[], description="applied voltage")
         self.add_output("current", unit="A", depends_on=[],
                         description="amplifier current C dv/dt")
@@ -100,6 +118,7 @@ class PiezoSlave(FmuSlave):
         self._key = None
         self._act: PiezoActuator | None = None
         self._ready = False
+        self._ahead = None   # (key, state, outputs, mean force) of the coming step
 
     # ---------------------------------------------------------------- model
     def _parameter_key(self) -> tuple:
@@ -133,9 +152,35 @@ class PiezoSlave(FmuSlave):
         return PiezoActuator(self._stack, amp, gauge, bw,
                              float(stroke_limit) if stroke_limit > 0 else math.inf)
 
+    def _coupling(self) -> int:
+        c, h = int(self.coupling), float(self.hold_step)
+        if c not in (0, 1):
+            raise PiezoParameterError(f"parameter coupling of {self.instance_name!r} is {c}; "
+                                      "expected 1 (mean force over the step) or 0 (force at "
+                                      "the end of the last step)")
+        if c == 1 and not (h > 0 and math.isfinite(h)):
+            raise PiezoParameterError(f"parameter hold_step of {self.instance_name!r} is "
+                                      f"{h!r}; expected the FMU's communication step (s)")
+        return c
+
+    def _step_ahead(self, dt: float):
+        """The coming step with ``v_cmd`` held: ``(state, outputs, mean force)``, cached."""
+        key = (self.x.tobytes(), float(self.v_cmd), float(dt), self._parameter_key())
+        if self._ahead is None or self._ahead[0] != key:
+            state, out, mean = ac.step_mean(self.actuator(), ActuatorState.from_array(self.x),
+                                            self.v_cmd, dt)
+            self._ahead = (key, state, out, mean)
+        return self._ahead[1:]
+
+    def _write_force(self) -> None:
+        """Force held over the coming step (coupling 1) or the state's force (0)."""
+        if self._coupling() == 1:
+            self.force = self._step_ahead(float(self.hold_step))[2]
+        else:
+            self.force = ac.outputs(self.actuator(), ActuatorState.from_array(self.x)).force
+
     # ---------------------------------------------------------------- outputs
     def _write_outputs(self, out: ac.ActuatorOutputs) -> None:
-        self.force = out.force
         self.voltage = out.voltage
         self.current = out.current
         self.free_stroke = out.free_stroke
@@ -161,10 +206,12 @@ class PiezoSlave(FmuSlave):
         super().set_real(vrs, values)
         if self._ready:
             self._write_strain()
+            self._write_force()
 
     def _set_fmu_state(self, state):
         super()._set_fmu_state(state)
         self._key = None  # parameters may have changed with the state
+        self._ahead = None
 
     # ---------------------------------------------------------------- FMI
     def exit_initialization_mode(self):
@@ -174,6 +221,7 @@ class PiezoSlave(FmuSlave):
         self._write_outputs(ac.outputs(act, state))
         self._ready = True
         self._write_strain()
+        self._write_force()
 
     def do_step(self, current_time, step_size):
         """Advance the actuator with ``v_cmd`` held; write the outputs.
@@ -183,7 +231,8 @@ class PiezoSlave(FmuSlave):
         current_time : float
             Communication point at the start of the step (s); not used.
         step_size : float
-            Step (s), cut into the amplifier's internal sub-steps.
+            Step (s), cut into the amplifier's internal sub-steps; with ``coupling = 1``
+            it must be ``hold_step`` (to rounding), the step the force was the mean of.
 
         Returns
         -------
@@ -191,9 +240,19 @@ class PiezoSlave(FmuSlave):
             Always True.
         """
         act = self.actuator()
-        state, out = ac.step(act, ActuatorState.from_array(self.x), self.v_cmd, step_size)
+        if self._coupling() == 1:
+            h = float(self.hold_step)
+            if abs(step_size - h) > HOLD_RTOL * h:
+                raise PiezoParameterError(
+                    f"{self.instance_name!r} was stepped by {step_size!r} s, but its force "
+                    f"is the mean over hold_step = {h!r} s; set hold_step to the "
+                    "communication step (or coupling = 0)")
+            state, out, _ = self._step_ahead(h)
+        else:
+            state, out = ac.step(act, ActuatorState.from_array(self.x), self.v_cmd, step_size)
         self.x[...] = state.to_array()
         self._write_outputs(out)
         self.strain = ac.strain(act, state, self.elongation)
+        self._write_force()
         return True
 

@@ -10,7 +10,7 @@ from piezofmu.actuator import ActuatorState
 from piezofmu.fmuspec import MODELS, UnknownModelError, specs
 from piezofmu.slave import PiezoParameterError, PiezoSlave
 
-STATE_OUTPUTS = ["force", "voltage", "current", "free_stroke", "sat_voltage", "sat_slew",
+STATE_OUTPUTS = ["voltage", "current", "free_stroke", "sat_voltage", "sat_slew",
                  "sat_stroke"]
 
 
@@ -37,7 +37,7 @@ def drive(slave, cmds, elong, dt):
     for k, (u, e) in enumerate(zip(cmds, elong)):
         slave.set_real([vr(slave, "v_cmd"), vr(slave, "elongation")], [u, e])
         slave.do_step(k * dt, dt)
-        rows.append(get(slave, STATE_OUTPUTS + ["strain"]))
+        rows.append(get(slave, ["force"] + STATE_OUTPUTS + ["strain"]))
     return np.array(rows)
 
 
@@ -46,9 +46,10 @@ def signals(n=60, amp=1800.0):
     return amp * np.sin(2 * np.pi * k / 25), 3e-6 * np.cos(2 * np.pi * k / 17)
 
 
-def test_slave_equals_the_pure_step():
+@pytest.mark.parametrize("coupling", [1, 0])
+def test_slave_equals_the_pure_step(coupling):
     slave = make("P-243.40", hysteresis=True, noise_std=1e-7, seed=5, stroke_limit=45e-6,
-                 v_min=-900.0, v_max=900.0)
+                 v_min=-900.0, v_max=900.0, coupling=coupling)
     cmds, elong = signals()
     got = drive(slave, cmds, elong, 1e-3)
     act = slave.actuator()
@@ -56,24 +57,55 @@ def test_slave_equals_the_pure_step():
     state = ac.initial_state(act)
     for k, (u, e) in enumerate(zip(cmds, elong)):
         state, out = ac.step(act, state, u, 1e-3)
-        want = [out.force, out.voltage, out.current, out.free_stroke, float(out.sat_voltage),
+        # after the step the force is the one held over the next step, v_cmd still u
+        force = ac.step_mean(act, state, u, 1e-3)[2] if coupling else out.force
+        want = [force, out.voltage, out.current, out.free_stroke, float(out.sat_voltage),
                 float(out.sat_slew), float(out.sat_stroke), ac.strain(act, state, e)]
         assert got[k].tolist() == want
     # The run exercised every flag.
     assert got[:, 4:7].max(axis=0).tolist() == [1.0, 1.0, 1.0]
 
 
-def test_strain_feeds_through_and_state_outputs_do_not():
+def test_step_mean_is_the_exact_impulse_of_the_linear_amplifier():
+    # First-order amplifier from rest, command u held: v(t) = u (1 - exp(-w t)), whose
+    # mean over h is u (1 - (1 - exp(-w h)) / (w h)).  The trapezoidal mean over the
+    # 10 us sub-steps is within (w h_s)^2 / 12 of the transient part.
+    act = ac.actuator_preset("P-845.37")
+    u, h, w = 0.1, 1e-3, act.amplifier.omega   # 0.1 V: far from the slew limit
+    state, out, mean = ac.step_mean(act, ac.initial_state(act), u, h)
+    exact = act.stack.force(u) * (1 - (1 - math.exp(-w * h)) / (w * h))
+    transient = act.stack.force(u) - exact
+    assert abs(mean - exact) <= (w * 1e-5) ** 2 / 12 * transient * 1.01
+    assert state == ac.step(act, ac.initial_state(act), u, h)[0]
+
+
+def test_coupling_refuses_another_step_and_bad_values():
+    slave = make("P-845.37")
+    slave.set_real([vr(slave, "v_cmd")], [1.0])
+    with pytest.raises(PiezoParameterError, match="hold_step"):
+        slave.do_step(0.0, 2e-3)
+    slave.do_step(0.0, 1e-3 * (1 + 1e-12))   # within rounding: the same step
+    old = make("P-845.37", coupling=0)
+    old.do_step(0.0, 2e-3)                   # the old coupling takes any step
+    with pytest.raises(PiezoParameterError, match="coupling"):
+        make("P-845.37", coupling=2)
+
+
+def test_strain_and_force_feed_through_and_state_outputs_do_not():
     slave = make("P-845.37")
     slave.set_real([vr(slave, "v_cmd")], [20.0])
     slave.do_step(0.0, 1e-3)
     before = get(slave, STATE_OUTPUTS)
+    state = ActuatorState.from_array(slave.x)
     slave.set_real([vr(slave, "elongation"), vr(slave, "v_cmd")], [4e-6, -30.0])
-    # strain = elongation / gauge length at once; state outputs wait for the next step.
+    # strain = elongation / gauge length at once; the force is at once the mean over the
+    # coming step of the new command; state outputs wait for the next step.
     assert get(slave, ["strain"])[0] == pytest.approx(4e-6 / slave.gauge_length, rel=1e-15)
+    assert get(slave, ["force"])[0] == ac.step_mean(slave.actuator(), state, -30.0, 1e-3)[2]
     assert get(slave, STATE_OUTPUTS) == before
     specs_by_name = {s.name: s for s in slave.variable_specs}
     assert specs_by_name["strain"].depends_on == ("elongation",)
+    assert specs_by_name["force"].depends_on == ("v_cmd",)
     for name in STATE_OUTPUTS:
         assert specs_by_name[name].depends_on == ()
 

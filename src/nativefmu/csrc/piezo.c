@@ -5,6 +5,9 @@
  * amplifier, same SplitMix64 + Box-Muller gauge noise keyed by (seed, tick)), so that
  * the native and the Python FMU give the same numbers to round-off.
  * State: [v, dv/dt, sat_voltage, sat_slew, h_bw, tick] as ActuatorState.to_array.
+ * With coupling = 1 the force output is the trapezoidal mean of the force over the coming
+ * step of hold_step with v_cmd held (piezofmu.actuator.step_mean), recomputed after every
+ * set of an input and after every step; the step itself is the same computation.
  * Stack constants (c h, capacitance, d0/V0, V0) come from resources/piezo.dat.
  */
 #include <math.h>
@@ -21,7 +24,7 @@ typedef struct {
     long v_min, v_max, i_max, bandwidth, amp_order, damping, internal_step, hysteresis,
         bw_alpha, bw_beta_v0, bw_gamma_v0, stroke_limit, gauge_length, noise_std, resolution,
         seed, v_cmd, elongation, force, voltage, current, free_stroke, strain, sat_voltage,
-        sat_slew, sat_stroke;
+        sat_slew, sat_stroke, coupling, hold_step;
     int ready;
 } Piezo;
 
@@ -31,9 +34,13 @@ typedef struct {
         noise_std, resolution;
     int order, hyst;
     uint64_t seed;
+    int coupling;
+    double hold_step;
 } Params;
 
 #define P ((Piezo *)inst->model)
+#define P_CH (P->ch)
+#define P_STROKE_PER_VOLT (P->stroke_per_volt)
 
 int model_instantiate(JfInstance *inst) {
     Piezo *p;
@@ -55,7 +62,8 @@ int model_instantiate(JfInstance *inst) {
         R(bw_beta_v0) || R(bw_gamma_v0) || R(stroke_limit) || R(gauge_length) ||
         R(noise_std) || R(resolution) || I(seed, JF_INTEGER) || R(v_cmd) || R(elongation) ||
         R(force) || R(voltage) || R(current) || R(free_stroke) || R(strain) ||
-        R(sat_voltage) || R(sat_slew) || R(sat_stroke))
+        R(sat_voltage) || R(sat_slew) || R(sat_stroke) || I(coupling, JF_INTEGER) ||
+        R(hold_step))
         return JF_ERROR;
 #undef R
 #undef I
@@ -88,6 +96,19 @@ static int params(JfInstance *inst, Params *q) {
     q->noise_std = r[p->noise_std];
     q->resolution = r[p->resolution];
     q->seed = (uint64_t)(inst->iv[p->seed] < 0 ? 0 : inst->iv[p->seed]);
+    q->coupling = inst->iv[p->coupling];
+    q->hold_step = r[p->hold_step];
+    if (q->coupling != 0 && q->coupling != 1) {
+        jf_log(inst, 3, "parameter coupling of %s is %d; expected 1 (mean force over the "
+               "step) or 0 (force at the end of the last step)", inst->instance_name,
+               q->coupling);
+        return JF_ERROR;
+    }
+    if (q->coupling == 1 && !(q->hold_step > 0 && isfinite(q->hold_step))) {
+        jf_log(inst, 3, "parameter hold_step of %s is %g; expected the FMU's communication "
+               "step (s)", inst->instance_name, q->hold_step);
+        return JF_ERROR;
+    }
     if (r[p->stroke_limit] < 0) {
         jf_log(inst, 3, "parameter stroke_limit of %s is %g; expected >= 0 (0 for no limit)",
                inst->instance_name, r[p->stroke_limit]);
@@ -192,11 +213,20 @@ static double bw_increment(const Params *q, double h, double dv) {
     return segment(q, h, s, w, s);
 }
 
-/* amplifier._advance, with the Bouc-Wen state driven along the sub-step path;
- * returns the number of sub-steps. */
-static long advance(JfInstance *inst, const Params *q, double u, double dt) {
-    double *x = inst->state;
-    double v = x[0], r = x[1], h_bw = x[4], hsub, a = 0.0;
+/* Force of an effective voltage after the stroke limit (actuator._force). */
+static double stack_force(const Params *q, double v_eff) {
+    double limit = q->stroke_limit / P_STROKE_PER_VOLT;
+    if (v_eff > limit) v_eff = limit;
+    if (v_eff < -limit) v_eff = -limit;
+    return P_CH * v_eff;
+}
+
+/* amplifier._advance on the state x, with the Bouc-Wen state driven along the sub-step
+ * path; with mean != NULL also the trapezoidal mean force (actuator.step_mean).
+ * Returns the number of sub-steps. */
+static long advance(JfInstance *inst, const Params *q, double *x, double u, double dt,
+                    double *mean) {
+    double v = x[0], r = x[1], h_bw = x[4], hsub, a = 0.0, f_prev = 0.0, total = 0.0;
     double a11 = 0, a12 = 0, a21 = 0, a22 = 0, b1 = 0, b2 = 0, s_max, dv_max;
     int sat_v = 0, sat_s = 0, first = q->order == 1;
     long n, i;
@@ -223,6 +253,7 @@ static long advance(JfInstance *inst, const Params *q, double u, double dt) {
     }
     s_max = q->i_max / P->capacitance;
     dv_max = s_max * hsub;
+    if (mean != NULL) f_prev = stack_force(q, v - h_bw);
     for (i = 0; i < n; i++) {
         double v_new, r_new = 0.0, dv;
         if (first) {
@@ -265,7 +296,13 @@ static long advance(JfInstance *inst, const Params *q, double u, double dt) {
         if (q->hyst) h_bw = bw_increment(q, h_bw, v_new - v);
         v = v_new;
         r = r_new;
+        if (mean != NULL) {
+            double f = stack_force(q, v - h_bw);
+            total += 0.5 * (f_prev + f);
+            f_prev = f;
+        }
     }
+    if (mean != NULL) *mean = total / (double)n;
     x[0] = v;
     x[1] = r;
     x[2] = sat_v;
@@ -325,6 +362,17 @@ static void write_outputs(JfInstance *inst, const Params *q) {
     inst->r[p->sat_stroke] = sat_stroke ? 1.0 : 0.0;
 }
 
+/* The force held over the coming step: its mean with v_cmd held (coupling 1), else the
+ * state's force (already written by write_outputs). */
+static void write_force(JfInstance *inst, const Params *q) {
+    double x[6], mean;
+    int i;
+    if (q->coupling != 1) return;
+    for (i = 0; i < 6; i++) x[i] = inst->state[i];
+    advance(inst, q, x, inst->r[P->v_cmd], q->hold_step, &mean);
+    inst->r[P->force] = mean;
+}
+
 /* ------------------------------------------------------------------ FMI hooks */
 
 int model_exit_initialization(JfInstance *inst) {
@@ -342,6 +390,7 @@ int model_exit_initialization(JfInstance *inst) {
     write_outputs(inst, &q);
     P->ready = 1;
     write_strain(inst, &q);
+    write_force(inst, &q);
     return JF_OK;
 }
 
@@ -350,6 +399,8 @@ int model_inputs_changed(JfInstance *inst) {
     if (!P->ready) return JF_OK;
     if (params(inst, &q) != JF_OK) return JF_ERROR;
     write_strain(inst, &q);
+    if (!isfinite(inst->r[P->v_cmd])) return JF_OK;   /* refused at the step */
+    write_force(inst, &q);
     return JF_OK;
 }
 
@@ -373,8 +424,18 @@ int model_do_step(JfInstance *inst, double t, double h) {
         jf_log(inst, 3, "amplifier command v_cmd must be finite, got %g", u);
         return JF_ERROR;
     }
-    inst->state[5] += (double)advance(inst, &q, u, h);
+    if (q.coupling == 1) {
+        if (fabs(h - q.hold_step) > MULTIPLE_RTOL * q.hold_step) {
+            jf_log(inst, 3, "%s was stepped by %.17g s, but its force is the mean over "
+                   "hold_step = %.17g s; set hold_step to the communication step (or "
+                   "coupling = 0)", inst->instance_name, h, q.hold_step);
+            return JF_ERROR;
+        }
+        h = q.hold_step;
+    }
+    inst->state[5] += (double)advance(inst, &q, inst->state, u, h, NULL);
     write_outputs(inst, &q);
     write_strain(inst, &q);
+    write_force(inst, &q);
     return JF_OK;
 }

@@ -52,6 +52,7 @@ from orchestrator import prepare
 from orchestrator.scenario import load_scenario
 from piezofmu.amplifier import _coefficients, substeps
 from structfmu.discrete import discretize, step
+from structfmu.statespace import first_order
 
 __all__ = [
     "AnalysisError",
@@ -100,6 +101,11 @@ class Block:
         set at the tick); the others are read as stamped at ``t_k``.
     rebuild : callable, optional
         ``rebuild(factor) -> Block`` with the controller's command scaled by ``factor``.
+    continuous : tuple of ndarray, optional
+        The continuous-time model the block samples, for the sampled-data reference
+        (:mod:`orchestrator.reference`): ``(A, B, C, D)`` of a structure (Eq. 9-10), or
+        ``(A, B, ch)`` of a piezo amplifier in force units (input ``ch v_cmd``, first
+        state the force ``ch v`` on the structure).
     """
 
     name: str
@@ -114,6 +120,7 @@ class Block:
     feedthrough: np.ndarray
     rebuild: Callable | None = field(default=None, repr=False)
     active: bool = True
+    continuous: tuple | None = field(default=None, repr=False)
 
     @property
     def n(self) -> int:
@@ -137,7 +144,8 @@ def _structure_block(slave, name, period, h, ft):
     A = np.column_stack([step(dm, e, np.zeros(m)) for e in np.eye(n)]) if n else np.zeros((0, 0))
     B = np.column_stack([step(dm, np.zeros(n), e) for e in np.eye(m)])
     return Block(name, "structure", period, A, B, stepper.C_x.copy(), stepper.D.copy(),
-                 tuple(model.input_names), tuple(model.output_names), ft)
+                 tuple(model.input_names), tuple(model.output_names), ft,
+                 continuous=first_order(model))
 
 
 def _piezo_block(slave, name, period, h, ft):
@@ -177,7 +185,13 @@ def _piezo_block(slave, name, period, h, ft):
         cx, cu = _substep_mean(As, Bs, n_sub)
         C[0] = ch * cx
         D[0, 0] = ch * cu
-    return Block(name, "piezo", period, A, B, C, D, ins, outs, ft)
+    w = amp.omega
+    if amp.order == 1:   # f' = w (ch v_cmd - f)
+        amp_c = (np.array([[-w]]), np.array([[w]]), ch)
+    else:                # f'' = w^2 (ch v_cmd - f) - 2 zeta w f'
+        amp_c = (np.array([[0.0, 1.0], [-w * w, -2 * amp.damping * w]]),
+                 np.array([[0.0], [w * w]]), ch)
+    return Block(name, "piezo", period, A, B, C, D, ins, outs, ft, continuous=amp_c)
 
 
 def _substep_mean(As, Bs, n):

@@ -39,8 +39,6 @@ typedef struct {
 } Params;
 
 #define P ((Piezo *)inst->model)
-#define P_CH (P->ch)
-#define P_STROKE_PER_VOLT (P->stroke_per_volt)
 
 int model_instantiate(JfInstance *inst) {
     Piezo *p;
@@ -214,11 +212,11 @@ static double bw_increment(const Params *q, double h, double dv) {
 }
 
 /* Force of an effective voltage after the stroke limit (actuator._force). */
-static double stack_force(const Params *q, double v_eff) {
-    double limit = q->stroke_limit / P_STROKE_PER_VOLT;
+static double stack_force(const Piezo *p, const Params *q, double v_eff) {
+    double limit = q->stroke_limit / p->stroke_per_volt;
     if (v_eff > limit) v_eff = limit;
     if (v_eff < -limit) v_eff = -limit;
-    return P_CH * v_eff;
+    return p->ch * v_eff;
 }
 
 /* amplifier._advance on the state x, with the Bouc-Wen state driven along the sub-step
@@ -253,7 +251,7 @@ static long advance(JfInstance *inst, const Params *q, double *x, double u, doub
     }
     s_max = q->i_max / P->capacitance;
     dv_max = s_max * hsub;
-    if (mean != NULL) f_prev = stack_force(q, v - h_bw);
+    if (mean != NULL) f_prev = stack_force(P, q, v - h_bw);
     for (i = 0; i < n; i++) {
         double v_new, r_new = 0.0, dv;
         if (first) {
@@ -297,7 +295,7 @@ static long advance(JfInstance *inst, const Params *q, double *x, double u, doub
         v = v_new;
         r = r_new;
         if (mean != NULL) {
-            double f = stack_force(q, v - h_bw);
+            double f = stack_force(P, q, v - h_bw);
             total += 0.5 * (f_prev + f);
             f_prev = f;
         }

@@ -50,7 +50,7 @@ import numpy as np
 
 from orchestrator import prepare
 from orchestrator.scenario import load_scenario
-from piezofmu.amplifier import _coefficients, substeps
+from piezofmu.amplifier import linear_map
 from structfmu.discrete import discretize, step
 from structfmu.statespace import first_order
 
@@ -158,19 +158,12 @@ def _piezo_block(slave, name, period, h, ft):
         raise AnalysisError(f"instance {name!r} steps every {h} s but its hold_step is "
                             f"{slave.hold_step} s; set hold_step to its period")
     amp, stack = act.amplifier, act.stack
-    n_sub, hs = substeps(h, amp.internal_step)
-    coef = _coefficients(amp, hs)
     ch = float(stack.force(1.0))
     cap = stack.capacitance
     ins = ("v_cmd", "elongation")
     outs = ("force", "voltage", "current", "free_stroke", "strain")
     gl = act.gauge.length
-    if amp.order == 1:
-        As, Bs = np.array([[coef[0]]]), np.array([[1.0 - coef[0]]])
-    else:
-        a11, a12, a21, a22, b1, b2 = coef
-        As, Bs = np.array([[a11, a12], [a21, a22]]), np.array([[b1], [b2]])
-    A1, B1 = _lift(As, Bs, n_sub)
+    A1, B1, cx, cu = linear_map(amp, h)
     A, B = A1, np.hstack([B1, np.zeros((A1.shape[0], 1))])
     if amp.order == 1:
         w = amp.omega
@@ -182,7 +175,6 @@ def _piezo_block(slave, name, period, h, ft):
         D[4, 1] = 1.0 / gl
     if coupling == 1:
         # force = trapezoidal mean over the coming step (piezofmu.actuator.step_mean)
-        cx, cu = _substep_mean(As, Bs, n_sub)
         C[0] = ch * cx
         D[0, 0] = ch * cu
     w = amp.omega
@@ -192,20 +184,6 @@ def _piezo_block(slave, name, period, h, ft):
         amp_c = (np.array([[0.0, 1.0], [-w * w, -2 * amp.damping * w]]),
                  np.array([[0.0], [w * w]]), ch)
     return Block(name, "piezo", period, A, B, C, D, ins, outs, ft, continuous=amp_c)
-
-
-def _substep_mean(As, Bs, n):
-    """Trapezoidal mean of the first state over ``n`` sub-steps of ``s+ = As s + Bs u``,
-    as ``(cx, cu)``: mean = ``cx @ s0 + cu u``."""
-    m = As.shape[0]
-    Aj, Bj = np.eye(m), np.zeros((m, 1))
-    cx, cu = np.zeros(m), 0.0
-    for _ in range(n):
-        An, Bn = As @ Aj, As @ Bj + Bs
-        cx += 0.5 * (Aj[0] + An[0])
-        cu += 0.5 * (Bj[0, 0] + Bn[0, 0])
-        Aj, Bj = An, Bn
-    return cx / n, cu / n
 
 
 def _law_block(law, name, period, h, ft, factor=1.0):

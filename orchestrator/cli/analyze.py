@@ -32,6 +32,17 @@ def add_arguments(parser) -> None:
                              "(repeatable; default: every controller)")
     parser.add_argument("--method", choices=["cancel", "optimal", "both"], default="both",
                         help="ceiling: cancel the controllers' sensors, or best commands")
+    parser.add_argument("--reference", action="store_true",
+                        help="compare with the sampled-data reference (continuous structure "
+                             "and amplifiers, the controllers at their rates): what the "
+                             "partition adds to each loop at its crossover, and the "
+                             "co-simulated outputs against it")
+    parser.add_argument("--stop", type=float, default=None, metavar="S",
+                        help="with --reference: co-simulate this long (s; default the "
+                             "scenario's stop time)")
+    parser.add_argument("--output", action="append", default=[], metavar="INST.VAR",
+                        help="with --reference: output to compare (repeatable; default the "
+                             "scenario's [record])")
 
 
 def run(args) -> int:
@@ -41,6 +52,13 @@ def run(args) -> int:
     from orchestrator.scenario import parse_override
 
     overrides = dict(parse_override(s) for s in args.overrides)
+    if args.reference:
+        from orchestrator import reference
+
+        res = reference.check(args.scenario, args.output or None, stop_time=args.stop,
+                              overrides=overrides, fmu_dir=args.fmu_dir, opened=args.open)
+        print(reference.report(res))
+        return 0
     lin = linearize(args.scenario, overrides=overrides, fmu_dir=args.fmu_dir)
     if args.open:
         lin = lin.opened(args.open)

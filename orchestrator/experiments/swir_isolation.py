@@ -9,9 +9,10 @@ strain-rate feedback through a low-pass -> voltage), all twelve loops independen
 Two halves:
 
 * **Linear design** (before any co-simulation): the structure reduced and discretised
-  exactly (ZOH, 1 kHz), the discrete law with its Eq. (11) delay, one sample for the
-  amplifier/stack FMU, the ACS stepped with its own pure functions at 10 Hz; it equals the
-  co-simulation.  It gives per leg loop gain and phase margins, the MIMO gain margin
+  exactly (ZOH, 1 kHz), the discrete law with its Eq. (11) delay, the P-865.10 amplifier
+  whose mean force over each step the structure holds (the stack FMU's step-mean
+  coupling, :func:`stack_map`), the ACS stepped with its own pure functions at 10 Hz; it
+  equals the co-simulation.  It gives per leg loop gain and phase margins, the MIMO gain margin
   (common gain factor at which the twelve closed loops go unstable), closed-loop damping,
   the **ideal ceiling** (:func:`ls_ceiling`: per-frequency least squares over the twelve
   stack forces, exact and within 5 um / 15 lbf), the **rigid-body share** of the SWIR line
@@ -98,6 +99,22 @@ def law(gain: float = GAIN):
     return design("eos_isolation").with_gain(gain)
 
 
+def stack_map(coupling: int = 1):
+    """The stack FMU over one step ``H``, linear: ``(a, cx, cu)``.
+
+    With the amplifier state ``v`` and the command ``u`` held over the step,
+    ``v+ = a v + (1 - a) u`` and the force the structure holds is
+    ``c h (cx v + cu u)``: the P-865.10's trapezoidal mean over the step
+    (``coupling = 1``, the FMU's default) or its state, the command one step late
+    (``coupling = 0``: ``cx = 1, cu = 0``).
+    """
+    from piezofmu.amplifier import amplifier_preset, linear_map
+
+    A, _, cx, cu = linear_map(amplifier_preset("P-865.10"), H)
+    a = float(A[0, 0])
+    return (a, 1.0, 0.0) if coupling == 0 else (a, float(cx[0]), float(cu))
+
+
 def force_per_volt() -> float:
     """Blocked force per volt ``c h`` of the P-845.37 stack (N/V)."""
     s = preset("P-845.37")
@@ -182,12 +199,13 @@ def linear_plant(model=None) -> Plant:
                  rigid_states)
 
 
-def closed_loop(plant: Plant, law_, gain: float = 1.0):
+def closed_loop(plant: Plant, law_, gain: float = 1.0, coupling: int = 1):
     """Dense discrete closed loop of the twelve legs: ``(A, Bw, C, C_low, C_rigid, C_force)``.
 
-    State ``[x_structure, x_law (Eq. 11 delay included), f (12)]``: the law maps strain at
-    ``t_k`` to the command applied at ``t_{k+1}``; the stack FMU turns the command into its
-    force one sample later (``f = c h v``).
+    State ``[x_structure, x_law (Eq. 11 delay included), v (12)]``: the law maps strain at
+    ``t_k`` to the command ``u`` applied at ``t_{k+1}``; the amplifier voltages ``v``
+    follow it, and the structure holds the mean stack force over each step,
+    ``c h (cx v + cu u)`` (:func:`stack_map`).
 
     Parameters
     ----------
@@ -199,6 +217,8 @@ def closed_loop(plant: Plant, law_, gain: float = 1.0):
         twelve commands out: :func:`central_law`).
     gain : float
         Factor on the law's command (-), the same on all twelve legs.
+    coupling : {1, 0}
+        The stack FMUs' coupling (:func:`stack_map`).
 
     Returns
     -------
@@ -224,19 +244,24 @@ def closed_loop(plant: Plant, law_, gain: float = 1.0):
                          f"give one per leg (1 and 1) or one for all legs ({nl} and {nl})")
     nk = Ak.shape[0]
     ce = plant.C[plant.rows("strain_", LEGS)]
-    g = gain * force_per_volt()
+    ch = force_per_volt()
+    a, cx, cu = stack_map(coupling)
     n = ns + nk + nl
+    # command u = gain (Ck x_law + Dk ce x); force f = ch (cx v + cu u); v+ = a v + (1-a) u
+    U = np.zeros((nl, n))
+    U[:, ns:ns + nk] = gain * Ck
+    U[:, :ns] = gain * Dk @ ce
+    C_force = ch * cu * U
+    C_force[:, ns + nk:] += ch * cx * np.eye(nl)
     A = np.zeros((n, n))
     A[:ns, :ns] = plant.A
-    A[:ns, ns + nk:] = plant.Bf
+    A[:ns] += plant.Bf @ C_force
     A[ns:ns + nk, ns:ns + nk] = Ak
     A[ns:ns + nk, :ns] = Bk @ ce
-    A[ns + nk:, ns:ns + nk] = g * Ck
-    A[ns + nk:, :ns] = g * Dk @ ce
+    A[ns + nk:] = (1.0 - a) * U
+    A[ns + nk:, ns + nk:] += a * np.eye(nl)
     Bw = np.vstack([plant.Bw, np.zeros((n - ns, plant.Bw.shape[1]))])
     pad = np.zeros((plant.C.shape[0], n - ns))
-    C_force = np.zeros((nl, n))
-    C_force[:, ns + nk:] = np.eye(nl)
     return (A, Bw, np.hstack([plant.C, pad]), np.hstack([plant.C_low, pad]),
             np.hstack([plant.C_rigid, pad]), C_force)
 
@@ -258,8 +283,10 @@ def central_gains(plant: Plant, rho: float = CENTRAL_WEIGHTS["rho"],
     Returns
     -------
     dict
-        ``Aa``, ``Ba``, ``Ca``: the flexible structure with the stack FMU's sample
-        (state ``[x, f]``, ``f_{k+1} = u_k``, ``u`` in N), strains out; ``K`` (state
+        ``Aa``, ``Ba``, ``Ca``: the flexible structure with the stack FMU's amplifier
+        (state ``[x, p]``, ``p = c h v`` the amplifier force, ``u`` the commanded force
+        in N: ``p+ = a p + (1 - a) u``, the structure holds ``cx p + cu u``,
+        :func:`stack_map`), strains out; ``K`` (state
         feedback, ``u = -K xh``) and ``L`` (one-step predictor gain); ``sensors`` and
         ``actuators`` as indices into ``LEGS``.
     """
@@ -277,9 +304,10 @@ def central_gains(plant: Plant, rho: float = CENTRAL_WEIGHTS["rho"],
     bw = plant.Bw[keep, :6] @ np.linalg.svd(w, full_matrices=False)[2][0]
     n, m, ms = A.shape[0], len(ai), len(si)
     static = np.linalg.solve(np.eye(n) - A, np.column_stack([Bf, bw]))
-    # the stack FMU's sample: augmented state [x, f], f_{k+1} = u_k
-    Aa = np.block([[A, Bf], [np.zeros((m, n + m))]])
-    Ba = np.vstack([np.zeros((n, m)), np.eye(m)])
+    # the stack FMU: augmented state [x, p], p+ = a p + (1 - a) u, force cx p + cu u
+    a, cx, cu = stack_map()
+    Aa = np.block([[A, cx * Bf], [np.zeros((m, n)), a * np.eye(m)]])
+    Ba = np.vstack([cu * Bf, (1.0 - a) * np.eye(m)])
     Ca = np.hstack([Cs, np.zeros((ms, m))])
     Cpa = np.hstack([Cp, np.zeros((1, m))])
     R = rho * np.abs(Cp @ static[:, :m]).max() ** 2 * np.eye(m)
@@ -310,7 +338,8 @@ def central_law(plant: Plant, rho: float = CENTRAL_WEIGHTS["rho"],
       times its strain-equivalent at the stack forces (input-noise robustness, which buys
       gain margin), strain noise ``snr`` times the event's largest static strain;
     * timing as in the co-simulation: the law in Eq. (11) form (its command is applied one
-      sample after the strain it used) and the stack FMU's force one sample after that.
+      sample after the strain it used) and the stack FMU's mean force over the step
+      after its amplifier's lag (:func:`stack_map`).
 
     Parameters
     ----------

@@ -15,8 +15,9 @@ against the last 1.2 s after switch-on in one run, is reported as well.
 
 Design first, on the linear model (:func:`linear_plant`): the reduced structure of the
 FMU (``model.npz``, accelerometers through their 150 Hz low-pass), sampled exactly with a
-zero-order hold at 1 kHz, the P-865.10 amplifier (its first-order lag, exact at 1 kHz,
-whose output the structure sees one step later, as in the co-simulation), ``f = c h v``
+zero-order hold at 1 kHz, the P-865.10 amplifier (its first-order lag, exact at 1 kHz;
+the structure holds its mean force over each step, for the command of that step, as the
+piezo FMUs' ``coupling = 1`` gives it), ``f = c h v``
 and the discrete law with its Eq. (11) delay (``delayed=False`` in
 ``ctrlfmu.designs.testbed_isolation`` acts on the current sample instead).  On it:
 
@@ -154,8 +155,18 @@ def linear_model(fmu_dir="fmus", variant="stiff"):
         return ReducedModel.load(path)
 
 
-def linear_plant(model):
+def linear_plant(model, coupling=1):
     """Sampled structure + amplifier, inputs strut commands (V) and SWIR force (N).
+
+    Parameters
+    ----------
+    model : ReducedModel
+        :func:`linear_model`.
+    coupling : {1, 0}
+        The piezo FMUs' coupling: 1 (their default), the structure holds the amplifier's
+        mean force over the step for the command of that step (the trapezoidal mean of
+        ``piezofmu.actuator.step_mean``); 0, the force at the end of the last step, one
+        step later.
 
     Returns
     -------
@@ -168,6 +179,8 @@ def linear_plant(model):
     import control
     from scipy.linalg import expm
 
+    from piezofmu.amplifier import linear_map
+
     A, B, C, D = first_order(model)
     ins, outs = list(model.input_names), list(model.output_names)
     ii = [ins.index(n) for n in _IN]
@@ -176,11 +189,15 @@ def linear_plant(model):
     E = expm(np.block([[A, B[:, ii]], [np.zeros((m, n + m))]]) * DT)
     G = control.ss(E[:n, :n], E[:n, n:], C[oo], D[np.ix_(oo, ii)], DT)
     amp = amplifier_preset("P-865.10")
-    a = float(np.exp(-2 * np.pi * amp.bandwidth * DT))
+    Aa, _, cx, cu = linear_map(amp, DT)
+    a = float(Aa[0, 0])
     acts = []
     for k in (1, 2, 3):
         ch = model.meta["actuators"][f"iso{k}"]["ch"]
-        acts.append(control.ss([[a]], [[1 - a]], [[ch]], [[0.0]], DT))
+        if coupling == 1:
+            acts.append(control.ss([[a]], [[1 - a]], [[ch * cx[0]]], [[ch * cu]], DT))
+        else:
+            acts.append(control.ss([[a]], [[1 - a]], [[ch]], [[0.0]], DT))
     acts.append(control.ss([], [], [], [[1.0]], DT))
     return control.series(control.append(*acts), G)
 

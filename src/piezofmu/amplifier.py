@@ -377,6 +377,46 @@ def step_path(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: 
     return new, np.asarray(path)
 
 
+def linear_map(amp: Amplifier, dt: float):
+    """One caller step of the amplifier with no limit active, as a linear map.
+
+    ``s+ = A s + B u`` on the state ``s = [v]`` (order 1) or ``[v, dv/dt]`` (order 2)
+    with the command ``u`` held, composed of the internal sub-steps exactly as `step`
+    takes them; and the trapezoidal mean of ``v`` over the sub-step ends (what
+    ``piezofmu.actuator.step_mean`` averages), ``mean = cx @ s + cu u``.
+
+    Parameters
+    ----------
+    amp : Amplifier
+        Amplifier parameters.
+    dt : float
+        Step size (s).
+
+    Returns
+    -------
+    A : ndarray, shape (n, n)
+    B : ndarray, shape (n, 1)
+    cx : ndarray, shape (n,)
+    cu : float
+    """
+    n_sub, h = substeps(dt, amp.internal_step)
+    coef = _coefficients(amp, h)
+    if amp.order == 1:
+        As, Bs = np.array([[coef[0]]]), np.array([[1.0 - coef[0]]])
+    else:
+        a11, a12, a21, a22, b1, b2 = coef
+        As, Bs = np.array([[a11, a12], [a21, a22]]), np.array([[b1], [b2]])
+    m = As.shape[0]
+    A, B = np.eye(m), np.zeros((m, 1))
+    cx, cu = np.zeros(m), 0.0
+    for _ in range(n_sub):
+        An, Bn = As @ A, As @ B + Bs
+        cx += 0.5 * (A[0] + An[0])
+        cu += 0.5 * (B[0, 0] + Bn[0, 0])
+        A, B = An, Bn
+    return A, B, cx / n_sub, cu / n_sub
+
+
 # Amplifier presets.  Voltage and current limits are from the paper (see docs/piezo.md);
 # bandwidths, orders, damping and internal steps are assumptions.
 AMPLIFIERS: dict[str, Amplifier] = {

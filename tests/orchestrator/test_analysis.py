@@ -127,12 +127,13 @@ def test_stored_tuning_decays_in_two_cycles_on_the_linear_loop(fmus):
     assert all(c is not None and c <= 2.0 for c in cycles.values())
     assert volts < 1000.0
     # the former tuning (largest smallest damping of all poles within 0.5-2x each
-    # mode, each loop alone) needed 4.5 cycles on the diagonal
+    # mode, each loop alone) misses the paper's two cycles on the diagonal (3.7 cycles
+    # with the step-mean coupling, 4.5 with the force one step late)
     from ctrlfmu.designs import truss10_strain_diag, truss10_strain_long
     old = {"ctrl_diag": truss10_strain_diag(tuning=0.6, zeta=1.0, loop_gain=0.5 * 1.2399),
            "ctrl_long": truss10_strain_long(tuning=0.8, zeta=0.7, loop_gain=0.5 * 0.6616)}
     cycles_old, _ = linear_decay(lin, old)
-    assert cycles_old["diagonal"] > 4.0
+    assert cycles_old["diagonal"] > 2.0
 
 
 def test_ceiling_properties(fmus):

@@ -12,10 +12,14 @@ Timing of one tick ``t_k`` in the master (:mod:`orchestrator.cosim`, Gauss–Sei
   (:func:`orchestrator.cosim.graph.step_groups`).  Only the controller outputs ``u1`` have
   feedthrough (from ``r1``), so the edges are ``ctrl_* -> piezo_*``: each controller
   steps before its amplifier.  Strain, elongation, force and the excitation have none.
+  The piezo ``force`` has feedthrough from ``v_cmd`` (``coupling = 1``, the default: the
+  mean force over the coming step with the command held), so each amplifier steps
+  before the structure: ``ctrl_* -> piezo_* -> structure``.
 * An input fed by an output *without* feedthrough reads the source's value at ``t_k``:
-  the structure reads ``force(t_k)`` (amplifier state at ``t_k``), a controller reads
-  ``strain(t_k)`` and the excitation ``v(t_k)``; a 4 ms source is read at the value it
-  had at the last of its own communication points.
+  a controller reads ``strain(t_k)`` and the excitation ``v(t_k)``; a 4 ms source is read
+  at the value it had at the last of its own communication points.  With
+  ``coupling = 0`` the structure reads ``force(t_k)``, the amplifier state at ``t_k``
+  (the command of ``t_k`` reaches it one step later).
 * An input fed by a feedthrough output reads the output at ``t_k`` for the inputs set at
   ``t_k`` (FMI 2.0): every due instance first gets its inputs (sources first) and a
   feedthrough source's outputs are read then, before any instance steps.  The
@@ -27,7 +31,9 @@ Timing of one tick ``t_k`` in the master (:mod:`orchestrator.cosim`, Gauss–Sei
 
 Jacobi: every input reads its source's value at ``t_k``; the amplifier then gets the
 controller output computed at ``t_{j-1}``, i.e. Eq. 11 with the excitation one controller
-sample late (libcosim's fixed-step algorithm, checked on the exported SSP archive).
+sample late (libcosim's fixed-step algorithm, checked on the exported SSP archive), and
+the structure the mean force published after the amplifier's last step, for the command
+it held then.
 """
 
 import json
@@ -76,12 +82,15 @@ def fmu_dir(suite_fmus, suite_fmu_dir):
     return suite_fmu_dir
 
 
-def closed_loop(*, stop, t_on, one_rate=None, output_interval=1e-3):
+def closed_loop(*, stop, t_on, one_rate=None, output_interval=1e-3, coupling=1):
     """The closed-loop scenario as a dict, linear, optionally with every period ``one_rate``."""
     sc = tomllib.loads(SCENARIO.read_text(encoding="utf-8"))
     if one_rate is not None:
         for inst in sc["fmus"].values():
             inst["period"] = one_rate
+    for m in MEMBERS:
+        sc["fmus"][f"piezo_{m}"]["parameters"] = {
+            "coupling": coupling, "hold_step": float(sc["fmus"][f"piezo_{m}"]["period"])}
     sc["fmus"]["structure"]["parameters"] = {"f_tip_x": 0.0, "f_tip_y": 0.0}
     for m in MEMBERS:
         sc["fmus"][f"ctrl_{m}"]["parameters"] = {"t_on": t_on, "enable": True}
@@ -124,15 +133,16 @@ def structure_ss(model, h):
 
 
 def amplifier_map(act, h):
-    """Exact one-step map ``[v, dv/dt](k+1) = A [v, dv/dt](k) + B v_cmd(k)`` over ``h``.
+    """Exact one-step map ``[v, dv/dt, f_mean](k+1) = A [v, dv/dt](k) + B v_cmd(k)`` over
+    ``h``, with ``f_mean`` the mean force over the step (``piezofmu.actuator.step_mean``).
 
     The amplifier sub-steps internally (``h / internal_step`` exact ZOH steps of its
     second-order low-pass); without an active limit that composition is linear, so its
     matrices are the responses of the pure step function to unit states and a unit input.
     """
     def one(v, rate, cmd):
-        state, _ = ac.step(act, ac.ActuatorState(AmplifierState(v, rate)), cmd, h)
-        return np.array([state.amp.voltage, state.amp.rate])
+        state, _, mean = ac.step_mean(act, ac.ActuatorState(AmplifierState(v, rate)), cmd, h)
+        return np.array([state.amp.voltage, state.amp.rate, mean])
 
     A = np.column_stack([one(1.0, 0.0, 0.0), one(0.0, 1.0, 0.0)])
     B = one(0.0, 0.0, 1.0)[:, None]
@@ -145,11 +155,11 @@ def amplifier_map(act, h):
 
 
 def amplifier_ss(m, h):
-    """Amplifier + stack: outputs ``force = c h v`` (N) and ``voltage`` (V)."""
+    """Amplifier + stack: outputs ``force`` (N), the mean over the coming step for the
+    command held (direct feedthrough), and ``voltage`` (V)."""
     act = ac.actuator_preset(MEMBERS[m][0])
     A, B = amplifier_map(act, h)
-    ch = act.stack.force(1.0)  # f_c = c h v (Eq. 1), no hysteresis
-    return control.ss(A, B, [[ch, 0.0], [1.0, 0.0]], [[0.0], [0.0]], h, inputs=["v_cmd"],
+    return control.ss(A[:2], B[:2], [A[2], [1.0, 0.0]], [B[2], [0.0]], h, inputs=["v_cmd"],
                       outputs=["force", "voltage"], name=f"piezo_{m}")
 
 
@@ -243,7 +253,7 @@ P_CTRL = 4        # controller and excitation period in 1 ms ticks
 T_ON = 0.5        # s: controllers switch on inside the run (state reset before)
 
 
-def multirate_reference(n_ticks, algorithm):
+def multirate_reference(n_ticks, algorithm, coupling=1):
     """Recorded signals at every 1 ms tick, built from the packages' pure step functions.
 
     Controllers sample at ticks ``k = 4 j`` (``ctrlfmu.law.step``); their command is held
@@ -251,7 +261,9 @@ def multirate_reference(n_ticks, algorithm):
     amplifiers get ``w + r(t_j)``, ``w`` the law output computed at the previous sample
     (Eq. 11), which is also what is recorded; Jacobi: the controller output published
     after its previous step (``o_{j-1}``), recorded from the controller's next
-    communication point on.
+    communication point on.  The structure holds, per amplifier, the mean force over the
+    step for the command it gets at ``t_k`` (``coupling = 1``; Jacobi: for the command it
+    held before), or the force of its state at ``t_k`` (``coupling = 0``).
     """
     model = truss10.reduced()
     dm = discrete.discretize(model, H2)
@@ -265,6 +277,7 @@ def multirate_reference(n_ticks, algorithm):
     o_old = dict(o_new)                 # output of the sample before
     w = {m: 0.0 for m in MEMBERS}       # Gauss-Seidel: law output pending (Eq. 11)
     gs_cmd = {m: 0.0 for m in MEMBERS}  # Gauss-Seidel: command held over the sample
+    held = {m: 0.0 for m in MEMBERS}    # command each amplifier held over the last step
     out = {s: np.empty(n_ticks + 1) for s in SIGNALS}
     for k in range(n_ticks + 1):
         y = discrete.output(model, x, np.zeros(model.n_inputs))
@@ -290,20 +303,27 @@ def multirate_reference(n_ticks, algorithm):
         command = gs_cmd if algorithm == "gauss-seidel" else o_old
         forces = np.zeros(model.n_inputs)
         for m in MEMBERS:
-            forces[names_in.index(f"fc_{m}")] = ac.outputs(acts[m], amp[m]).force
+            if coupling == 0:
+                f = ac.outputs(acts[m], amp[m]).force
+            else:
+                seen = command[m] if algorithm == "gauss-seidel" else held[m]
+                f = ac.step_mean(acts[m], amp[m], seen, H2)[2]
+            forces[names_in.index(f"fc_{m}")] = f
         x = discrete.step(dm, x, forces)
         for m in MEMBERS:
             amp[m], _ = ac.step(acts[m], amp[m], command[m], H2)
+            held[m] = command[m]
     return out
 
 
-@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
-def test_multirate_cosimulation_equals_the_reference_loop(fmu_dir, algorithm):
+@pytest.mark.parametrize("algorithm,coupling", [("gauss-seidel", 1), ("jacobi", 1),
+                                                ("gauss-seidel", 0)])
+def test_multirate_cosimulation_equals_the_reference_loop(fmu_dir, algorithm, coupling):
     stop = 2.0
-    table = run_scenario(closed_loop(stop=stop, t_on=T_ON), algorithm=algorithm,
-                         fmu_dir=fmu_dir).table
+    table = run_scenario(closed_loop(stop=stop, t_on=T_ON, coupling=coupling),
+                         algorithm=algorithm, fmu_dir=fmu_dir).table
     assert_linear_region(table)
-    ref = multirate_reference(round(stop / H2), algorithm)
+    ref = multirate_reference(round(stop / H2), algorithm, coupling)
     errors = {s: rel_err(table[s], ref[s]) for s in SIGNALS}
     assert max(errors.values()) < RTOL, errors
     # after the burst the commands are the laws' alone: the loop is closed

@@ -62,6 +62,7 @@ from structfmu.statespace import first_order
 from ..analysis import stability_margin_db
 from ..run import run_scenario
 from . import eos
+from . import verdicts as vd
 
 NAME = "testbed-isolation"
 DESCRIPTION = "Figs. 13-16: MISR active isolator struts against a 22 Hz SWIR-location " \
@@ -73,14 +74,16 @@ DT = 1e-3
 #: design) per configuration: 1 for mount #3 alone (6 dB margin); for all three mounts one
 #: factor per mount (iso1, iso2, iso3), each mount independent as in the paper, from
 #: design_mount_gains (every loop closed; 6 dB with the three scaled together and with
-#: each scaled alone, the others closed).
-GAINS = {"mount3": 1.0, "all_mounts": (0.112, -0.56, 1.12)}
+#: each scaled alone, the others closed), on the step-mean coupling.
+GAINS = {"mount3": 1.0, "all_mounts": (0.262, -0.105, 1.049)}
 #: The same for the hybrid mount #3 (``variant="hybrid"``: ``eos_testbed.build(iso3=
-#: "hybrid")``, its stack in series with an elastomer stage): the law's own gain
-#: direction times 7 (6.3 dB gain margin; the best direction at 6 dB, payload -70, bus
-#: 315 V per m/s^2, gives 87.8 % against 87.6 %); all three mounts from
-#: design_mount_gains as above.
-HYBRID_GAINS = {"mount3": 7.0, "all_mounts": (0.64, -0.64, 6.4)}
+#: "hybrid")``, its stack in series with an elastomer stage): the design law (the stiff
+#: strut's gain direction) at the largest factor of 0.05 steps that keeps 6 dB on the
+#: hybrid plant (6.2 dB at 2.95); all three mounts from design_mount_gains as above.  The
+#: elastomer was calibrated (stiffness, loss factor) with the earlier coupling and law
+#: direction to give the paper's 80 %; in its own best direction the hybrid plant allows
+#: much more (docs/eos_experiments.md).
+HYBRID_GAINS = {"mount3": 2.95, "all_mounts": (-0.313, 0.313, 3.134)}
 HYBRID_STRUCTURE = "eos_testbed_hybrid_structure"
 VARIANTS = ("stiff", "hybrid")
 MOUNTS = {"mount3": (3,), "all_mounts": (1, 2, 3)}
@@ -346,6 +349,39 @@ def loop_margins_db(plant, mounts, gain=1.0) -> dict:
 
             out[f"iso{k}"] = _margin(alone)
     return out
+
+
+def limiting_modes(plant, mounts, gain=1.0, margin_db=None) -> list:
+    """The closed-loop poles that leave the unit circle first when the gains rise.
+
+    With every closed loop scaled by its gain margin plus 0.1 dB (just unstable), the
+    poles outside the unit circle: the modes that set the margin.
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        :func:`linear_plant`.
+    mounts : sequence of int
+        Mounts (1, 2, 3) whose loops are closed.
+    gain : float or sequence of 3 floats
+        Factor(s) on the law's design gains, as in :func:`closed_loop`.
+    margin_db : float, optional
+        The margin of the loops scaled together (:func:`gain_margin_db`); computed if
+        not given.
+
+    Returns
+    -------
+    list of dict
+        ``freq_hz`` and ``abs_z`` of each unstable pole (upper half plane), largest
+        ``|z|`` first.
+    """
+    gm = gain_margin_db(plant, mounts, gain) if margin_db is None else margin_db
+    f = 10 ** ((gm + 0.1) / 20)
+    ev = np.linalg.eigvals(np.asarray(closed_loop(plant, mounts,
+                                                  [f * x for x in per_mount(gain)]).A))
+    bad = ev[(np.abs(ev) >= 1.0) & (np.abs(ev - 1) > 1e-6) & (ev.imag >= 0)]
+    return [{"freq_hz": float(abs(np.angle(z)) / (2 * np.pi * DT)), "abs_z": float(abs(z))}
+            for z in sorted(bad, key=lambda z: -abs(z))]
 
 
 def _margin(stable, max_factor=64.0) -> float:
@@ -818,6 +854,37 @@ def _off_rms(Gh):
                  * ARCSEC_PER_RAD)
 
 
+def testbed_verdicts(data) -> list:
+    """One verdict per Figs. 13-15 target (:mod:`orchestrator.experiments.verdicts`).
+
+    The paper reads its reductions the way Fig. 15 shows them: the boresight jitter
+    before and after the switch-on at 2.4 s in one run, so the verdicts compare that
+    (``before_after_reduction_pct``); the two-run measure (the last 1.2 s against an
+    isolation-off run, which removes the isolation-off run's own decay between the two
+    windows) is reported beside it in each verdict as ``two_runs``.
+
+    Parameters
+    ----------
+    data : dict
+        :func:`compute`'s result.
+
+    Returns
+    -------
+    list of dict
+    """
+    ba, red = data["before_after"], data["reduction"]
+    lo, hi = PAPER["all_mounts"]
+    out = [vd.about("Fig. 15: mount #3 alone, boresight jitter reduction", PAPER["mount3"],
+                    ba["mount3"]["before_after_reduction_pct"]),
+           vd.between("tests overall (all three mounts), boresight jitter reduction", lo, hi,
+                      ba["all_mounts"]["before_after_reduction_pct"]),
+           vd.about("Fig. 13: isolation bandwidth, mount #3", PAPER["bandwidth_hz"],
+                    data["bandwidth"], "Hz")]
+    out[0]["two_runs"] = red["mount3"]
+    out[1]["two_runs"] = red["all_mounts"]
+    return out
+
+
 def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
     """Linear design numbers and the two co-simulations (mount #3, all mounts).
 
@@ -850,9 +917,10 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
     plant = linear_plant(model)
     gains = HYBRID_GAINS if variant == "hybrid" else GAINS
     Gh = plant_frf(plant, list(HARMONICS))
-    lin = {}
+    lin, limiting = {}, {}
     for k, mounts in MOUNTS.items():
         loops = loop_margins_db(plant, mounts, gains[k])
+        limiting[k] = limiting_modes(plant, mounts, gains[k], loops["all"])
         lin[k] = {"gain_margin_db": min(loops.values()), "loop_gain_margins_db": loops,
                   "reduction_pct": boresight_reduction(plant, mounts, gains[k], Gh=Gh),
                   "ceiling": ideal_ceiling(plant, mounts, Gh=Gh)}
@@ -882,6 +950,7 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
     return {"runs": runs, "off": off, "stop": stop, "reduction": red, "before_after": before_after,
             "max_voltage": vmax, "linear": lin, "frf": frf, "ratio": ratio,
             "bandwidth": bw, "loop_shape": shape, "gains": gains, "feedforward_bound_pct": ff,
+            "limiting": limiting,
             "off_linear_full_scale_arcsec_rms": _off_rms(Gh)}
 
 
@@ -998,41 +1067,43 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff",
     data = compute(quick, fmu_dir, variant, fmu_kind)
     plot(data, out_dir, "testbed-isolation" + ("-hybrid" if variant == "hybrid" else ""))
     red, lin = data["reduction"], data["linear"]
-    lo, hi = PAPER["all_mounts"]
-    reproduced = bool(red["mount3"] >= 70.0 and lo <= red["all_mounts"] <= hi)
+    verdicts = testbed_verdicts(data)
+    reproduced = vd.all_reproduced(verdicts)
     ceil = {k: lin[k]["ceiling"]["accel_null"] for k in MOUNTS}
-    ls = data["loop_shape"]
+    ba = data["before_after"]
+    lim = data["limiting"]["mount3"]
+    lim_txt = (f"a closed-loop pole at {lim[0]['freq_hz']:.1f} Hz" if lim
+               else "no pole found")
+    words = "; ".join(f"{v['target']}: {v['ours']:.1f} {v['unit']} (paper {v['paper']}, "
+                      f"{'reproduced' if v['reproduced'] else 'missed'})" for v in verdicts)
     if variant == "hybrid":
-        note = (f"Hybrid mount #3 (stack + elastomer, build(iso3='hybrid')): mount #3 "
-                f"alone removes {red['mount3']:.0f} % of the boresight jitter "
-                f"(co-simulation; linear {lin['mount3']['reduction_pct']:.0f} %, paper "
-                f"about 80 %) at {lin['mount3']['gain_margin_db']:.1f} dB gain margin, "
-                f"isolation bandwidth {data['bandwidth']:.0f} Hz (paper about 45 Hz); all "
-                f"three mounts, each with its own gain (iso1/iso2 stiff, design_mount_gains), "
-                f"{red['all_mounts']:.0f} % (paper 50-80 %).  Without isolation the "
-                f"mount's 15.7 Hz resonance raises the boresight jitter about 2.5 times "
-                f"over the stiff mount (docs/eos_experiments.md).")
+        note = (f"{words}.  Hybrid mount #3 (stack + elastomer, build(iso3='hybrid'); its "
+                f"elastomer stiffness and loss factor were calibrated, on the earlier "
+                f"coupling and law direction, to give the paper's 80 %): the stated law in "
+                f"the stiff design's direction at the largest factor that keeps 6 dB "
+                f"removes {red['mount3']:.0f} % in two runs, "
+                f"{ba['mount3']['before_after_reduction_pct']:.0f} % the paper's way "
+                f"(linear {lin['mount3']['reduction_pct']:.0f} %); a law designed in "
+                f"its own best direction does much better (docs/eos_experiments.md).")
     else:
-        note = None
-    note = note or ("Reproduced within the paper's ranges." if reproduced else
-            f"Not reproduced: the layout puts mount #3 in the dominant 22 Hz path (holding "
-            f"its payload accelerometer at zero would remove {ceil['mount3']:.0f} % of the "
-            f"boresight jitter, all three {ceil['all_mounts']:.0f} %), but the stated law "
-            f"cannot get near that with a 6 dB gain margin.  On the stiff strut the plant "
-            f"from volts to payload acceleration rises as s^2 through the 20-60 Hz band, so "
-            f"the payload-feedback loop of mount #3 is {ls['crossover_to_22hz_ratio']:.1f} "
-            f"times larger where its phase crosses 0 ({ls['phase_crossover_hz']:.0f} Hz) "
-            f"than at 22 Hz: at 6 dB margin it can be at most "
-            f"{ls['max_loop_gain_22hz_at_6db']:.2f} at 22 Hz (phase "
-            f"{ls['loop_phase_22hz_deg']:.0f} deg; +-180 would be pure attenuation).  The "
-            f"best (payload, bus) gain direction at 6 dB (design_gains; the bus path acts "
-            f"mostly as feedforward) removes {lin['mount3']['reduction_pct']:.0f} % on the "
-            f"linear model; even as pure feedforward of an accelerometer the strut did not "
-            f"shake, the stated compensator's phase would allow at most "
-            f"{data['feedforward_bound_pct']:.0f} %; see "
-            f"docs/eos_experiments.md.")
+        note = (f"{words}.  Mount #3 is in the dominant 22 Hz path (holding its payload "
+                f"accelerometer at zero would remove {ceil['mount3']:.0f} %, the "
+                f"least-squares best strut force {lin['mount3']['ceiling']['optimal']:.0f} %), "
+                f"and the stated law at 6 dB removes {lin['mount3']['reduction_pct']:.0f} % "
+                f"on the linear model ({red['mount3']:.0f} % co-simulated, two runs; "
+                f"{ba['mount3']['before_after_reduction_pct']:.0f} % the paper's way, "
+                f"before and after switch-on in one run, which also counts the "
+                f"isolation-off run's own decay).  That is what the law's bus path gives as "
+                f"pure feedforward with the best real gain "
+                f"({data['feedforward_bound_pct']:.0f} %): the law is a feedforward whose "
+                f"phase at the harmonics, not its margin, limits it.  The 6 dB margin is "
+                f"set by {lim_txt} (the 0.5 %-damped bus modes there).")
     return {
+        "verdicts": verdicts,
         "jitter_reduction_pct": red,
+        "paper_way_reduction_pct": {k: data["before_after"][k]["before_after_reduction_pct"]
+                                    for k in MOUNTS},
+        "margin_limiting_poles": data["limiting"],
         "ideal_ceiling_pct": ceil,
         "optimal_bound_pct": {k: lin[k]["ceiling"]["optimal"] for k in MOUNTS},
         "linear_reduction_pct": {k: lin[k]["reduction_pct"] for k in MOUNTS},

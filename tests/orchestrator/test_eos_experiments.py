@@ -114,33 +114,64 @@ def test_testbed_isolation(testbed, out):
     red, lin = res["jitter_reduction_pct"], res["linear_reduction_pct"]
     assert set(red) == {"mount3", "all_mounts"}
     # every configuration: stable with >= 6 dB gain margin (linear model, all active
-    # loops scaled together); strut voltages inside the paper's +-50 V operating range
+    # loops scaled together and each alone); strut voltages inside +-50 V
     assert min(res["gain_margin_db"].values()) >= 6.0
     assert 0.0 < res["max_voltage_v"] < 50.0
     # the layout (docs/eos_testbed.md): mount #3 is in the dominant 22 Hz path, so an
     # ideal loop at mount #3 alone could remove about the paper's 80 %
     assert res["ideal_ceiling_pct"]["mount3"] >= 70.0
     assert res["ideal_ceiling_pct"]["all_mounts"] >= 90.0
-    # the isolation attenuates the boresight jitter in the co-simulation, as designed on
-    # the linear model (zero gains give 0 %, a flipped sign amplifies or goes unstable)
-    # (the designed values are 22 % and 25 %, each mount with its own gain; the quick run
-    # measures 2.4 s after switch-on, while the 0.5 %-damped 23 Hz bus mode still settles)
-    assert lin["mount3"] >= 15.0 and red["mount3"] >= 12.0
-    assert lin["all_mounts"] >= 18.0 and red["all_mounts"] >= 12.0
-    # even as pure feedforward the stated compensator's bus path could not reach 70 %
-    assert 0.0 < res["feedforward_bound_mount3_pct"] < 70.0
-    assert red["mount3"] == pytest.approx(lin["mount3"], abs=8.0)
+    # no controller beats the least-squares bound
+    for k in ("mount3", "all_mounts"):
+        assert lin[k] <= res["optimal_bound_pct"][k] + 1e-6
+    # the explanation of the miss, as a number: the design at 6 dB removes what the
+    # law's bus path removes as a pure feedforward with the best real gain
+    assert lin["mount3"] == pytest.approx(res["feedforward_bound_mount3_pct"], abs=2.0)
+    # the margin is set by a pole that leaves the unit circle (a real instability)
+    assert res["margin_limiting_poles"]["mount3"][0]["abs_z"] >= 1.0
+    # the co-simulation attenuates as the linear design says once settled; the quick run
+    # measures 2.4 s after switch-on, while the 0.5 %-damped 23 Hz bus mode still rings
+    # (the full run: 45.5 % against 46.8 %), so only the sign and the order are checked
+    assert red["mount3"] > 0.5 * lin["mount3"] and red["all_mounts"] > 0.5 * lin["all_mounts"]
     assert (out / "testbed-isolation.png").is_file()
 
 
-@pytest.mark.xfail(strict=True, reason="the stated law on the stiff struts is gain-limited "
-                   "to about 22 % at 6 dB margin (docs/eos_experiments.md)")
-def test_testbed_isolation_reaches_the_papers_attenuation(testbed):
-    # paper: about 80 % with mount #3 alone, 50-80 % with all three
-    red = testbed["jitter_reduction_pct"]
-    assert red["mount3"] >= 70.0
-    assert 50.0 <= red["all_mounts"] <= 80.0
-    assert testbed["reproduced"] is True
+def test_testbed_regression_pin(testbed):
+    """A regression pin, not a reproduction: today's linear design values (step-mean
+    coupling, 6 dB, the stored gains), to 0.5 points (they are frequency responses of a
+    fixed loop, well conditioned); a change of the model or the gains moves them."""
+    lin = testbed["linear_reduction_pct"]
+    assert lin["mount3"] == pytest.approx(46.8, abs=0.5)
+    assert lin["all_mounts"] == pytest.approx(48.3, abs=0.5)
+
+
+@pytest.mark.xfail(strict=True, reason="on the stiff struts the stated law at 6 dB removes "
+                   "47 % (linear), 50 % the paper's way in the quick run (59 % in the full "
+                   "run), against a ceiling of 82 %: it acts as a feedforward of the bus "
+                   "accelerometer whose phase at the harmonics allows 47 % "
+                   "(docs/eos_experiments.md)")
+def test_reproduces_fig15_mount3(testbed):
+    # paper: about 80 % with mount #3 alone, read the paper's way (before and after the
+    # switch-on at 2.4 s in one run); "about" is +-5 points (verdicts.ABOUT_PCT)
+    v = testbed["verdicts"][0]
+    assert v["target"].startswith("Fig. 15") and v["band"] == [75.0, 85.0]
+    assert v["reproduced"] is True
+
+
+def test_reproduces_tests_overall_all_mounts(testbed):
+    # paper: "Payload isolation tests have confirmed 50 to 80 percent reduction", read
+    # the paper's way (51 % in the quick run, 60 % in the full one)
+    v = testbed["verdicts"][1]
+    assert v["band"] == [50.0, 80.0]
+    assert 50.0 <= v["ours"] <= 80.0 and v["reproduced"] is True
+    assert v["ours"] == pytest.approx(
+        testbed["paper_way_reduction_pct"]["all_mounts"], abs=1e-12)
+
+
+@pytest.mark.xfail(strict=True, reason="the isolation band of mount #3 ends at 27 Hz, not "
+                   "about 45 Hz (docs/eos_experiments.md)")
+def test_reproduces_fig13_bandwidth(testbed):
+    assert testbed["verdicts"][2]["reproduced"] is True
 
 
 @pytest.fixture(scope="module")
@@ -148,36 +179,26 @@ def testbed_hybrid(out, suite_fmu_dir):
     from orchestrator.experiments import testbed_isolation
 
     # the full 9.6 s run: the quick one measures 2.4 s after switch-on,
-    # while the switch-on transient still rings (70.1 % there against 78.6 %)
+    # while the switch-on transient still rings
     return testbed_isolation.run(out, quick=False, fmu_dir=suite_fmu_dir, variant="hybrid")
 
 
-def test_testbed_isolation_hybrid_reaches_the_papers_attenuation(testbed_hybrid, out):
-    # mount #3 a hybrid isolator (stack + elastomer, eos_testbed.build(iso3="hybrid")),
-    # the law exactly as stated at 7 times its gains: the paper's "about 80 %" with
-    # mount #3 alone and 50-80 % with all three (each mount its own gain), at >= 6 dB
-    # gain margin and inside +-50 V
+def test_testbed_isolation_hybrid(testbed_hybrid, out):
+    # mount #3 a hybrid isolator (stack + elastomer, eos_testbed.build(iso3="hybrid")).
+    # Its elastomer was calibrated to give the paper's 80 % on the earlier coupling, so
+    # nothing here asserts the paper's number; what was not fitted: the loops keep 6 dB,
+    # the voltages stay inside +-50 V, the co-simulation settles where the linear model
+    # says (two runs, 9.6 s), and no result beats the least-squares bound
     res = testbed_hybrid
     red, lin = res["jitter_reduction_pct"], res["linear_reduction_pct"]
     assert res["variant"] == "hybrid"
     assert min(res["gain_margin_db"].values()) >= 6.0
     assert 0.0 < res["max_voltage_v"] < 50.0
-    assert lin["mount3"] >= 80.0
-    assert red["mount3"] >= 70.0
-    assert res["boresight_rms"]["mount3"]["before_after_reduction_pct"] >= 70.0
-    assert 50.0 <= red["all_mounts"] <= 80.0
-    assert all(g != 0.0 for g in res["gain"]["all_mounts"])
-    assert res["reproduced"] is True
-    # no controller can beat the least-squares bound
     for k in ("mount3", "all_mounts"):
+        assert red[k] == pytest.approx(lin[k], abs=5.0)
         assert lin[k] <= res["optimal_bound_pct"][k] + 1e-6
+    assert all(g != 0.0 for g in res["gain"]["all_mounts"])
     assert (out / "testbed-isolation-hybrid.png").is_file()
-
-
-@pytest.mark.xfail(strict=True, reason="the isolation bandwidth of the hybrid mount #3 is "
-                   "30 Hz, not the paper's 45 (docs/eos_experiments.md)")
-def test_testbed_isolation_hybrid_reaches_the_papers_bandwidth(testbed_hybrid):
-    assert testbed_hybrid["isolation_bandwidth_hz"] == pytest.approx(45.0, abs=7.0)
 
 
 @pytest.fixture(scope="module")
@@ -190,10 +211,8 @@ def test_swir_isolation(swir, out):
     red, off = res["reduction_pct"], res["jitter_off_arcsec"]
     # paper (Fig. 9 text): VNIR pointing gives about 1 arcsec/1.8 s on all three SWIR axes
     assert all(0.5 <= off[a] <= 2.0 for a in ("roll", "pitch", "yaw"))
-    # paper: roll reduced by only 30 % (rigid-body motion), yaw significantly.  Zero gains
-    # give 0 %, a flipped sign amplifies or goes unstable: both fail here.
-    assert 15.0 <= red["roll"] <= 45.0
-    assert red["yaw"] >= 50.0
+    # zero gains give 0 %, a flipped sign amplifies or goes unstable: both fail here
+    assert red["roll"] > 0 and red["yaw"] > 0
     # the co-simulation is the linear design model (same discretisation and delays)
     for a in ("roll", "pitch", "yaw"):
         assert red[a] == pytest.approx(res["linear_reduction_pct"][a], abs=1.0)
@@ -208,17 +227,34 @@ def test_swir_isolation(swir, out):
     assert (out / "swir-isolation.png").is_file()
 
 
-@pytest.mark.xfail(strict=True, reason="SWIR pitch rides on 70-125 Hz bus modes with 5-17 % "
-                   "of their strain energy in the legs: one strain loop per leg makes the legs "
-                   "springs and dampers, which cannot cut it (5 % damping on every mode above "
-                   "20 Hz gives 34 %); one controller on the same twelve strains does "
-                   "(test_swir_isolation_central); MISR falls 25 %, more than the paper's "
-                   "10 % (docs/eos_experiments.md)")
-def test_swir_isolation_reaches_the_papers_attenuation(swir):
-    # paper: pitch and yaw lowered significantly, MISR about 10 %
-    assert swir["reduction_pct"]["pitch"] >= 50.0
-    assert 3.0 <= swir["misr_reduction_pct"] <= 20.0
-    assert swir["reproduced"] is True
+def _verdict(res, target):
+    return next(v for v in res["verdicts"] if v["target"] == target)
+
+
+def test_reproduces_fig9_roll_and_yaw(swir):
+    # paper: roll reduced by only 30 % (rigid-body motion): "about 30 %" is 25-35 %
+    # (verdicts.ABOUT_PCT); yaw "significantly" (read: at least 50 %)
+    roll, yaw = _verdict(swir, "SWIR roll reduction"), _verdict(swir, "SWIR yaw reduction")
+    assert roll["band"] == [25.0, 35.0] and roll["reproduced"] is True
+    assert 25.0 <= swir["reduction_pct"]["roll"] <= 35.0
+    assert yaw["reproduced"] is True and swir["reduction_pct"]["yaw"] >= 50.0
+
+
+@pytest.mark.xfail(strict=True, reason="SWIR pitch (10 %) rides on 70-125 Hz bus modes with "
+                   "5-17 % of their strain energy in the legs: one strain loop per leg makes "
+                   "the legs springs and dampers, which cannot cut it (5 % damping on every "
+                   "mode above 20 Hz gives 34 %); one controller on the same twelve strains "
+                   "does (test_swir_isolation_central) (docs/eos_experiments.md)")
+def test_reproduces_fig9_pitch(swir):
+    # paper: pitch lowered significantly (read: at least 50 %)
+    assert _verdict(swir, "SWIR pitch reduction")["reproduced"] is True
+
+
+@pytest.mark.xfail(strict=True, reason="MISR falls 34 % with the twelve leg loops, more "
+                   "than the paper's about 10 % (docs/eos_experiments.md; the cause is not "
+                   "measured yet)")
+def test_reproduces_fig9_misr(swir):
+    assert _verdict(swir, "MISR reduction")["reproduced"] is True
 
 
 @pytest.fixture(scope="module")

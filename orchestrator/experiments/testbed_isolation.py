@@ -50,6 +50,7 @@ import numpy as np
 
 from ctrlfmu.analysis import to_statespace
 from ctrlfmu.designs import design
+from distfmu.presets import get_preset
 from fmukit.units import ARCSEC_PER_RAD
 from fmutools import PYTHON_SUBDIR
 from fmutools.ensure import ensure_fmus as _ensure
@@ -88,7 +89,8 @@ HYBRID_STRUCTURE = "eos_testbed_hybrid_structure"
 VARIANTS = ("stiff", "hybrid")
 MOUNTS = {"mount3": (3,), "all_mounts": (1, 2, 3)}
 #: Disturbance harmonics of the ``swir_cryocooler`` preset (Hz: N, full scale).
-HARMONICS = {22.0: 0.5, 44.0: 0.15, 66.0: 0.05}
+HARMONICS = {get_preset("swir_cryocooler").source.frequency * k: a
+             for k, a in enumerate(get_preset("swir_cryocooler").source.amplitudes, 1)}
 HP_HZ = 5.0
 FREQS = np.geomspace(5.0, 300.0, 160)
 PAPER = {"mount3": 80.0, "all_mounts": (50.0, 80.0), "bandwidth_hz": 45.0}

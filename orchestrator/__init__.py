@@ -8,8 +8,8 @@ The pipeline, on the ten-bay truss closed loop (the FMUs come from ``jitterfmu b
 >>> [i.name for i in scenario.instances]
 ['structure', 'piezo_diag', 'piezo_long', 'ctrl_diag', 'ctrl_long', 'excitation']
 >>> plan = prepare(scenario, fmu_dir)            # checked against the FMUs, nothing runs
->>> plan.groups[:2]       # step order: a feedthrough source before the sinks it feeds
-[('structure',), ('ctrl_diag',)]
+>>> plan.groups[:3]       # step order: a feedthrough source before the sinks it feeds
+[('ctrl_diag',), ('piezo_diag',), ('ctrl_long',)]
 >>> result = run_scenario(scenario, stop_time=0.2, fmu_dir=fmu_dir)
 >>> float(result.table["time"][-1]), result.metadata["status"]
 (0.2, 'ok')

@@ -28,6 +28,7 @@ from orchestrator import run_scenario
 from orchestrator.analysis import linearize
 
 from . import SCENARIOS
+from . import verdicts as vd
 
 NAME = "truss-decay"
 DESCRIPTION = "Figs. 5-6: ten-bay truss open-loop decay and 250 Hz strain-feedback control"
@@ -403,9 +404,15 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native") -> dict
     data = compute(fmu_dir, quick, fmu_kind)
     plot(data, Path(out_dir))
     cycles = data["closed_loop_cycles_to_90pct"]
-    reproduced = (all(c is not None and c <= 2.0 for c in cycles.values())
-                  and not data["saturated"])
+    verdicts = [vd.below(f"Fig. 6: cycles to 90 % decay with control, {m}", 2.0, c,
+                         "cycles", "decays by 90 % in two cycles (read: at most 2)")
+                for m, c in cycles.items()]
+    reproduced = vd.all_reproduced(verdicts) and not data["saturated"]
     return {
+        "verdicts": verdicts,
+        # the model's modal damping is calibrated to the paper's measured 0.18 / 0.4 %:
+        # identifying it from the free decay checks the identification, it is no result
+        "model_input_damping": {"diagonal": 0.0018, "longeron": 0.004},
         "open_loop_damping": data["open_loop_damping"],
         "closed_loop_cycles_to_90pct": cycles,
         "open_loop_cycles_to_90pct": data["open_loop_cycles_to_90pct"],
@@ -413,7 +420,7 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native") -> dict
         "saturated": data["saturated"],
         "fits": data["fits"],
         "linear_prediction": linear_prediction(fmu_dir),
-        "paper": {"open_loop_damping": {"diagonal": 0.0018, "longeron": 0.004},
+        "paper": {"open_loop_damping_measured": {"diagonal": 0.0018, "longeron": 0.004},
                   "closed_loop_cycles_to_90pct": 2},
         "reproduces_paper_cycles": reproduced,
         "note": ("Both members decay to 10 % within the paper's two cycles with Eq. 11's "

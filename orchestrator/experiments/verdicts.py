@@ -56,17 +56,72 @@ def about(target: str, x: float, ours, unit: str = "%") -> dict:
 
 
 def between(target: str, lo: float, hi: float, ours, unit: str = "%") -> dict:
-    """Verdict on "``lo``-``hi``" (both included); see :func:`about`."""
+    """Verdict on "``lo``-``hi``" (both included); see :func:`about`.
+
+    Parameters
+    ----------
+    target : str
+        What is compared, in the paper's terms.
+    lo, hi : float
+        The paper's range.
+    ours : float or None
+        Ours (None: not measured, never reproduced).
+    unit : str
+        Unit of the numbers.
+
+    Returns
+    -------
+    dict
+        As :func:`about`.
+    """
     return _verdict(target, f"{lo:g}-{hi:g} {unit}", (lo, hi), ours, unit)
 
 
 def at_least(target: str, x: float, ours, unit: str = "%", words: str | None = None) -> dict:
-    """Verdict on "at least ``x``" (``words`` are the paper's, e.g. "significant")."""
+    """Verdict on "at least ``x``" (``words`` are the paper's, e.g. "significant").
+
+    Parameters
+    ----------
+    target : str
+        What is compared, in the paper's terms.
+    x : float
+        The paper's bound.
+    ours : float or None
+        Ours (None: not measured, never reproduced).
+    unit : str
+        Unit of the numbers.
+    words : str, optional
+        The paper's words, when they are not a number.
+
+    Returns
+    -------
+    dict
+        As :func:`about`.
+    """
     return _verdict(target, words or f"at least {x:g} {unit}", (x, math.inf), ours, unit)
 
 
 def below(target: str, x: float, ours, unit: str = "", words: str | None = None) -> dict:
-    """Verdict on "below ``x``" (``x`` included as the limit: ``ours <= x``)."""
+    """Verdict on "below ``x``" (``x`` included as the limit: ``ours <= x``).
+
+    Parameters
+    ----------
+    target : str
+        What is compared, in the paper's terms.
+    x : float
+        The paper's limit.
+    ours : float or None
+        Ours (None: not measured, never reproduced).
+    unit : str
+        Unit of the numbers.
+    words : str, optional
+        The paper's words, when they are not a number.
+
+    Returns
+    -------
+    dict
+        As :func:`about`.
+    """
     return _verdict(target, words or f"below {x:g} {unit}".strip(), (-math.inf, x), ours,
                     unit)
 

@@ -39,9 +39,12 @@ def fmu_dir(suite_fmu_dir):
 def test_truss_decay_through_the_cosimulation(tmp_path, fmu_dir, monkeypatch):
     import orchestrator.experiments.truss_decay as td
     res = td.run(tmp_path, quick=True, fmu_dir=fmu_dir)
-    # damping identified from the co-simulated free decay: paper 0.18 % and 0.4 %
-    assert res["open_loop_damping"]["diagonal"] == pytest.approx(0.0018, rel=0.05)
-    assert res["open_loop_damping"]["longeron"] == pytest.approx(0.004, rel=0.05)
+    # a check of the identification, not a result: the model's modal damping is
+    # calibrated to the paper's measured 0.18 % and 0.4 %, and the co-simulated free
+    # decay gives it back
+    assert res["model_input_damping"] == {"diagonal": 0.0018, "longeron": 0.004}
+    for m, z in res["model_input_damping"].items():
+        assert res["open_loop_damping"][m] == pytest.approx(z, rel=0.05)
     # the paper's simulation (Fig. 6): 90 % decay within two cycles, with Eq. 11's
     # one-sample delay at 250 Hz, the amplifiers in the loop and no saturation
     for member in ("diagonal", "longeron"):
@@ -51,6 +54,7 @@ def test_truss_decay_through_the_cosimulation(tmp_path, fmu_dir, monkeypatch):
         ol = res["open_loop_cycles_to_90pct"][member]
         assert ol is None or ol > 5 * c
     assert res["reproduces_paper_cycles"] is True
+    assert [v["reproduced"] for v in res["verdicts"]] == [True, True]
     assert 0 < res["peak_voltage_v"] < 1000 and res["saturated"] is False
     # the linear closed loop predicts the co-simulated decay (same discretised models)
     lin = res["linear_prediction"]

@@ -856,6 +856,38 @@ def _off_rms(Gh):
                  * ARCSEC_PER_RAD)
 
 
+def transmissibility_bands(freqs, ratio) -> dict:
+    """Where the isolation attenuates and where it amplifies (Fig. 14's claim).
+
+    Parameters
+    ----------
+    freqs : ndarray, shape (n,)
+        Frequencies (Hz).
+    ratio : ndarray, shape (n,)
+        Open-loop over closed-loop accelerometer #6 (the figure's y axis).
+
+    Returns
+    -------
+    dict
+        ``below_1_hz``: the frequency intervals where the transmissibility (closed over
+        open) is below 1; ``max``, ``max_hz``: its largest value and where.
+    """
+    t = 1.0 / np.asarray(ratio, float)
+    below = t < 1.0
+    bands, start = [], None
+    for f, b in zip(freqs, below):
+        if b and start is None:
+            start = f
+        if not b and start is not None:
+            bands.append([float(start), float(prev)])
+            start = None
+        prev = f
+    if start is not None:
+        bands.append([float(start), float(freqs[-1])])
+    k = int(np.argmax(t))
+    return {"below_1_hz": bands, "max": float(t[k]), "max_hz": float(freqs[k])}
+
+
 def testbed_verdicts(data) -> list:
     """One verdict per Figs. 13-15 target (:mod:`orchestrator.experiments.verdicts`).
 
@@ -1127,4 +1159,5 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff",
         "reproduced": reproduced,
         "note": note,
         "transmissibility": {"freq_hz": FREQS, "mount3": data["ratio"]},
+        "transmissibility_bands_mount3": transmissibility_bands(FREQS, data["ratio"]),
     }

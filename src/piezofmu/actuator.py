@@ -326,23 +326,19 @@ def step_mean(act: PiezoActuator, state: ActuatorState, v_cmd: float,
     n, _ = amp_mod.substeps(dt, act.amplifier.internal_step)
     cap = act.stack.capacitance
     amp_state, path = amp_mod.step_path(act.amplifier, cap, state.amp, v_cmd, dt)
-    f_prev = outputs(act, state).force
-    total = 0.0
+    ch, limit, bw = float(act.stack.ch), act.stroke_limit / act.stroke_per_volt, act.hysteresis
     h_bw, v_prev = state.h_bw, state.amp.voltage
-    for v in path:
-        if act.hysteresis is not None:
-            h_bw = hyst_mod.increment(act.hysteresis, h_bw, v - v_prev)
-        f = _force(act, v - h_bw)
+    # summed in order, one sub-step at a time, as the native kernel does (bit for bit)
+    f_prev = ch * min(max(v_prev - h_bw, -limit), limit)
+    total = 0.0
+    for v in path.tolist():
+        if bw is not None:
+            h_bw = hyst_mod.increment(bw, h_bw, v - v_prev)
+        f = ch * min(max(v - h_bw, -limit), limit)
         total += 0.5 * (f_prev + f)
         f_prev, v_prev = f, v
     new = ActuatorState(amp_state, h_bw, state.tick + n)
     return new, outputs(act, new), total / n
-
-
-def _force(act: PiezoActuator, v_eff: float) -> float:
-    """Force (N) of an effective voltage, after the stroke limit."""
-    limit = act.stroke_limit / act.stroke_per_volt
-    return float(act.stack.force(min(max(v_eff, -limit), limit)))
 
 
 _MASK64 = (1 << 64) - 1

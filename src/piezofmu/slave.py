@@ -119,6 +119,7 @@ class PiezoSlave(FmuSlave):
         self._act: PiezoActuator | None = None
         self._ready = False
         self._ahead = None   # (key, state, outputs, mean force) of the coming step
+        self._force_stale = False   # force to refresh before it is read
 
     # ---------------------------------------------------------------- model
     def _parameter_key(self) -> tuple:
@@ -206,12 +207,38 @@ class PiezoSlave(FmuSlave):
         super().set_real(vrs, values)
         if self._ready:
             self._write_strain()
+            self._force_stale = True
+
+    def get_real(self, vrs):
+        """Get Real variables (``fmi2GetReal``); the force is brought up to date first
+        (computed when read, so a master that sets ``v_cmd`` after a step pays for one
+        mean, not two).
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references.
+
+        Returns
+        -------
+        list of float
+        """
+        if self._force_stale:
             self._write_force()
+            self._force_stale = False
+        return super().get_real(vrs)
+
+    def _get_fmu_state(self):
+        if self._force_stale:
+            self._write_force()
+            self._force_stale = False
+        return super()._get_fmu_state()
 
     def _set_fmu_state(self, state):
         super()._set_fmu_state(state)
         self._key = None  # parameters may have changed with the state
         self._ahead = None
+        self._force_stale = False   # the state holds the force it was saved with
 
     # ---------------------------------------------------------------- FMI
     def exit_initialization_mode(self):
@@ -253,6 +280,6 @@ class PiezoSlave(FmuSlave):
         self.x[...] = state.to_array()
         self._write_outputs(out)
         self.strain = ac.strain(act, state, self.elongation)
-        self._write_force()
+        self._force_stale = True
         return True
 

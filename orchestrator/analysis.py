@@ -566,11 +566,13 @@ class LinearScenario:
             X = self._tick(X, k, w_next)
         return X
 
-    def _harmonic(self, X, inputs, w_rad, out_rows=None):
-        """Run one hyperperiod from ``X`` (n, n_in) with ``exp(j w t)`` on ``inputs``.
+    def _harmonic(self, X, inputs, w_rad, out_rows=None, n_ticks=None):
+        """Run ``n_ticks`` (one hyperperiod by default) from ``X`` (n, n_in) with
+        ``exp(j w t)`` on ``inputs``.
 
         Returns the final ``X`` and, with ``out_rows``, the fundamental of those rows.
         """
+        n_ticks = self.hyper if n_ticks is None else n_ticks
         cols = len(inputs)
         acc = None if out_rows is None else np.zeros((len(out_rows), cols), complex)
         k_now = [0]
@@ -584,12 +586,12 @@ class LinearScenario:
                     rows[b.outputs.index(var), j] = np.exp(1j * w_rad * k_now[0] * self.base)
             return rows
 
-        for k in range(self.hyper):
+        for k in range(n_ticks):
             k_now[0] = k
-            X = self._tick(X, k, w_next)
+            X = self._tick(X, k % self.hyper, w_next)
             if acc is not None:
                 acc += X[out_rows] * np.exp(-1j * w_rad * k * self.base)
-        return X, (None if acc is None else acc / self.hyper)
+        return X, (None if acc is None else acc / n_ticks)
 
     def simulate(self, n_ticks: int, w: Callable | None = None, x0=None, record=()):
         """Tick-by-tick linear simulation.
@@ -693,34 +695,35 @@ class LinearScenario:
         ndarray, shape (n_out, n_in, n_f)
             Fundamental component of each output per unit input (exact for a loop
             whose instances share one period; for mixed rates the component at ``f``
-            of the periodic steady state).
+            of the periodic steady state, whose period is the hyperperiod of the loop and
+            of the driving sources together).
         """
         freqs = np.atleast_1d(np.asarray(freqs_hz, float))
         inputs = list(inputs)
+        period = self.hyper   # the steady state's period: the sources' periods included
         for ref in inputs:
             inst, var = ref.split(".", 1)
             if inst not in self.sources or var not in self.blocks[inst].outputs:
                 raise AnalysisError(f"{ref} is not an output of a source instance; sources: "
                                     f"{', '.join(self.sources)}")
-            if self.hyper % self.blocks[inst].period:
-                raise AnalysisError(f"source {inst!r} steps every {self.blocks[inst].period} "
-                                    f"ticks, which does not divide the hyperperiod "
-                                    f"({self.hyper} ticks)")
-        Phi = self.lifted()
+            period = int(np.lcm(period, self.blocks[inst].period))
+        Phi = np.linalg.matrix_power(self.lifted(), period // self.hyper)
+        T = period * self.base
         rows = [self.index(r) for r in outputs]
         H = np.zeros((len(rows), len(inputs), freqs.size), complex)
         eye = np.eye(self.n)
         for fi, f in enumerate(freqs):
             w = 2 * np.pi * f
             # periodic steady state: X(T) = exp(j w T) X(0)
-            forced, _ = self._harmonic(np.zeros((self.n, len(inputs)), complex), inputs, w)
+            forced, _ = self._harmonic(np.zeros((self.n, len(inputs)), complex), inputs, w,
+                                       n_ticks=period)
             try:
-                X0 = np.linalg.solve(np.exp(1j * w * self.T) * eye - Phi, forced)
+                X0 = np.linalg.solve(np.exp(1j * w * T) * eye - Phi, forced)
             except np.linalg.LinAlgError:
                 raise AnalysisError(f"the loop has a pole at {f} Hz (a multiple of the "
                                     "hyperperiod rate on a neutral mode); choose another "
                                     "frequency") from None
-            _, H[:, :, fi] = self._harmonic(X0, inputs, w, rows)
+            _, H[:, :, fi] = self._harmonic(X0, inputs, w, rows, n_ticks=period)
         return H
 
 

@@ -872,18 +872,11 @@ def transmissibility_bands(freqs, ratio) -> dict:
         ``below_1_hz``: the frequency intervals where the transmissibility (closed over
         open) is below 1; ``max``, ``max_hz``: its largest value and where.
     """
+    freqs = np.asarray(freqs, float)
     t = 1.0 / np.asarray(ratio, float)
-    below = t < 1.0
-    bands, start = [], None
-    for f, b in zip(freqs, below):
-        if b and start is None:
-            start = f
-        if not b and start is not None:
-            bands.append([float(start), float(prev)])
-            start = None
-        prev = f
-    if start is not None:
-        bands.append([float(start), float(freqs[-1])])
+    below = np.r_[False, t < 1.0, False]
+    edges = np.flatnonzero(np.diff(below.astype(int)))   # starts, then ends, alternating
+    bands = [[float(freqs[a]), float(freqs[b - 1])] for a, b in zip(edges[::2], edges[1::2])]
     k = int(np.argmax(t))
     return {"below_1_hz": bands, "max": float(t[k]), "max_hz": float(freqs[k])}
 

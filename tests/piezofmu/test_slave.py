@@ -72,7 +72,7 @@ def test_step_mean_is_the_exact_impulse_of_the_linear_amplifier():
     # 10 us sub-steps is within (w h_s)^2 / 12 of the transient part.
     act = ac.actuator_preset("P-845.37")
     u, h, w = 0.1, 1e-3, act.amplifier.omega   # 0.1 V: far from the slew limit
-    state, out, mean = ac.step_mean(act, ac.initial_state(act), u, h)
+    state, _, mean = ac.step_mean(act, ac.initial_state(act), u, h)
     exact = act.stack.force(u) * (1 - (1 - math.exp(-w * h)) / (w * h))
     transient = act.stack.force(u) - exact
     assert abs(mean - exact) <= (w * 1e-5) ** 2 / 12 * transient * 1.01

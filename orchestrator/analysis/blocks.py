@@ -1,0 +1,271 @@
+"""One discrete LTI block per FMU instance, read from the FMU's own resources."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import zipfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from piezofmu.amplifier import linear_map
+from structfmu.discrete import discretize, step
+from structfmu.statespace import first_order
+
+
+class AnalysisError(ValueError):
+    """A scenario cannot be analysed as a linear closed loop."""
+
+
+@dataclass(frozen=True, eq=False)
+class Block:
+    """One instance as a discrete linear system at its communication period.
+
+    ``x+ = A x + B u``, ``y = C x + D u`` with ``u`` the inputs held over the step.
+
+    Parameters
+    ----------
+    name : str
+        Instance name.
+    kind : str
+        ``"structure"``, ``"piezo"``, ``"controller"``, ``"acs"`` or ``"source"``.
+    period : int
+        Period in base ticks.
+    A, B, C, D : ndarray
+        Shapes ``(n, n)``, ``(n, n_in)``, ``(n_out, n)``, ``(n_out, n_in)``.
+    inputs, outputs : tuple of str
+        FMU variable names of ``u`` and ``y``.
+    feedthrough : ndarray of bool, shape (n_out,)
+        Outputs the FMU declares as depending on an input (read after the inputs are
+        set at the tick); the others are read as stamped at ``t_k``.
+    rebuild : callable, optional
+        ``rebuild(factor) -> Block`` with the controller's command scaled by ``factor``.
+    continuous : tuple of ndarray, optional
+        The continuous-time model the block samples, for the sampled-data reference
+        (:mod:`orchestrator.reference`): ``(A, B, C, D)`` of a structure (Eq. 9-10), or
+        ``(A, B, ch)`` of a piezo amplifier in force units (input ``ch v_cmd``, first
+        state the force ``ch v`` on the structure).
+    """
+
+    name: str
+    kind: str
+    period: int
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    inputs: tuple
+    outputs: tuple
+    feedthrough: np.ndarray
+    rebuild: Callable | None = field(default=None, repr=False)
+    active: bool = True
+    continuous: tuple | None = field(default=None, repr=False)
+
+    @property
+    def n(self) -> int:
+        return self.A.shape[0]
+
+
+def _lift(A, B, n):
+    """``n`` steps of ``x+ = A x + B u`` with ``u`` held: ``(A^n, sum A^k B)``."""
+    An, Bn = np.eye(A.shape[0]), np.zeros_like(B)
+    for _ in range(n):
+        Bn = A @ Bn + B
+        An = A @ An
+    return An, Bn
+
+
+def _structure_block(slave, name, period, h, ft):
+    stepper = slave.stepper
+    model = stepper.model
+    dm = discretize(model, h)
+    n, m = model.n_states, model.n_inputs
+    A = np.column_stack([step(dm, e, np.zeros(m)) for e in np.eye(n)]) if n else np.zeros((0, 0))
+    B = np.column_stack([step(dm, np.zeros(n), e) for e in np.eye(m)])
+    return Block(name, "structure", period, A, B, stepper.C_x.copy(), stepper.D.copy(),
+                 tuple(model.input_names), tuple(model.output_names), ft,
+                 continuous=first_order(model))
+
+
+def _piezo_block(slave, name, period, h, ft):
+    act = slave.actuator()
+    if act.hysteresis is not None:
+        raise AnalysisError(f"instance {name!r} has hysteresis on; the linear analysis "
+                            "needs hysteresis=false")
+    coupling = slave._coupling()
+    if coupling == 1 and abs(h - float(slave.hold_step)) > 1e-9 * h:
+        raise AnalysisError(f"instance {name!r} steps every {h} s but its hold_step is "
+                            f"{slave.hold_step} s; set hold_step to its period")
+    amp, stack = act.amplifier, act.stack
+    ch = float(stack.force(1.0))
+    cap = stack.capacitance
+    ins = ("v_cmd", "elongation")
+    outs = ("force", "voltage", "current", "free_stroke", "strain")
+    gl = act.gauge.length
+    A1, B1, cx, cu = linear_map(amp, h)
+    A, B = A1, np.hstack([B1, np.zeros((A1.shape[0], 1))])
+    if amp.order == 1:
+        w = amp.omega
+        C = np.array([[ch], [1.0], [-cap * w], [act.stroke_per_volt], [0.0]])
+        D = np.array([[0, 0], [0, 0], [cap * w, 0], [0, 0], [0, 1.0 / gl]], dtype=float)
+    else:
+        C = np.array([[ch, 0], [1.0, 0], [0, cap], [act.stroke_per_volt, 0], [0, 0]])
+        D = np.zeros((5, 2))
+        D[4, 1] = 1.0 / gl
+    if coupling == 1:
+        # force = trapezoidal mean over the coming step (piezofmu.actuator.step_mean)
+        C[0] = ch * cx
+        D[0, 0] = ch * cu
+    w = amp.omega
+    if amp.order == 1:   # f' = w (ch v_cmd - f)
+        amp_c = (np.array([[-w]]), np.array([[w]]), ch)
+    else:                # f'' = w^2 (ch v_cmd - f) - 2 zeta w f'
+        amp_c = (np.array([[0.0, 1.0], [-w * w, -2 * amp.damping * w]]),
+                 np.array([[0.0], [w * w]]), ch)
+    return Block(name, "piezo", period, A, B, C, D, ins, outs, ft, continuous=amp_c)
+
+
+def _law_block(law, name, period, h, ft, factor=1.0):
+    """Block of a ``ctrlfmu.law.DiscreteLaw`` with its command scaled by ``factor``."""
+    n_samples = h / law.dt
+    k = round(n_samples)
+    if k < 1 or abs(n_samples - k) > 1e-9 * max(1.0, n_samples):
+        raise AnalysisError(f"controller {name!r} runs at {h} s but its law samples every "
+                            f"{law.dt} s; the linear analysis needs a period that is a "
+                            "multiple of the law's sample time")
+    a, b, c, d = law.A, law.B, law.C * factor, law.D * factor
+    n, n_in, n_out = law.n_states, law.n_inputs, law.n_outputs
+    if law.delayed:   # state [x; u]: u+ = C x + D y, output u
+        As = np.block([[a, np.zeros((n, n_out))], [c, np.zeros((n_out, n_out))]])
+        Bs = np.vstack([b, d])
+        Cs = np.hstack([np.zeros((n_out, n)), np.eye(n_out)])
+        Ds = np.zeros((n_out, n_in))
+        As, Bs = _lift(As, Bs, k)
+    else:
+        if k != 1:
+            raise AnalysisError(f"controller {name!r}: a non-delayed law must run at its "
+                                "own sample time for the linear analysis")
+        As, Bs, Cs, Ds = a, b, c, d
+    ins = tuple(f"y{j + 1}" for j in range(n_in)) + tuple(f"r{i + 1}" for i in range(n_out))
+    outs = tuple(f"u{i + 1}" for i in range(n_out))
+    B = np.hstack([Bs, np.zeros((As.shape[0], n_out))])
+    D = np.hstack([Ds, np.eye(n_out)])   # r is added after the law
+    return Block(name, "controller", period, As, B, Cs, D, ins, outs, ft,
+                 rebuild=lambda f: _law_block(law, name, period, h, ft, factor * f),
+                 active=bool(factor != 0 and (np.any(law.C) or np.any(law.D))))
+
+
+def _controller_block(slave, name, period, h, ft):
+    slave._apply_parameters()
+    return _law_block(slave.law, name, period, h, ft)
+
+
+def _acs_block(slave, name, period, h, ft):
+    cfg = slave.config()
+    T = cfg.sample_time
+    if abs(h - T) > 1e-9 * T:
+        raise AnalysisError(f"ACS {name!r} communicates every {h} s but samples every {T} s; "
+                            "the linear analysis needs the two equal")
+    g = cfg.gains
+    kp, ki, kd = (np.asarray(v, float) * np.ones(3) for v in (g.kp, g.ki, g.kd))
+    # state [z (3), u (3)]: z+ = z + T e, u+ = -(kp e + kd r + ki z); torque = u
+    A = np.zeros((6, 6))
+    A[:3, :3] = np.eye(3)
+    A[3:, :3] = -np.diag(ki)
+    B = np.zeros((6, 6))
+    B[:3, :3] = T * np.eye(3)
+    B[3:, :3] = -np.diag(kp)
+    B[3:, 3:] = -np.diag(kd)
+    C = np.zeros((6, 6))
+    C[:3, 3:] = np.eye(3)
+    C[3:, :] = 0.0   # wheel speeds: not fed back in the linear analysis
+    ins = ("roll", "pitch", "yaw", "rate_x", "rate_y", "rate_z")
+    outs = ("Tx", "Ty", "Tz", "wheel_speed_x", "wheel_speed_y", "wheel_speed_z")
+    return Block(name, "acs", period, A, B, C, np.zeros((6, 6)), ins, outs, ft)
+
+
+_KINDS = {
+    "structfmu.slave:StructureSlave": _structure_block,
+    "piezofmu.slave:PiezoSlave": _piezo_block,
+    "ctrlfmu.slave:ControllerSlave": _controller_block,
+    "acsfmu.slave:AcsSlave": _acs_block,
+}
+_SOURCES = ("distfmu.slave:DisturbanceSlave", "distfmu.excitation:ExcitationSlave")
+
+
+def _slave_class(resources: Path, fmu_name: str):
+    """The project slave class of an extracted FMU, read from its generated module.
+
+    The module is parsed, never executed: its base-class import names a class of this
+    project's packages, imported from the installed packages; its class attributes
+    (plain literals) are set on a subclass.
+    """
+    scripts = sorted(resources.glob("fmuslave_*.py"))
+    if not scripts and any(resources.glob("*.dat")):
+        raise AnalysisError(f"FMU {fmu_name} is a native build and its Python twin is not "
+                            "beside it in python/; the linear analysis reads the Python "
+                            "build: run 'jitterfmu build' (it writes both)")
+    if not scripts:
+        raise AnalysisError(f"FMU {fmu_name} was not built by this project (no generated "
+                            "slave module); the linear analysis knows only its own FMUs")
+    tree = ast.parse(scripts[0].read_text())
+    base, attrs = None, {}
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom) and any(a.asname == "Fmi2Slave" for a in node.names):
+            base = f"{node.module}:{[a.name for a in node.names if a.asname == 'Fmi2Slave'][0]}"
+        if isinstance(node, ast.ClassDef):
+            for st in node.body:
+                if isinstance(st, ast.Assign) and len(st.targets) == 1 \
+                        and isinstance(st.targets[0], ast.Name):
+                    try:
+                        attrs[st.targets[0].id] = ast.literal_eval(st.value)
+                    except ValueError:
+                        pass
+    if base not in _KINDS and base not in _SOURCES:
+        raise AnalysisError(f"FMU {fmu_name} has slave class {base}; the linear analysis "
+                            f"knows {', '.join(list(_KINDS) + list(_SOURCES))}")
+    if base in _SOURCES:
+        return base, None
+    module, cls = base.split(":")
+    klass = getattr(importlib.import_module(module), cls)
+    attrs.pop("default_experiment", None)
+    return base, type(attrs.get("model_identifier", cls), (klass,), attrs)
+
+
+def _source_block(name, period, outputs) -> Block:
+    """An instance whose outputs are exogenous (a source, or one taken out of the loop)."""
+    m = len(outputs)
+    return Block(name, "source", period, np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((m, 0)),
+                 np.zeros((m, 0)), (), tuple(outputs), np.zeros(m, bool))
+
+
+def _instance_block(plan, inst, tmp: Path) -> Block:
+    info = plan.fmus[inst.name]
+    res = tmp / inst.name
+    path = info.path  # the Python twin where there is one (fmu_kind = "python")
+    with zipfile.ZipFile(path) as z:
+        for member in z.namelist():
+            if member.startswith("resources/") and not member.endswith("/"):
+                target = res / member[len("resources/"):]
+                if not target.resolve().is_relative_to(res.resolve()):
+                    raise AnalysisError(f"FMU {info.path.name} has an unsafe path {member!r}")
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_bytes(z.read(member))
+    base, klass = _slave_class(res, path.name)
+    period = plan.timebase.period_ticks[inst.name]
+    h = float(inst.period)
+    outs = [n for n, v in info.variables.items() if v.causality == "output"]
+    if klass is None:
+        return _source_block(inst.name, period, outs)
+    slave = klass(instance_name=inst.name, resources=str(res))
+    for pname, value in inst.parameters.items():
+        setattr(slave, pname, value)
+    slave.setup_experiment(float(plan.scenario.experiment.start), None, None)
+    block = _KINDS[base](slave, inst.name, period, h, None)
+    ft = np.array([bool(info.feedthrough.get(o)) for o in block.outputs])
+    return replace(block, feedthrough=ft)
+
+

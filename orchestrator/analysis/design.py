@@ -1,0 +1,167 @@
+"""Design answers on a linear scenario: the ideal ceiling and the readable report."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .blocks import AnalysisError
+from .scenario import LinearScenario, _cycles
+
+
+@dataclass(frozen=True)
+class Ceiling:
+    """Ideal ceiling of one performance output under one harmonic disturbance.
+
+    Attributes
+    ----------
+    performance : tuple of str
+    method : str
+        ``"cancel"`` or ``"optimal"``.
+    sensors : tuple of str
+        Signals cancelled (``"cancel"``).
+    freqs_hz : ndarray, shape (n_f,)
+    open_loop : ndarray, shape (n_f,)
+        RMS over the performance outputs of the response without control, per frequency.
+    ideal : ndarray, shape (n_f,)
+        Same with the ideal actuator commands.
+    reduction_pct : float
+        ``100 (1 - |ideal| / |open_loop|)`` over all frequencies (RSS, weighted by the
+        disturbance amplitudes).
+    """
+
+    performance: tuple
+    method: str
+    sensors: tuple
+    freqs_hz: np.ndarray
+    open_loop: np.ndarray
+    ideal: np.ndarray
+    reduction_pct: float
+
+
+
+def ceiling(lin: LinearScenario, performance, disturbance: str, freqs_hz, *,
+            actuators, sensors=None, method: str = "cancel", amplitudes=None) -> Ceiling:
+    """Ideal ceiling of the reduction of ``performance`` under a harmonic disturbance.
+
+    The named controllers are removed (their command outputs become free actuator
+    commands ``v``).  With ``method="cancel"``, ``v`` zeroes the signals the removed
+    controllers measured (``sensors``; by default their connected inputs): what a loop
+    of infinite gain on those sensors would do.  With ``"optimal"``, ``v`` minimises the
+    performance outputs at each frequency (least squares): no controller driving these
+    actuators, causal or not, can do better in steady state.
+
+    Parameters
+    ----------
+    lin : LinearScenario
+    performance : sequence of str
+        Outputs whose RMS is to be reduced (e.g. ``structure.los_misr_roll``).
+    disturbance : str
+        Source output ``instance.variable`` carrying the disturbance.
+    freqs_hz : array_like, shape (n_f,)
+        Disturbance lines (Hz).
+    actuators : sequence of str
+        Controller instances whose commands are free.
+    sensors : sequence of str, optional
+        Signals to cancel (``instance.variable``); default: the outputs connected to the
+        removed controllers' measurement inputs.
+    method : {"cancel", "optimal"}
+    amplitudes : array_like, shape (n_f,), optional
+        Disturbance amplitude per line; 1 by default.
+
+    Returns
+    -------
+    Ceiling
+    """
+    if method not in ("cancel", "optimal"):
+        raise AnalysisError(f"ceiling method {method!r} is unknown; use 'cancel' or 'optimal'")
+    freqs = np.atleast_1d(np.asarray(freqs_hz, float))
+    amps = np.ones_like(freqs) if amplitudes is None else np.asarray(amplitudes, float)
+    performance = list(performance)
+    opened = lin.opened(actuators)
+    v = [f"{a}.{o}" for a in actuators for o in lin.blocks[a].outputs]
+    if sensors is None:
+        sensors = []
+        for c in lin.plan.scenario.connections:
+            if c.target in actuators and c.target_var.startswith("y"):
+                sensors.append(c.start)
+    sensors = list(sensors)
+    outs = performance + sensors
+    Hd = opened.frequency_response([disturbance], outs, freqs)[:, 0, :]   # (n_o, n_f)
+    Hv = opened.frequency_response(v, outs, freqs)                        # (n_o, n_v, n_f)
+    npf = len(performance)
+    ol, ideal = np.zeros(freqs.size), np.zeros(freqs.size)
+    for i in range(freqs.size):
+        zd, zv = Hd[:npf, i], Hv[:npf, :, i]
+        if method == "cancel":
+            yd, yv = Hd[npf:, i], Hv[npf:, :, i]
+            vopt = -np.linalg.lstsq(yv, yd, rcond=None)[0]
+        else:
+            vopt = -np.linalg.lstsq(zv, zd, rcond=None)[0]
+        ol[i] = np.linalg.norm(zd) * amps[i]
+        ideal[i] = np.linalg.norm(zd + zv @ vopt) * amps[i]
+    if not np.any(ol > 0):
+        raise AnalysisError(f"{disturbance} does not reach {', '.join(performance)} once "
+                            f"{', '.join(actuators)} are removed (it may enter through "
+                            "them); choose a disturbance that acts on the structure")
+    red = 100.0 * (1.0 - math.sqrt(np.sum(ideal**2)) / math.sqrt(np.sum(ol**2)))
+    return Ceiling(tuple(performance), method, tuple(sensors), freqs, ol, ideal, float(red))
+
+
+def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
+    """A readable table: poles (in ``band`` Hz), decay of ``modes``, gain margins.
+
+    Parameters
+    ----------
+    lin : LinearScenario
+        The linear closed loop.
+    modes : sequence of float
+        Mode frequencies (Hz) whose nearby closed-loop poles are reported with their
+        decay.
+    margins : bool
+        Add the gain margins of every active controller.
+    band : (float, float), optional
+        Pole frequency band (Hz); default 0 to half the hyperperiod rate.
+
+    Returns
+    -------
+    str
+        The report, one line per row.
+    """
+    lines = [f"linear closed loop: {len(lin.blocks)} instances, {lin.n} lifted states, "
+             f"hyperperiod {lin.T * 1e3:g} ms"]
+    poles = lin.poles()
+    nyq = 0.5 / lin.T
+    lo, hi = band if band else (0.0, nyq)
+    if hi > nyq:
+        lines.append(f"warning: the hyperperiod resolves pole frequencies up to {nyq:g} Hz "
+                     "only; take slow instances out (--open) to resolve faster ones")
+    sel = [p for p in poles if lo <= p.freq_hz <= hi and p.z.imag >= 0]
+    lines.append("")
+    lines.append(f"closed-loop poles {lo:g}-{hi:g} Hz")
+    lines.append(f"  {'freq (Hz)':>10}  {'damping (%)':>11}  {'|z|':>8}")
+    for p in sel:
+        lines.append(f"  {p.freq_hz:10.3f}  {100 * p.zeta:11.3f}  {abs(p.z):8.5f}")
+    lines.append(f"  stable: {'yes' if lin.is_stable() else 'NO'}")
+    for m in modes:
+        near = [p for p in poles if 0.75 * m <= p.freq_hz <= 1.25 * m and p.z.imag >= 0]
+        if not near:
+            lines.append(f"mode {m:g} Hz: no closed-loop pole within 0.75-1.25x")
+        for p in near:
+            cyc = _cycles(p.zeta)
+            lines.append(f"mode {m:g} Hz: pole {p.freq_hz:.3f} Hz, damping {100 * p.zeta:.2f} %, "
+                         f"{cyc:.2f} cycles to 90 % decay of its own response")
+    if margins:
+        lines.append("")
+        lines.append("gain margins (factor on each active controller's gain, other loops "
+                     "closed)")
+        lines.append(f"  {'controller':<24} {'upper':>9} {'(dB)':>7} {'lower':>9}")
+        off = [c for c in lin.controllers() if c not in lin.controllers(active_only=True)]
+        if off:
+            lines.append(f"  (gain 0, not analysed: {', '.join(off)})")
+        for c in lin.controllers(active_only=True):
+            g = lin.gain_margins(c)
+            lines.append(f"  {c:<24} {g.upper:9.3g} {g.upper_db:7.2f} {g.lower:9.3g}")
+    return "\n".join(lines)

@@ -103,8 +103,12 @@ class Timebase:
         return num.numerator / num.denominator
 
     def times(self, ticks) -> list:
-        """Return the float times of an iterable of ticks (s)."""
-        return [self.time(k) for k in ticks]
+        """Return the float times of an iterable of ticks (s), as :meth:`time` does."""
+        t0 = self.start + 0 * self.base
+        d = t0.denominator * self.base.denominator
+        a = t0.numerator * self.base.denominator
+        b = self.base.numerator * t0.denominator
+        return [(a + k * b) / d for k in ticks]   # int true division: correctly rounded
 
     def ticks_of(self, t, what: str = "time") -> int:
         """Return the tick of an exact time on the grid, or raise TimebaseError.

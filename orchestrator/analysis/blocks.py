@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import math
 import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -63,6 +64,9 @@ class Block:
     rebuild: Callable | None = field(default=None, repr=False)
     active: bool = True
     continuous: tuple | None = field(default=None, repr=False)
+    series: Callable | None = field(default=None, repr=False)
+    limits: tuple = ()
+    unmodelled: tuple = ()
 
     @property
     def n(self) -> int:
@@ -125,7 +129,19 @@ def _piezo_block(slave, name, period, h, ft):
     else:                # f'' = w^2 (ch v_cmd - f) - 2 zeta w f'
         amp_c = (np.array([[0.0, 1.0], [-w * w, -2 * amp.damping * w]]),
                  np.array([[0.0], [w * w]]), ch)
-    return Block(name, "piezo", period, A, B, C, D, ins, outs, ft, continuous=amp_c)
+    limits = [("voltage", float(amp.v_min), float(amp.v_max), "voltage rail"),
+              ("current", -float(amp.i_max), float(amp.i_max), "current (slew) limit")]
+    if math.isfinite(act.stroke_limit):
+        limits.append(("free_stroke", -act.stroke_limit, act.stroke_limit, "stroke limit"))
+    unmodelled = []
+    if act.gauge.noise_std > 0:
+        unmodelled.append(f"instance {name!r} has strain-gauge noise on (noise_std = "
+                          f"{act.gauge.noise_std}); set noise_std = 0")
+    if act.gauge.resolution > 0:
+        unmodelled.append(f"instance {name!r} quantises its strain (resolution = "
+                          f"{act.gauge.resolution}); set resolution = 0")
+    return Block(name, "piezo", period, A, B, C, D, ins, outs, ft, continuous=amp_c,
+                 limits=tuple(limits), unmodelled=tuple(unmodelled))
 
 
 def _law_block(law, name, period, h, ft, factor=1.0):
@@ -184,7 +200,12 @@ def _acs_block(slave, name, period, h, ft):
     C[3:, :] = 0.0   # wheel speeds: not fed back in the linear analysis
     ins = ("roll", "pitch", "yaw", "rate_x", "rate_y", "rate_z")
     outs = ("Tx", "Ty", "Tz", "wheel_speed_x", "wheel_speed_y", "wheel_speed_z")
-    return Block(name, "acs", period, A, B, C, np.zeros((6, 6)), ins, outs, ft)
+    tl = np.broadcast_to(np.asarray(cfg.torque_limit, float), (3,))
+    limits = tuple((o, -float(t), float(t), "torque limit") for o, t in zip(outs[:3], tl))
+    return Block(name, "acs", period, A, B, C, np.zeros((6, 6)), ins, outs, ft,
+                 limits=limits, unmodelled=tuple(
+                     f"output {name}.{o} (the wheel speeds are not in the linear model)"
+                     for o in outs[3:]))
 
 
 _KINDS = {
@@ -227,8 +248,6 @@ def _slave_class(resources: Path, fmu_name: str):
     if base not in _KINDS and base not in _SOURCES:
         raise AnalysisError(f"FMU {fmu_name} has slave class {base}; the linear analysis "
                             f"knows {', '.join(list(_KINDS) + list(_SOURCES))}")
-    if base in _SOURCES:
-        return base, None
     module, cls = base.split(":")
     klass = getattr(importlib.import_module(module), cls)
     attrs.pop("default_experiment", None)
@@ -242,28 +261,67 @@ def _source_block(name, period, outputs) -> Block:
                  np.zeros((m, 0)), (), tuple(outputs), np.zeros(m, bool))
 
 
-def _instance_block(plan, inst, tmp: Path) -> Block:
-    info = plan.fmus[inst.name]
-    res = tmp / inst.name
-    path = info.path  # the Python twin where there is one (fmu_kind = "python")
+def _series(slave, outs, name):
+    """``series(times)`` of a source slave in the order ``outs``, or None."""
+    try:
+        slave.series(np.zeros(1))   # reads the source now, while its resources exist
+    except Exception:            # e.g. an input-driven wheel: no open-loop series
+        return None
+    own = list(_output_names(slave))
+    cols = [own.index(o) for o in outs]
+
+    def series(times):
+        return np.asarray(slave.series(times), float)[:, cols]
+    return series
+
+
+def _output_names(slave):
+    """Output variable names of a slave in the order its ``series`` returns them."""
+    from distfmu.excitation import N_CHANNELS, ExcitationSlave
+    from distfmu.sources import WRENCH_NAMES
+    if isinstance(slave, ExcitationSlave):
+        return [f"v{i}" for i in range(1, N_CHANNELS + 1)]
+    return list(WRENCH_NAMES)
+
+
+def extract_resources(path: Path, res: Path) -> Path:
+    """Extract an FMU's ``resources/`` into the folder ``res`` (no path may leave it)."""
     with zipfile.ZipFile(path) as z:
         for member in z.namelist():
             if member.startswith("resources/") and not member.endswith("/"):
                 target = res / member[len("resources/"):]
                 if not target.resolve().is_relative_to(res.resolve()):
-                    raise AnalysisError(f"FMU {info.path.name} has an unsafe path {member!r}")
+                    raise AnalysisError(f"FMU {path.name} has an unsafe path {member!r}")
                 target.parent.mkdir(parents=True, exist_ok=True)
                 target.write_bytes(z.read(member))
-    base, klass = _slave_class(res, path.name)
+    return res
+
+
+def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:
+    """The block of one instance, its FMU's resources extracted under ``tmp``.
+
+    ``extracted`` (a dict) caches ``FMU path -> (resources folder, slave class)``
+    across calls that share ``tmp``.
+    """
+    info = plan.fmus[inst.name]
+    path = info.path  # the Python twin where there is one (fmu_kind = "python")
+    cached = None if extracted is None else extracted.get(path)
+    if cached is None:
+        res = extract_resources(path, tmp / f"{inst.name}-{len(extracted or ())}")
+        cached = (res, _slave_class(res, path.name))
+        if extracted is not None:
+            extracted[path] = cached
+    res, (base, klass) = cached
     period = plan.timebase.period_ticks[inst.name]
     h = float(inst.period)
     outs = [n for n, v in info.variables.items() if v.causality == "output"]
-    if klass is None:
-        return _source_block(inst.name, period, outs)
     slave = klass(instance_name=inst.name, resources=str(res))
     for pname, value in inst.parameters.items():
         setattr(slave, pname, value)
     slave.setup_experiment(float(plan.scenario.experiment.start), None, None)
+    if base in _SOURCES:
+        block = _source_block(inst.name, period, outs)
+        return replace(block, series=_series(slave, outs, inst.name))
     block = _KINDS[base](slave, inst.name, period, h, None)
     ft = np.array([bool(info.feedthrough.get(o)) for o in block.outputs])
     return replace(block, feedthrough=ft)

@@ -507,7 +507,9 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
                                 "analysis needs a loop with a delay")
         order.append(group[0])
     with tempfile.TemporaryDirectory(prefix="jitterfmu-analyze-") as tmp:
-        blocks = {i.name: _instance_block(plan, i, Path(tmp)) for i in sc.instances}
+        extracted = {}   # one extraction per FMU file, shared by its instances
+        blocks = {i.name: _instance_block(plan, i, Path(tmp), extracted)
+                  for i in sc.instances}
     return LinearScenario(plan, blocks, order)
 
 

@@ -64,6 +64,17 @@ temporary folder which is renamed to ``cases/KEY`` (``os.replace``) only when co
 a killed campaign loses only the cases in flight; running the campaign again skips every
 case whose folder says "ok" and retries failed ones.
 
+Engines
+-------
+``engine = "cosim"`` (the default) co-simulates every case with the master.  ``engine =
+"linear"`` (``jitterfmu campaign C.toml --engine linear``) computes the same recorded
+signals from the same discretised models the FMUs step, closed once per configuration
+(:mod:`orchestrator.analysis.fast`), in milliseconds a case; a case that holds what the
+linear model leaves out (hysteresis, noise, an input-driven wheel, a third-party FMU) or
+whose record reaches a rail or limit fails with one sentence saying so.  ``verify = N``
+(``--verify N``) then co-simulates the N cases with the largest jitter and writes the
+largest difference per instrument and axis to ``verify.json`` (and the report).
+
 Parallelism
 -----------
 ``workers=0`` runs the cases one after another in this process; ``workers >= 1`` uses a
@@ -82,6 +93,9 @@ Modules, in pipeline order
     one case: run, jitter metrics from the table in memory, its folder published;
 :mod:`~orchestrator.campaign.engine`
     all cases: serially, in a process pool or on Dask; folder lock, resume;
+:mod:`~orchestrator.campaign.linear`
+    the linear engine as a runner (``engine = "linear"``), and ``--verify N``: the cases
+    with the largest jitter co-simulated and compared;
 :mod:`~orchestrator.campaign.summary`
     the summary table: jitter, RSS over the events, margins;
 :mod:`~orchestrator.campaign.store`
@@ -91,18 +105,21 @@ Modules, in pipeline order
 
 from .cases import Campaign, Case, campaign_from_dict, keyed, load_campaign
 from .engine import CampaignResult, run_campaign
+from .linear import LinearRunner, verify_campaign
 from .runner import MasterRunner, case_metrics, execute_case
-from .spec import ANGLE_UNITS, METRIC_KINDS, RSS_EVENT, CampaignError
+from .spec import ANGLE_UNITS, ENGINES, METRIC_KINDS, RSS_EVENT, CampaignError
 from .store import slug
 from .summary import SUMMARY_SCHEMA, summarize, write_summary
 
 __all__ = [
     "ANGLE_UNITS",
+    "ENGINES",
     "METRIC_KINDS",
     "Campaign",
     "CampaignError",
     "CampaignResult",
     "Case",
+    "LinearRunner",
     "MasterRunner",
     "RSS_EVENT",
     "SUMMARY_SCHEMA",
@@ -114,5 +131,6 @@ __all__ = [
     "run_campaign",
     "slug",
     "summarize",
+    "verify_campaign",
     "write_summary",
 ]

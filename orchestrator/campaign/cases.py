@@ -69,6 +69,12 @@ class Campaign:
         Folder of the campaign file (relative paths are resolved against it).
     scenario_dir : Path
         Folder of the base scenario (FMU names are resolved against it).
+    engine : str
+        ``"cosim"`` (the co-simulation master, the default) or ``"linear"`` (the linear
+        engine, :class:`~orchestrator.campaign.LinearRunner`).
+    verify : int
+        With the linear engine: the cases with the largest jitter to co-simulate and
+        compare (:func:`~orchestrator.campaign.verify_campaign`).
     """
 
     name: str
@@ -80,6 +86,8 @@ class Campaign:
     skip: float = 0.0
     base_dir: Path = field(default_factory=Path.cwd)
     scenario_dir: Path = field(default_factory=Path.cwd)
+    engine: str = "cosim"
+    verify: int = 2
 
     def requirement(self, instrument: str, axis: str, metric: str, window) -> float:
         """Requirement (in ``unit``) for one summary row, NaN if none applies.
@@ -141,7 +149,8 @@ def expand(spec: CampaignSpec) -> Campaign:
         dup = [c.label for c in cases if keys.count(c.key) > 1]
         raise CampaignError(f"cases {dup} have identical definitions; make their overrides differ")
     return Campaign(spec.name, tuple(cases), spec.instruments, spec.metrics, spec.requirements,
-                    spec.unit, spec.skip, spec.base_dir, spec.scenario_dir)
+                    spec.unit, spec.skip, spec.base_dir, spec.scenario_dir, spec.engine,
+                    spec.verify)
 
 
 def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:

@@ -81,7 +81,8 @@ def run_campaign(
         ``fingerprint(scenario_dict) -> str`` method, that enters the case keys.
     workers : int, optional
         0 runs the cases in this process; N >= 1 uses N worker processes.  Default: the
-        number of CPUs.  Ignored when ``scheduler`` is given.
+        number of CPUs.  Ignored when ``scheduler`` is given, and with the linear
+        engine (its cases run in this process, on one compiled loop per configuration).
     scheduler : str or distributed.Client, optional
         Address of a Dask scheduler (or a client) to run the cases on.
     progress : bool, optional
@@ -98,10 +99,17 @@ def run_campaign(
     with _folder_lock(out):
         for stale in cases_dir.glob(".tmp-*"):  # left by a killed run
             shutil.rmtree(stale, ignore_errors=True)
+        if runner is None and campaign.engine == "linear":
+            from .linear import LinearRunner
+            runner = LinearRunner(campaign.scenario_dir)
         runner = runner or MasterRunner(campaign.scenario_dir)
+        if getattr(runner, "engine", "cosim") == "linear":
+            # one compiled loop per configuration, kept in this process
+            workers, scheduler = 0, None
         campaign = keyed(campaign, runner)
         write_json(out / "campaign.json", {
             "name": campaign.name, "unit": campaign.unit, "skip": campaign.skip,
+            "engine": getattr(runner, "engine", "cosim"),
             "instruments": campaign.instruments, "metrics": campaign.metrics,
             "requirements": campaign.requirements,
             "cases": [{"key": c.key, "label": c.label, "event": c.event,

@@ -41,7 +41,10 @@ RSS_EVENT = "RSS"
 # Valid keys of every table of a campaign file.
 _KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metrics",
          "requirements")
-_CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm")
+_CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm",
+                  "engine", "verify")
+#: Campaign engines: the co-simulation master (the reference) and the linear fast path.
+ENGINES = ("cosim", "linear")
 _ITEM_KEYS = {
     "events": ("name", "overrides"),
     "configurations": ("name", "overrides"),
@@ -100,6 +103,8 @@ class CampaignSpec:
     skip: float
     base_dir: Path
     scenario_dir: Path
+    engine: str = "cosim"
+    verify: int = 2
 
 
 def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
@@ -138,6 +143,14 @@ def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
     if not skip >= 0:
         raise CampaignError(f"[campaign] skip is {skip!r} s; expected >= 0")
 
+    engine = str(head.get("engine", "cosim"))
+    if engine not in ENGINES:
+        raise CampaignError(f"[campaign] engine is {engine!r}; expected one of {list(ENGINES)}")
+    verify = head.get("verify", 2)
+    if isinstance(verify, bool) or not isinstance(verify, int) or verify < 0:
+        raise CampaignError(f"[campaign] verify is {verify!r}; expected a whole number of "
+                            "cases >= 0 to cross-check by co-simulation")
+
     events = data.get("events", [{"name": "baseline"}])
     configurations = data.get("configurations", [{"name": "baseline"}])
     event_names = _named(events, "events")
@@ -150,7 +163,8 @@ def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
     requirements = _requirements(data.get("requirements", []), shorthand, instruments, metrics)
     events, configurations = _variants(events, configurations, sweeps, scenario["fmus"])
     return CampaignSpec(name, scenario, events, configurations, sweeps, instruments,
-                        tuple(metrics), requirements, unit, skip, base_dir, scenario_dir)
+                        tuple(metrics), requirements, unit, skip, base_dir, scenario_dir,
+                        engine, verify)
 
 
 def read_spec(path) -> CampaignSpec:

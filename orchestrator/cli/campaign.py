@@ -27,6 +27,14 @@ def add_arguments(parser) -> None:
                         dest="fmu_kind", default=None,
                         help="run the Python build of the suite's FMUs (FMU_DIR/python/) "
                              "instead of the native ones")
+    parser.add_argument("--engine", choices=("cosim", "linear"), default=None,
+                        help="cosim: co-simulate every case (the reference); linear: the "
+                             "linear engine, milliseconds a case (default: the campaign "
+                             "file's engine, else cosim)")
+    parser.add_argument("--verify", type=int, default=None, metavar="N",
+                        help="with the linear engine, co-simulate the N cases with the "
+                             "largest jitter and report the difference (default: the "
+                             "campaign file's verify, else 2)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -42,16 +50,45 @@ def _import_runner(spec: str):
 
 def run(args) -> int:
     # deferred: the parser imports every subcommand (orchestrator.cli)
-    from ..campaign import MasterRunner, load_campaign, run_campaign, slug
+    import dataclasses
+
+    from ..campaign import (LinearRunner, MasterRunner, load_campaign, run_campaign, slug,
+                            verify_campaign)
 
     camp = load_campaign(args.campaign)
-    runner = (_import_runner(args.runner) if args.runner else
-              MasterRunner(camp.scenario_dir, fmu_dir=args.fmu_dir, fmu_kind=args.fmu_kind))
+    engine = args.engine or camp.engine
+    if args.verify is not None and args.verify < 0:
+        raise ValueError(f"--verify is {args.verify}; expected a number of cases >= 0")
+    if args.runner and engine == "linear":
+        raise ValueError("--runner and the linear engine exclude each other: the linear "
+                         "engine is its own runner")
+    if args.runner:
+        runner = _import_runner(args.runner)
+    elif engine == "linear":
+        runner = LinearRunner(camp.scenario_dir, fmu_dir=args.fmu_dir)
+    else:
+        runner = MasterRunner(camp.scenario_dir, fmu_dir=args.fmu_dir, fmu_kind=args.fmu_kind)
+    camp = dataclasses.replace(camp, engine=engine)
     out = args.out or Path("out") / slug(camp.name)
     res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                        progress=False if args.quiet else None)
-    print(f"{res.n_cases} cases: {res.n_run} run, {res.n_skipped} already finished, "
-          f"{res.n_failed} failed; summary in {out / 'summary.csv'}")
+    print(f"{res.n_cases} cases ({engine}): {res.n_run} run, {res.n_skipped} already "
+          f"finished, {res.n_failed} failed; summary in {out / 'summary.csv'}")
     for label, err in res.failures.items():
         print(f"  failed: {label}: {err}", file=sys.stderr)
+    n_verify = args.verify if args.verify is not None else camp.verify
+    if engine == "linear" and n_verify > 0:
+        from ..campaign.cases import keyed
+        rep = verify_campaign(keyed(camp, runner), out, n_verify, fmu_dir=args.fmu_dir,
+                              fmu_kind=args.fmu_kind)
+        print(f"verified {rep['n']} case(s) by co-simulation ({out / 'verify.json'}):")
+        for ia, d in sorted(rep["largest_difference"].items()):
+            print(f"  {ia:<16} signal {d['signal']:.2e} of its peak, metric {d['metric']:.2e}")
+        for item in rep["nonlinear"]:
+            print(f"  NONLINEAR in co-simulation: {item['case']}: {', '.join(item['flags'])}",
+                  file=sys.stderr)
+        for item in rep["cases"]:
+            if "error" in item:
+                print(f"  co-simulation failed: {item['case']}: {item['error']}",
+                      file=sys.stderr)
     return min(res.n_failed, 100)

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from fmukit.slave import FmuSlave
+from fmukit.timing import end_time
 
 N_CHANNELS = 2
 
@@ -41,7 +42,12 @@ def sine_burst(t, amplitude: float, frequency: float, t_start: float = 0.0,
 
 
 class ExcitationSlave(FmuSlave):
-    """Two sine-burst voltage channels ``v1``, ``v2`` (V)."""
+    """Two sine-burst voltage channels ``v1``, ``v2`` (V).
+
+    The FMU state is every variable plus ``x = [time]``, the time of the outputs.
+    """
+
+    state_attributes = ("x",)
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -55,12 +61,23 @@ class ExcitationSlave(FmuSlave):
         for i in range(1, N_CHANNELS + 1):
             self.add_output(f"v{i}", unit="V", depends_on=[], description=f"excitation {i}")
         self._t0 = 0.0
+        self.x = np.zeros(1)
 
     def _write(self, t: float) -> None:
         for i in range(1, N_CHANNELS + 1):
             value = sine_burst(t, getattr(self, f"amp{i}"), getattr(self, f"freq{i}"),
                                self.t_start, self.t_stop)
             setattr(self, f"v{i}", float(value))
+
+    def series(self, times) -> np.ndarray:
+        """Outputs ``v1, v2`` (V) at the communication points ``times`` (s), shape (n, 2).
+
+        The open-loop series with the current parameters, for the linear engine.
+        """
+        t = np.asarray(times, float)
+        return np.column_stack([
+            sine_burst(t, getattr(self, f"amp{i}"), getattr(self, f"freq{i}"),
+                       self.t_start, self.t_stop) for i in range(1, N_CHANNELS + 1)])
 
     def setup_experiment(self, start_time, stop_time, tolerance):
         """Record the start time; the initial outputs are taken there.
@@ -77,6 +94,7 @@ class ExcitationSlave(FmuSlave):
         self._t0 = float(start_time)
 
     def exit_initialization_mode(self):
+        self.x[0] = self._t0
         self._write(self._t0)
         return True
 
@@ -95,5 +113,6 @@ class ExcitationSlave(FmuSlave):
         bool
             Always True.
         """
-        self._write(current_time + step_size)
+        self.x[0] = end_time(current_time, step_size, float(self.x[0]))
+        self._write(float(self.x[0]))
         return True

@@ -32,8 +32,10 @@ import numpy as np
 from distfmu.custom import CUSTOM_PRESET, SOURCE_FILE, CustomSourceError, source_from_json
 from distfmu.presets import get_preset, randomized
 from distfmu.sources import WRENCH_NAMES
-from distfmu.step import DisturbanceConfig, DisturbanceState, disturbance_output, disturbance_step
+from distfmu.step import (DisturbanceConfig, DisturbanceState, disturbance_output,
+                          disturbance_series, disturbance_step)
 from fmukit.slave import FmuSlave
+from fmukit.timing import end_time
 
 __all__ = ["DisturbanceSlave"]
 
@@ -113,6 +115,14 @@ class DisturbanceSlave(FmuSlave):
         self.x[:] = (state.time, state.theta, state.omega)
         self.wrench[:] = disturbance_output(config, state)
 
+    def series(self, times) -> np.ndarray:
+        """Outputs ``Fx .. Mz`` at the communication points ``times`` (s), shape (n, 6).
+
+        The open-loop series of a time-driven source with the current parameters (see
+        :func:`distfmu.step.disturbance_series`), for the linear engine.
+        """
+        return disturbance_series(self._config(), times)
+
     def exit_initialization_mode(self):
         self._source = None
         self._write(self._config(), DisturbanceState(time=self._t0))
@@ -135,7 +145,7 @@ class DisturbanceSlave(FmuSlave):
         config = self._config()
         state = disturbance_step(config, self._state(float(current_time)), step_size,
                                  float(self.wheel_speed))
-        # exact end time from the master's communication point, never accumulated
-        self._write(config, DisturbanceState(current_time + step_size, state.theta,
+        # the host's communication point, robust to its time arithmetic (fmukit.timing)
+        self._write(config, DisturbanceState(end_time(current_time, step_size, self.x[0]), state.theta,
                                              state.omega))
         return True

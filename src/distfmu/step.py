@@ -132,3 +132,31 @@ def disturbance_step(config: DisturbanceConfig, state: DisturbanceState, h: floa
                        theta=advance_wheel(state.theta, wheel_speed, h),
                        omega=float(wheel_speed))
     return replace(state, time=state.time + h)
+
+
+def disturbance_series(config: DisturbanceConfig, times) -> np.ndarray:
+    """Wrench at many communication points at once, for a time-driven source.
+
+    The same values as :func:`disturbance_output` at each time (the FMU's output after
+    the step that ends there), for the linear engine and other open-loop uses.
+
+    Parameters
+    ----------
+    config : DisturbanceConfig
+        The disturbance; an input-driven wheel has no series (its wrench follows the
+        wheel-speed input) and raises :class:`~distfmu.sources.SourceError`.
+    times : array_like, shape (n,)
+        Communication points (s).
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        ``[Fx, Fy, Fz, Mx, My, Mz]`` (N, N m) at each time.
+    """
+    if config.input_driven:
+        raise SourceError("an input-driven wheel follows its wheel_speed input; it has no "
+                          "open-loop series")
+    t = np.asarray(times, dtype=float)
+    w = np.asarray(config.source.wrench(t), dtype=float).reshape(t.shape + (6,))
+    on = (config.start <= t) & (t < config.stop)
+    return np.where(on[:, None], config.scale * w, 0.0)

@@ -601,7 +601,7 @@ int model_do_step(JfInstance *inst, double t, double h) {
         x[1] = x[1] + omega * h;
         x[2] = omega;
     }
-    x[0] = t + h; /* the master's communication point, never accumulated */
+    x[0] = jf_end_time(t, h, x[0]); /* the host's communication point, never drifting */
     write_outputs(inst);
     return JF_OK;
 }

@@ -32,7 +32,9 @@ int model_instantiate(JfInstance *inst) {
     if ((m->start = jf_vr(inst, "t_start", JF_REAL)) < 0 ||
         (m->stop = jf_vr(inst, "t_stop", JF_REAL)) < 0)
         return JF_ERROR;
-    inst->n_state = 0;
+    inst->n_state = 1; /* the time of the outputs */
+    inst->state = (double *)jf_alloc(inst, 1, sizeof(double));
+    if (inst->state == NULL) return JF_ERROR;
     return JF_OK;
 }
 
@@ -53,6 +55,7 @@ static void write_outputs(JfInstance *inst, double t) {
 }
 
 int model_exit_initialization(JfInstance *inst) {
+    inst->state[0] = inst->start_time;
     write_outputs(inst, inst->start_time);
     return JF_OK;
 }
@@ -68,6 +71,7 @@ int model_state_restored(JfInstance *inst) {
 }
 
 int model_do_step(JfInstance *inst, double t, double h) {
-    write_outputs(inst, t + h);
+    inst->state[0] = jf_end_time(t, h, inst->state[0]);
+    write_outputs(inst, inst->state[0]);
     return JF_OK;
 }

@@ -705,3 +705,12 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2Stri
     if (c == NULL) return fmi2Error;
     return fmi2Discard;
 }
+
+double jf_end_time(double t, double h, double last) {
+    double te, g;
+    if (fabs(t - last) <= 1.0e-6 * fabs(h)) t = last;
+    te = t + h;
+    if (!(fabs(te) < 9.0e3)) return te; /* ps counts exact below 2^53 ps */
+    g = nearbyint(te * 1.0e12) / 1.0e12;
+    return fabs(g - te) <= 1.0e-9 * fabs(h) ? g : te;
+}

@@ -1,0 +1,346 @@
+"""The fast path: a linear scenario's whole record from its sources, by structure.
+
+A :class:`~orchestrator.analysis.LinearScenario` steps the master's Gauss-Seidel ticks as
+one linear map per tick.  Over a record of ``K`` ticks that is ``K`` dense products of
+the whole lifted state: as slow as the co-simulation.  :class:`FastResponse` uses the
+structure of the problem instead:
+
+* **Memory state.**  Most of the lifted state (inputs set and outputs published at every
+  tick) is overwritten before it is read; only the rows some tick reads carry memory
+  (block states, outputs held between slower ticks).  The maps act on those.
+* **Runs.**  Within a hyperperiod, ticks with the same instances due have the same map
+  ``x+ = M x + N w``, ``y = C x + D w``.  A *run* of ``L`` such ticks is one affine step
+  ``x_end = M^L x_0 + sum_l M^(L-1-l) N w_l``, and its outputs are
+  ``y_q = C M^q x_0 + sum_{l<=q} h_(q-l) w_l`` with the Markov parameters
+  ``h_0 = D``, ``h_p = C M^(p-1) N``: a causal convolution, computed for every run at
+  once by FFT.  The matrices of each run type are computed once per closed loop.
+* **Only what drives.**  Source channels that are zero over the record drop out.
+
+The state recursion is then one small product per run (80 for an 8 s record at a 0.1 s
+hyperperiod) and everything else is a few large matrix products: the cost of a record
+is about that of its outputs, ``n_outputs x n_memory x n_ticks``.
+
+The result equals :meth:`LinearScenario.simulate` to round-off (tested), which equals
+the co-simulation of a linear scenario to round-off.  Where the FMUs would leave the
+linear model (a rail, a slew or torque limit reached), :meth:`FastResponse.run` names
+the instance and the first time, in one sentence (:class:`NonlinearError`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .blocks import AnalysisError
+from .scenario import LinearScenario
+
+__all__ = ["FastResponse", "NonlinearError", "Record"]
+
+# ticks a super-period covers at least: short hyperperiods (a single-rate loop has one
+# tick) are repeated so that runs are long and few
+_MIN_TICKS = 64
+
+
+class NonlinearError(AnalysisError):
+    """A record leaves the linear model: a rail or limit of an FMU is reached."""
+
+
+@dataclass(frozen=True)
+class Record:
+    """A fast-path record; unpacks as ``values, times``.
+
+    Attributes
+    ----------
+    values : ndarray, shape (n_ticks + 1, n_refs)
+        Each reference at every tick (as the master records it: after the tick's inputs
+        are set, before it steps).
+    times : ndarray, shape (n_ticks + 1,)
+        Tick times (s), exact.
+    refs : tuple of str
+        The columns, ``instance.variable``.
+    limits : dict of str to float
+        Per checked output, the largest fraction of its allowed range used (1 = at the
+        rail).
+    """
+
+    values: np.ndarray
+    times: np.ndarray
+    refs: tuple
+    limits: dict
+
+    def __iter__(self):
+        return iter((self.values, self.times))
+
+    def column(self, ref: str) -> np.ndarray:
+        """The record of ``ref``."""
+        return self.values[:, self.refs.index(ref)]
+
+
+@dataclass(frozen=True)
+class _RunType:
+    """Matrices of a run of ``L`` ticks with one map (memory state ``s``, ``r`` rows)."""
+
+    L: int
+    ML: np.ndarray      # (s, s)       M^L
+    G: np.ndarray       # (s, L, m)    M^(L-1-l) N
+    O: np.ndarray       # (L, r, s)    C M^q
+    h: np.ndarray       # (L, r, m)    Markov parameters, h_0 = D
+
+
+class FastResponse:
+    """A linear scenario compiled for whole records.
+
+    Parameters
+    ----------
+    lin : LinearScenario
+        The closed loop (:func:`~orchestrator.analysis.linearize`).
+    refs : sequence of str
+        Published outputs ``instance.variable`` to record.  The outputs the blocks
+        declare as limited (piezo voltage and current, ACS torques) are computed too and
+        checked on every record.
+
+    Raises
+    ------
+    AnalysisError
+        When an instance holds something the linear model leaves out (one sentence per
+        instance), or a reference is not an output of the scenario.
+    """
+
+    def __init__(self, lin: LinearScenario, refs):
+        self.lin = lin
+        self.refs = tuple(refs)
+        reasons = [u for b in lin.blocks.values() for u in b.unmodelled
+                   if not u.startswith("output ")]
+        for ref in self.refs:
+            b = lin.blocks.get(ref.partition(".")[0])
+            if b is not None:
+                reasons += [u for u in b.unmodelled if u.startswith(f"output {ref} ")]
+        if reasons:
+            raise AnalysisError("the linear engine cannot represent " + "; ".join(reasons)
+                                + ": run these cases with the co-simulation (--engine cosim)")
+        self._checks = [(f"{n}.{o}", lo, hi, what) for n, b in lin.blocks.items()
+                        for o, lo, hi, what in b.limits]
+        rows = [lin.index(r) for r in self.refs] + [lin.index(c[0]) for c in self._checks]
+        # exogenous inputs: every source output, in block order
+        self.inputs = [(n, j) for n in lin.sources for j in range(len(lin.blocks[n].outputs))]
+        self._in_off = {}
+        off = 0
+        for n in lin.sources:
+            self._in_off[n] = off
+            off += len(lin.blocks[n].outputs)
+        self.m = off
+        periods = [lin.hyper] + [lin.blocks[n].period for n in lin.sources]
+        P = int(np.lcm.reduce(periods))
+        self.P = P * max(1, math.ceil(_MIN_TICKS / P))   # the super-period
+        sigs = [self._signature(k) for k in range(self.P)]
+        maps = {sig: self._tick_map(k) for k, sig in reversed(list(enumerate(sigs)))}
+        n = lin.n
+        read = np.zeros(n, bool)
+        for M, _ in maps.values():
+            read |= np.any(M != 0.0, axis=0)
+        S = np.flatnonzero(read)
+        self.n_memory = S.size
+        self._maps = {sig: (M[np.ix_(S, S)], N[S], M[np.ix_(rows, S)], N[rows])
+                      for sig, (M, N) in maps.items()}
+        # the super-period as runs of one signature
+        self._runs = []
+        k = 0
+        while k < self.P:
+            j = k
+            while j + 1 < self.P and sigs[j + 1] == sigs[k]:
+                j += 1
+            self._runs.append((sigs[k], j - k + 1))
+            k = j + 1
+        self._types = {}
+
+    # ------------------------------------------------------------------ compile
+    def _signature(self, k: int) -> tuple:
+        return tuple(k % b.period == 0 for b in self.lin.blocks.values())
+
+    def _tick_map(self, k: int):
+        """``(M, N)`` of tick ``k``: ``X+ = M X + N w`` on the whole lifted state."""
+        lin, n, m = self.lin, self.lin.n, self.m
+        X = np.zeros((n, n + m))
+        X[:, :n] = np.eye(n)
+
+        def w_next(name):
+            rows = np.zeros((len(lin.blocks[name].outputs), n + m))
+            off = n + self._in_off[name]
+            rows[:, off:off + rows.shape[0]] = np.eye(rows.shape[0])
+            return rows
+
+        X = lin._tick(X, k, w_next)   # k < the super-period, a multiple of every period
+        return X[:, :n], X[:, n:]
+
+    def _type(self, sig, L: int) -> _RunType:
+        key = (sig, L)
+        t = self._types.get(key)
+        if t is not None:
+            return t
+        M, N, C, D = self._maps[sig]
+        s, m, r = M.shape[0], N.shape[1], C.shape[0]
+        # column Krylov K_q = M^q N and row Krylov C M^q, q = 0 .. L-1
+        K = np.empty((L, s, m))
+        O = np.empty((L, r, s))
+        K[0], O[0] = N, C
+        for q in range(1, L):
+            K[q] = M @ K[q - 1]
+            O[q] = O[q - 1] @ M
+        ML = np.linalg.matrix_power(M, L)
+        G = K[::-1].transpose(1, 0, 2)                       # (s, L, m): M^(L-1-l) N
+        h = np.empty((L, r, m))
+        h[0] = D
+        if L > 1:
+            h[1:] = np.einsum("qrs,sm->qrm", O[:L - 1], N)   # C M^(p-1) N
+        t = _RunType(L, ML, np.ascontiguousarray(G), O, h)
+        self._types[key] = t
+        return t
+
+    # ------------------------------------------------------------------ running
+    def input_matrix(self, series: dict, n_ticks: int) -> np.ndarray:
+        """Source values ``W`` (n_ticks + 1, m) from ``{source: values (n_due, n_out)}``.
+
+        ``values`` holds the source's outputs at its due ticks ``0, p, 2p, ...`` up to
+        ``n_ticks``; a source left out publishes zeros.
+        """
+        W = np.zeros((n_ticks + 1, self.m))
+        for name, vals in series.items():
+            if name not in self._in_off:
+                raise AnalysisError(f"{name!r} is not a source of the scenario; sources: "
+                                    f"{', '.join(self.lin.sources)}")
+            p = self.lin.blocks[name].period
+            off = self._in_off[name]
+            vals = np.asarray(vals, float)
+            W[::p, off:off + vals.shape[1]] = vals
+        return W
+
+    def source_series(self, n_ticks: int, only=None) -> dict:
+        """Each source's outputs at its due ticks, from its own ``series``.
+
+        Parameters
+        ----------
+        n_ticks : int
+            Last tick of the record.
+        only : sequence of str, optional
+            Sources to evaluate (default all).
+
+        Raises
+        ------
+        AnalysisError
+            For a source whose outputs are not a function of time alone (an input-driven
+            wheel, or a source taken out of the loop).
+        """
+        tb = self.lin.plan.timebase
+        out = {}
+        for name in (self.lin.sources if only is None else only):
+            b = self.lin.blocks[name]
+            if b.series is None:
+                raise AnalysisError(f"source {name!r} has no open-loop series (an input-"
+                                    "driven wheel, or an instance taken out of the loop); "
+                                    "the linear engine cannot drive it")
+            ticks = range(0, n_ticks + 1, b.period)
+            times = np.array(tb.times(ticks))
+            out[name] = b.series(times)
+        return out
+
+    def run(self, W: np.ndarray, check: bool = True) -> Record:
+        """The record driven by ``W`` (n_ticks + 1, m), from rest.
+
+        Parameters
+        ----------
+        W : ndarray, shape (n_ticks + 1, m)
+            Source values at every tick (:meth:`input_matrix`).
+        check : bool
+            Raise :class:`NonlinearError` when a limited output leaves its range.
+
+        Returns
+        -------
+        Record
+        """
+        W = np.asarray(W, float)
+        K = W.shape[0]
+        active = np.flatnonzero(np.any(W != 0.0, axis=0))
+        Wa = W[:, active]
+        r = len(self.refs) + len(self._checks)
+        Y = np.zeros((K, r))
+        s = self.n_memory
+        # the runs of the record, in order: (type key, start)
+        units = []
+        k = 0
+        while k < K:
+            for sig, L in self._runs:
+                if k >= K:
+                    break
+                units.append(((sig, min(L, K - k)), k))
+                k += L
+        by_type = {}
+        for i, (key, start) in enumerate(units):
+            by_type.setdefault(key, []).append(i)
+        # input contribution to each run's end state, per run type
+        g = np.zeros((len(units), s))
+        for key, idx in by_type.items():
+            t = self._type(*key)
+            if active.size == 0:
+                continue
+            starts = np.array([units[i][1] for i in idx])
+            Wu = Wa[starts[:, None] + np.arange(t.L)]            # (n_u, L, m_a)
+            Ga = t.G[:, :, active].reshape(s, -1)
+            g[idx] = Wu.reshape(len(idx), -1) @ Ga.T
+        # the state recursion, one product per run
+        X0 = np.empty((len(units), s))
+        x = np.zeros(s)
+        for i, (key, _) in enumerate(units):
+            X0[i] = x
+            x = self._types[key].ML @ x + g[i]
+        # outputs: C M^q x_0 + (h * w), per run type
+        for key, idx in by_type.items():
+            t = self._type(*key)
+            starts = np.array([units[i][1] for i in idx])
+            L, r_, s_ = t.O.shape
+            free = (t.O.reshape(L * r_, s_) @ X0[idx].T).T.reshape(len(idx), L, r_)
+            if active.size:
+                Wu = Wa[starts[:, None] + np.arange(t.L)]
+                free += _causal_conv(t.h[:, :, active], Wu)
+            Y[starts[:, None] + np.arange(t.L)] = free
+        tb = self.lin.plan.timebase
+        times = np.array(tb.times(range(K)))
+        n_ref = len(self.refs)
+        limits = {}
+        for j, (ref, lo, hi, what) in enumerate(self._checks):
+            y = Y[:, n_ref + j]
+            used = max(y.max() / hi if hi > 0 else 0.0, y.min() / lo if lo < 0 else 0.0)
+            limits[ref] = float(used)
+            if check and (y.max() > hi or y.min() < lo):
+                bad = np.flatnonzero((y > hi) | (y < lo))[0]
+                raise NonlinearError(
+                    f"{ref} reaches its {what} ({y[bad]:.4g} outside [{lo:.4g}, {hi:.4g}]) "
+                    f"at t = {times[bad]:.6g} s, where the FMU leaves the linear model: "
+                    "run this case with the co-simulation (--engine cosim)")
+        return Record(Y[:, :n_ref], times, self.refs, limits)
+
+
+def _causal_conv(h: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``y[u, q] = sum_{l <= q} h[q - l] w[u, l]`` for every run ``u``, by FFT.
+
+    Parameters
+    ----------
+    h : ndarray, shape (L, r, m)
+    w : ndarray, shape (n_u, L, m)
+
+    Returns
+    -------
+    ndarray, shape (n_u, L, r)
+    """
+    L = h.shape[0]
+    if L <= 8:   # short runs: the direct sum is cheaper
+        y = np.zeros((w.shape[0], L, h.shape[1]))
+        for q in range(L):
+            y[:, q] = np.einsum("lrm,ulm->ur", h[q::-1], w[:, :q + 1])
+        return y
+    n = 1 << (2 * L - 1).bit_length()
+    Hf = np.fft.rfft(h, n, axis=0)                  # (f, r, m)
+    Wf = np.fft.rfft(w, n, axis=1)                  # (u, f, m)
+    Yf = np.einsum("frm,ufm->ufr", Hf, Wf, optimize=True)
+    return np.fft.irfft(Yf, n, axis=1)[:, :L]

@@ -1,0 +1,246 @@
+"""The linear engine as a campaign runner, and the co-simulated cross-check of its cases.
+
+:class:`LinearRunner` is a runner like :class:`~orchestrator.campaign.MasterRunner`: it
+writes a case's ``results.parquet`` (the scenario's recorded variables at its output
+interval) and ``run.json``, so metrics, summary, budget, report and resume are those of a
+co-simulated campaign.  The record comes from the discretised models the FMUs step
+(:func:`~orchestrator.analysis.linearize`), closed once per configuration and driven by
+the sources' own open-loop series (:class:`~orchestrator.analysis.fast.FastResponse`).
+A case whose record reaches a rail or limit of an FMU fails with one sentence naming it.
+
+:func:`verify_campaign` co-simulates the cases with the largest jitter and records, per
+instrument and axis, the largest difference between the two engines.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis import AnalysisError, linearize
+from ..analysis.blocks import _instance_block
+from ..analysis.fast import FastResponse
+from ..results import RunResult, package_versions, write_metadata, write_table
+from .runner import MasterRunner
+from .store import RESULTS_FILE, write_json
+
+__all__ = ["LinearRunner", "verify_campaign"]
+
+
+class LinearRunner:
+    """Run a case with the linear engine.
+
+    Parameters
+    ----------
+    base_dir : path-like
+        Folder against which FMU names are resolved (the base scenario's folder).
+    fmu_dir : path-like, optional
+        Extra folder searched first for FMU names.
+
+    Notes
+    -----
+    Each configuration (the scenario with the sources' parameters left out) is
+    linearised and compiled once; cases that differ only in their sources reuse it.
+    Cases run in the calling process (the compiled loops are its memory); pickling the
+    runner drops them.
+    """
+
+    engine = "linear"
+
+    def __init__(self, base_dir=None, fmu_dir=None):
+        self._master = MasterRunner(base_dir, fmu_dir, fmu_kind="python")
+        self.fmu_dir = fmu_dir
+        self._compiled = {}
+        self._sources = {}
+        self._source_blocks = {}
+        self._extracted = {}
+        self._tmp = None
+
+    def __getstate__(self):
+        return {"_master": self._master, "fmu_dir": self.fmu_dir}
+
+    def __setstate__(self, state):
+        self.__init__(state["_master"].base_dir, state["fmu_dir"])
+
+    def fingerprint(self, scenario: dict) -> str:
+        """The FMU digest of the master runner, marked as the linear engine's."""
+        return "engine=linear;" + self._master.fingerprint(scenario)
+
+    # ------------------------------------------------------------------ compiled loops
+    def _config_key(self, scenario: dict, sources) -> str:
+        data = json.loads(json.dumps(scenario, default=str))
+        for name in sources:
+            data["fmus"].get(name, {}).pop("parameters", None)
+        return json.dumps(data, sort_keys=True, default=str)
+
+    def compiled(self, scenario: dict) -> FastResponse:
+        """The compiled closed loop of a case's configuration (built on first use)."""
+        layout = json.dumps(sorted((n, f.get("fmu")) for n, f in scenario["fmus"].items()))
+        sources = self._sources.get(layout)
+        if sources is not None:
+            fr = self._compiled.get(self._config_key(scenario, sources))
+            if fr is not None:
+                return fr
+        sc = self._master._scenario(scenario)
+        lin = linearize(sc, fmu_dir=self.fmu_dir)
+        self._sources[layout] = tuple(lin.sources)
+        fr = FastResponse(lin, tuple(sc.record))
+        self._compiled[self._config_key(scenario, lin.sources)] = fr
+        return fr
+
+    def _source_block(self, fr: FastResponse, inst):
+        key = (inst.name, inst.fmu, json.dumps(dict(inst.parameters), sort_keys=True,
+                                               default=str))
+        b = self._source_blocks.get(key)
+        if b is None:
+            if self._tmp is None:
+                self._tmp = tempfile.TemporaryDirectory(prefix="jitterfmu-linear-")
+            b = _instance_block(fr.lin.plan, inst, Path(self._tmp.name), self._extracted)
+            self._source_blocks[key] = b
+        return b
+
+    def record(self, scenario: dict):
+        """A case's record: ``(times, {ref: values})`` at every tick, and the record.
+
+        Raises
+        ------
+        AnalysisError
+            Where the scenario holds what the linear model cannot represent, or
+            :class:`~orchestrator.analysis.fast.NonlinearError` where the record reaches
+            a rail or limit.
+        """
+        fr = self.compiled(scenario)
+        sc = self._master._scenario(scenario)
+        tb = fr.lin.plan.timebase
+        n_ticks = tb.n_ticks
+        series = {}
+        insts = {i.name: i for i in sc.instances}
+        for name in fr.lin.sources:
+            b = self._source_block(fr, insts[name])
+            if b.series is None:
+                raise AnalysisError(f"source {name!r} has no open-loop series (an input-"
+                                    "driven wheel); the linear engine cannot drive it: run "
+                                    "this case with the co-simulation (--engine cosim)")
+            times = np.array(tb.times(range(0, n_ticks + 1, b.period)))
+            series[name] = b.series(times)
+        return fr.run(fr.input_matrix(series, n_ticks)), tb.output_ticks
+
+    def __call__(self, scenario: dict, out_dir) -> RunResult:
+        """Run a case's scenario into ``out_dir`` (``results.parquet``, ``run.json``).
+
+        Returns
+        -------
+        RunResult
+        """
+        wall = time.perf_counter()
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        rec, every = self.record(scenario)
+        table = {"time": rec.times[::every]}
+        for j, ref in enumerate(rec.refs):
+            table[ref] = rec.values[::every, j].copy()
+        write_table(table, out / RESULTS_FILE)
+        meta = {"status": "ok", "engine": "linear", "rows": len(table["time"]),
+                "limits_used": rec.limits, "wall_s": time.perf_counter() - wall,
+                "versions": package_versions()}
+        write_metadata(meta, out / "run.json")
+        return RunResult(table, meta, out)
+
+
+# ---------------------------------------------------------------------------------------
+# Cross-check
+
+
+def verify_campaign(campaign, out_dir, n: int = 2, *, fmu_dir=None, fmu_kind=None) -> dict:
+    """Co-simulate the ``n`` linear cases with the largest jitter and compare.
+
+    The cases are ranked by their largest metric value over instruments and axes
+    (relative to its requirement where one is set).  Each is run by the co-simulation
+    master into ``out_dir/verify/KEY`` with every piezo FMU's saturation flags added to
+    the record; the report holds, per case, instrument and axis, the largest difference
+    of the recorded line of sight and of every metric, relative to the co-simulated
+    value, and whether a rail, slew or stroke flag was set during the run.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A campaign run with the linear engine (its case folders exist).
+    out_dir : path-like
+        The campaign folder.
+    n : int
+        Number of cases to co-simulate.
+    fmu_dir, fmu_kind
+        As :class:`~orchestrator.campaign.MasterRunner`.
+
+    Returns
+    -------
+    dict
+        Written to ``out_dir/verify.json``.
+    """
+    import pyarrow.parquet as pq
+
+    from .runner import case_metrics
+    from .spec import ANGLE_UNITS
+    from .store import METRICS_FILE, case_status
+
+    out = Path(out_dir)
+    cases_dir = out / "cases"
+    ranked = []
+    for case in campaign.cases:
+        st = case_status(cases_dir, case.key)
+        if not st or st.get("status") != "ok":
+            continue
+        worst = 0.0
+        for r in pq.read_table(cases_dir / case.key / METRICS_FILE).to_pylist():
+            req = campaign.requirement(r["instrument"], r["axis"], r["metric"], r["window"])
+            v = r["value"] * ANGLE_UNITS[campaign.unit]
+            worst = max(worst, v / req if req and not math.isnan(req) else v)
+        ranked.append((worst, case))
+    ranked.sort(key=lambda p: -p[0])
+    master = MasterRunner(campaign.scenario_dir, fmu_dir=fmu_dir, fmu_kind=fmu_kind)
+    report = {"n": 0, "cases": [], "largest_difference": {}, "nonlinear": []}
+    for _, case in ranked[:max(0, int(n))]:
+        scen = json.loads(json.dumps(case.scenario))
+        record = list(scen.get("record", {}).get("variables", []))
+        flags = [f"{name}.{flag}" for name, f in scen["fmus"].items()
+                 for flag in ("sat_voltage", "sat_slew", "sat_stroke")
+                 if "piezo" in str(f.get("fmu", ""))]
+        scen.setdefault("record", {})["variables"] = record + [f for f in flags
+                                                               if f not in record]
+        folder = out / "verify" / case.key
+        try:
+            co = master(scen, folder).table
+        except Exception as exc:   # the cross-check reports, never hides, a failure
+            report["cases"].append({"case": case.label, "key": case.key,
+                                    "error": f"{type(exc).__name__}: {exc}"})
+            continue
+        lin = pq.read_table(cases_dir / case.key / RESULTS_FILE).to_pydict()
+        set_flags = [f for f in flags if f in co and np.any(np.asarray(co[f]) != 0)]
+        rows_co = case_metrics(co["time"], co, campaign.instruments, campaign.metrics,
+                               campaign.skip)
+        rows_li = case_metrics(lin["time"], lin, campaign.instruments, campaign.metrics,
+                               campaign.skip)
+        entry = {"case": case.label, "key": case.key, "nonlinear_flags": set_flags,
+                 "axes": {}}
+        for a, b in zip(rows_co, rows_li):
+            ia = f"{a['instrument']}/{a['axis']}"
+            var = campaign.instruments[a["instrument"]][a["axis"]]
+            x, y = np.asarray(co[var]), np.asarray(lin[var])
+            sig = float(np.max(np.abs(x - y)) / max(np.max(np.abs(x)), 1e-300))
+            met = abs(a["value"] - b["value"]) / max(abs(a["value"]), 1e-300)
+            d = entry["axes"].setdefault(ia, {"signal": sig, "metric": 0.0})
+            d["metric"] = max(d["metric"], float(met))
+            big = report["largest_difference"].setdefault(ia, {"signal": 0.0, "metric": 0.0})
+            big["signal"] = max(big["signal"], sig)
+            big["metric"] = max(big["metric"], d["metric"])
+        if set_flags:
+            report["nonlinear"].append({"case": case.label, "flags": set_flags})
+        report["cases"].append(entry)
+        report["n"] += 1
+    write_json(out / "verify.json", report)
+    return report

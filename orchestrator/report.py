@@ -489,6 +489,30 @@ def _summary_rows(rows):
              _fmt(r.get("share"), 3), r.get("note") or ""] for r in rows]
 
 
+CHECK_HEAD = ["instrument/axis", "largest signal difference (of its peak)",
+              "largest metric difference (relative)"]
+
+
+def _cross_check(out_dir: Path, camp: dict):
+    """The engine sentence and the cross-check rows (``verify.json``), if any."""
+    engine = camp.get("engine", "cosim")
+    if engine != "linear":
+        return "Engine: co-simulation of every case.", [], []
+    path = out_dir / "verify.json"
+    rep = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+    n = rep.get("n", 0)
+    text = ("Engine: linear (the discretised models the FMUs step, closed once per "
+            "configuration); " + (f"{n} case(s) with the largest jitter co-simulated "
+                                  "as a cross-check, below." if n else
+                                  "no case was cross-checked by co-simulation (--verify 0)."))
+    rows = [[ia, f"{d['signal']:.2e}", f"{d['metric']:.2e}"]
+            for ia, d in sorted(rep.get("largest_difference", {}).items())]
+    flagged = [[c["case"], ", ".join(c["flags"])] for c in rep.get("nonlinear", [])]
+    flagged += [[c["case"], "co-simulation failed: " + c["error"]]
+                for c in rep.get("cases", []) if "error" in c]
+    return text, rows, flagged
+
+
 def _html_table(head, rows, cls=""):
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
     body = []
@@ -583,6 +607,8 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
              "configuration; change = (value − first configuration's) / first "
              "configuration's; requirements are the campaign file's inputs; margin = "
              "requirement − value; margin % = margin / requirement.")
+    engine_text, check_rows, flagged = _cross_check(out_dir, camp)
+    intro += " " + engine_text
 
     if fmt == "html":
         parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
@@ -600,6 +626,12 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
             parts.append(f"<figure><img alt='{html.escape(ftitle)}' "
                          f"src='data:image/png;base64,{b64}'><figcaption>"
                          f"{html.escape(ftitle)}</figcaption></figure>")
+        if check_rows or flagged:
+            parts += ["<h2>Cross-check of the linear engine</h2>",
+                      _html_table(CHECK_HEAD, check_rows)]
+        if flagged:
+            parts += ["<p><b>Nonlinear in co-simulation</b> (the linear answer does not "
+                      "hold for these cases):</p>", _html_table(["case", "flags"], flagged)]
         if failed:
             parts += ["<h2>Failed cases</h2>", _html_table(["case", "error"], failed)]
         parts += ["<h2>All results</h2>", _html_table(SUMMARY_HEAD, stab, "summary"),
@@ -616,6 +648,12 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
         name = f"{i:02d}_{sec}_{slug(ftitle)[:40]}.png"
         (fig_dir / name).write_bytes(_png(fig))
         parts += [f"### {ftitle}", "", f"![{ftitle}](report_files/{name})", ""]
+    if check_rows or flagged:
+        parts += ["## Cross-check of the linear engine", "", _md_table(CHECK_HEAD, check_rows),
+                  ""]
+    if flagged:
+        parts += ["**Nonlinear in co-simulation** (the linear answer does not hold for "
+                  "these cases):", "", _md_table(["case", "flags"], flagged), ""]
     if failed:
         parts += ["## Failed cases", "", _md_table(["case", "error"], failed), ""]
     parts += ["## All results", "", _md_table(SUMMARY_HEAD, stab), ""]

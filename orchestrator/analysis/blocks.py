@@ -67,6 +67,7 @@ class Block:
     series: Callable | None = field(default=None, repr=False)
     limits: tuple = ()
     unmodelled: tuple = ()
+    flags: tuple = ()
 
     @property
     def n(self) -> int:
@@ -141,7 +142,8 @@ def _piezo_block(slave, name, period, h, ft):
         unmodelled.append(f"instance {name!r} quantises its strain (resolution = "
                           f"{act.gauge.resolution}); set resolution = 0")
     return Block(name, "piezo", period, A, B, C, D, ins, outs, ft, continuous=amp_c,
-                 limits=tuple(limits), unmodelled=tuple(unmodelled))
+                 limits=tuple(limits), unmodelled=tuple(unmodelled),
+                 flags=("sat_voltage", "sat_slew", "sat_stroke"))
 
 
 def _law_block(law, name, period, h, ft, factor=1.0):
@@ -285,7 +287,20 @@ def _output_names(slave):
 
 
 def extract_resources(path: Path, res: Path) -> Path:
-    """Extract an FMU's ``resources/`` into the folder ``res`` (no path may leave it)."""
+    """Extract an FMU's ``resources/`` into a folder (no member may leave it).
+
+    Parameters
+    ----------
+    path : Path
+        The ``.fmu`` file.
+    res : Path
+        Target folder (created).
+
+    Returns
+    -------
+    Path
+        ``res``.
+    """
     with zipfile.ZipFile(path) as z:
         for member in z.namelist():
             if member.startswith("resources/") and not member.endswith("/"):

@@ -122,7 +122,11 @@ class FastResponse:
                                 + ": run these cases with the co-simulation (--engine cosim)")
         self._checks = [(f"{n}.{o}", lo, hi, what) for n, b in lin.blocks.items()
                         for o, lo, hi, what in b.limits]
-        rows = [lin.index(r) for r in self.refs] + [lin.index(c[0]) for c in self._checks]
+        # a limit flag is zero wherever the limits are kept, which run() checks
+        self._zero = [j for j, r in enumerate(self.refs) if self._is_flag(r)]
+        computed = [r for r in self.refs if not self._is_flag(r)]
+        self._computed = [j for j, r in enumerate(self.refs) if not self._is_flag(r)]
+        rows = [lin.index(r) for r in computed] + [lin.index(c[0]) for c in self._checks]
         # exogenous inputs: every source output, in block order
         self.inputs = [(n, j) for n in lin.sources for j in range(len(lin.blocks[n].outputs))]
         self._in_off = {}
@@ -156,6 +160,11 @@ class FastResponse:
         self._types = {}
 
     # ------------------------------------------------------------------ compile
+    def _is_flag(self, ref: str) -> bool:
+        inst, _, var = ref.partition(".")
+        b = self.lin.blocks.get(inst)
+        return b is not None and var in b.flags
+
     def _signature(self, k: int) -> tuple:
         return tuple(k % b.period == 0 for b in self.lin.blocks.values())
 
@@ -200,10 +209,19 @@ class FastResponse:
 
     # ------------------------------------------------------------------ running
     def input_matrix(self, series: dict, n_ticks: int) -> np.ndarray:
-        """Source values ``W`` (n_ticks + 1, m) from ``{source: values (n_due, n_out)}``.
+        """Source values ``W`` (n_ticks + 1, m) from each source's values.
 
-        ``values`` holds the source's outputs at its due ticks ``0, p, 2p, ...`` up to
-        ``n_ticks``; a source left out publishes zeros.
+        Parameters
+        ----------
+        series : dict of str to ndarray, shape (n_due, n_out)
+            Per source, its outputs at its due ticks ``0, p, 2p, ...`` up to
+            ``n_ticks``; a source left out publishes zeros.
+        n_ticks : int
+            Last tick of the record.
+
+        Returns
+        -------
+        ndarray, shape (n_ticks + 1, m)
         """
         W = np.zeros((n_ticks + 1, self.m))
         for name, vals in series.items():
@@ -263,7 +281,7 @@ class FastResponse:
         K = W.shape[0]
         active = np.flatnonzero(np.any(W != 0.0, axis=0))
         Wa = W[:, active]
-        r = len(self.refs) + len(self._checks)
+        r = len(self._computed) + len(self._checks)
         Y = np.zeros((K, r))
         s = self.n_memory
         # the runs of the record, in order: (type key, start)
@@ -306,7 +324,7 @@ class FastResponse:
             Y[starts[:, None] + np.arange(t.L)] = free
         tb = self.lin.plan.timebase
         times = np.array(tb.times(range(K)))
-        n_ref = len(self.refs)
+        n_ref = len(self._computed)
         limits = {}
         for j, (ref, lo, hi, what) in enumerate(self._checks):
             y = Y[:, n_ref + j]
@@ -318,7 +336,9 @@ class FastResponse:
                     f"{ref} reaches its {what} ({y[bad]:.4g} outside [{lo:.4g}, {hi:.4g}]) "
                     f"at t = {times[bad]:.6g} s, where the FMU leaves the linear model: "
                     "run this case with the co-simulation (--engine cosim)")
-        return Record(Y[:, :n_ref], times, self.refs, limits)
+        values = np.zeros((K, len(self.refs)))
+        values[:, self._computed] = Y[:, :n_ref]
+        return Record(values, times, self.refs, limits)
 
 
 def _causal_conv(h: np.ndarray, w: np.ndarray) -> np.ndarray:

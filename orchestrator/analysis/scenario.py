@@ -11,7 +11,7 @@ from typing import Callable
 
 import numpy as np
 
-from orchestrator import prepare
+from orchestrator.cosim import prepare
 from orchestrator.scenario import load_scenario
 
 from .blocks import AnalysisError, _instance_block, _law_block, _source_block

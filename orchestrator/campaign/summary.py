@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -19,7 +20,7 @@ SUMMARY_SCHEMA = pa.schema([
     ("axis", pa.string()), ("metric", pa.string()), ("window", pa.float64()),
     ("unit", pa.string()), ("value", pa.float64()), ("requirement", pa.float64()),
     ("margin", pa.float64()), ("margin_ratio", pa.float64()), ("pass", pa.bool_()),
-    ("share", pa.float64()), ("note", pa.string()),
+    ("share", pa.float64()), ("note", pa.string()), ("cross_check", pa.string()),
 ])
 # Columns of cases.parquet.
 _CASES_SCHEMA = pa.schema([
@@ -38,7 +39,9 @@ def summarize(campaign: Campaign, out_dir) -> tuple[pa.Table, pa.Table]:
     and margins are in ``campaign.unit``; ``margin = requirement − value``,
     ``margin_ratio = margin / requirement``, ``pass = value <= requirement`` (null without
     a requirement or for an RSS missing failed events, see ``note``); ``share`` is an
-    event's fraction ``value² / RSS²`` of its group's RSS.
+    event's fraction ``value² / RSS²`` of its group's RSS; ``cross_check`` says, for a
+    case of the linear engine co-simulated by ``--verify`` (``verify.json``), how far
+    the two engines differ and whether a rail or limit was active in the co-simulation.
 
     Parameters
     ----------
@@ -55,6 +58,7 @@ def summarize(campaign: Campaign, out_dir) -> tuple[pa.Table, pa.Table]:
         One row per case: key, case, event, configuration, sweep, status, error, seconds.
     """
     cases_dir = Path(out_dir) / "cases"
+    checks = _cross_checks(Path(out_dir))
     scale = ANGLE_UNITS[campaign.unit]
     rows, case_rows = [], []
     groups: dict = {}
@@ -94,6 +98,7 @@ def summarize(campaign: Campaign, out_dir) -> tuple[pa.Table, pa.Table]:
         r["unit"] = campaign.unit
         r["requirement"] = req
         r.setdefault("note", "")
+        r["cross_check"] = checks.get((r["key"], r["instrument"], r["axis"]), "")
         if math.isnan(req):
             r["margin"] = r["margin_ratio"] = math.nan
             r["pass"] = None
@@ -104,6 +109,28 @@ def summarize(campaign: Campaign, out_dir) -> tuple[pa.Table, pa.Table]:
     summary = pa.Table.from_pylist(rows, schema=SUMMARY_SCHEMA)
     cases = pa.Table.from_pylist(case_rows, schema=_CASES_SCHEMA)
     return summary, cases
+
+
+def _cross_checks(out: Path) -> dict:
+    """``(key, instrument, axis) -> words`` from ``verify.json`` (linear engine), if any."""
+    path = out / "verify.json"
+    if not path.is_file():
+        return {}
+    try:
+        rep = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    words = {}
+    for case in rep.get("cases", []):
+        flags = case.get("nonlinear_flags") or []
+        for ia, d in (case.get("axes") or {}).items():
+            inst, _, axis = ia.partition("/")
+            text = (f"co-simulated: metric differs by {d['metric']:.1e}, signal by "
+                    f"{d['signal']:.1e} of its peak")
+            if flags:
+                text = f"NONLINEAR in co-simulation ({', '.join(flags)}); " + text
+            words[(case["key"], inst, axis)] = text
+    return words
 
 
 def write_summary(campaign: Campaign, out_dir) -> Path:

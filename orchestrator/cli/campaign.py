@@ -53,7 +53,7 @@ def run(args) -> int:
     import dataclasses
 
     from ..campaign import (LinearRunner, MasterRunner, load_campaign, run_campaign, slug,
-                            verify_campaign)
+                            verify_campaign, write_summary)
 
     camp = load_campaign(args.campaign)
     engine = args.engine or camp.engine
@@ -72,15 +72,17 @@ def run(args) -> int:
     out = args.out or Path("out") / slug(camp.name)
     res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                        progress=False if args.quiet else None)
-    print(f"{res.n_cases} cases ({engine}): {res.n_run} run, {res.n_skipped} already "
-          f"finished, {res.n_failed} failed; summary in {out / 'summary.csv'}")
+    print(f"{res.n_cases} cases: {res.n_run} run, {res.n_skipped} already finished, "
+          f"{res.n_failed} failed ({engine} engine); summary in {out / 'summary.csv'}")
     for label, err in res.failures.items():
         print(f"  failed: {label}: {err}", file=sys.stderr)
     n_verify = args.verify if args.verify is not None else camp.verify
     if engine == "linear" and n_verify > 0:
-        from ..campaign.cases import keyed
-        rep = verify_campaign(keyed(camp, runner), out, n_verify, fmu_dir=args.fmu_dir,
+        from ..campaign import keyed
+        camp = keyed(camp, runner)
+        rep = verify_campaign(camp, out, n_verify, fmu_dir=args.fmu_dir,
                               fmu_kind=args.fmu_kind)
+        write_summary(camp, out)   # the summary records the cross-check
         print(f"verified {rep['n']} case(s) by co-simulation ({out / 'verify.json'}):")
         for ia, d in sorted(rep["largest_difference"].items()):
             print(f"  {ia:<16} signal {d['signal']:.2e} of its peak, metric {d['metric']:.2e}")

@@ -15,6 +15,8 @@ __all__ = ["end_time"]
 # picoseconds are counted exactly in a double below 2**53 ps (about 9007 s)
 _PS = 1e12
 _LIMIT = 9.0e3
+# within rounding: a few ulps of the sum
+_ULPS = 4 * 2.220446049250313e-16
 
 
 def end_time(t: float, h: float, last: float | None = None) -> float:
@@ -35,7 +37,7 @@ def end_time(t: float, h: float, last: float | None = None) -> float:
     -------
     float
         The multiple of 1 ps nearest ``t + h``, correctly rounded (``k / 1000`` for the
-        tick ``k`` of a 1 ms step), when it lies within ``1e-9 h`` of it; else ``t + h``.
+        tick ``k`` of a 1 ms step), when it lies within 4 ulps of it; else ``t + h``.
         The same rule as ``jf_end_time`` of the native FMUs.
     """
     if last is not None and abs(t - last) <= 1e-6 * abs(h):
@@ -44,7 +46,7 @@ def end_time(t: float, h: float, last: float | None = None) -> float:
     if not abs(te) < _LIMIT:
         return te
     g = _nearbyint(te * _PS) / _PS
-    return g if abs(g - te) <= 1e-9 * abs(h) else te
+    return g if abs(g - te) <= _ULPS * abs(te) else te
 
 
 def _nearbyint(x: float) -> float:

@@ -14,7 +14,7 @@ from tests.support.hosts import run_c_host, run_fmpy
 
 MODEL = "piezo_p243_40"
 #: The runtime modules of fmukit, the only ones an FMU may carry.
-RUNTIME = {"__init__.py", "modeldesc.py", "slave.py", "state.py", "units.py"}
+RUNTIME = {"__init__.py", "modeldesc.py", "slave.py", "state.py", "timing.py", "units.py"}
 #: Module names of the build, validation and test tooling.
 TOOLING = {"build.py", "registry.py", "validate.py", "testing.py", "hosts.py",
            "fmucache.py", "loader.c"}

@@ -20,6 +20,7 @@
  *
  * String variables (fixed parameters) are not part of the state.
  */
+#include <float.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -712,5 +713,5 @@ double jf_end_time(double t, double h, double last) {
     te = t + h;
     if (!(fabs(te) < 9.0e3)) return te; /* ps counts exact below 2^53 ps */
     g = nearbyint(te * 1.0e12) / 1.0e12;
-    return fabs(g - te) <= 1.0e-9 * fabs(h) ? g : te;
+    return fabs(g - te) <= 4.0 * DBL_EPSILON * fabs(te) ? g : te;
 }

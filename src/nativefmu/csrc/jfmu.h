@@ -75,7 +75,7 @@ int jf_expm_balanced(const double *a, size_t n, double *out);
 
 /* The communication point at the end of a step from t by h, robust to the host's time
  * arithmetic: the step starts at `last` (the previous end) when t is within 1e-6 h of
- * it, and an end within 1e-9 h of a multiple of 1 ps is that multiple, correctly
+ * it, and an end within 4 ulps of a multiple of 1 ps is that multiple, correctly
  * rounded (so t_k + h, an accumulated t += h and the exact t_{k+1} are one time).
  * The same rule as fmukit.timing.end_time. */
 double jf_end_time(double t, double h, double last);

@@ -1,0 +1,84 @@
+"""The EOS 24-case budget: co-simulated campaign vs the linear engine, side by side.
+
+Run::
+
+    .venv/bin/python benchmarks/bench_linear_campaign.py [--workers 2] [--fmu-dir fmus]
+
+Both engines run ``campaigns/eos_budget.toml`` (12 events x isolation off/on, 8 s at
+1 kHz, the 10 Hz ACS and fifteen piezo loops) from empty folders, FMUs built.  The
+co-simulation uses ``--workers`` processes; the linear engine runs in this process.  Its
+time is split into the closing of the two configurations' loops (``linearize`` and
+compiling the runs, once per configuration: the "model build") and the 24 cases
+themselves (every case's record, metrics, files and summary).  Every summary cell of
+the two is compared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import tempfile
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+
+from orchestrator.campaign import LinearRunner, MasterRunner, load_campaign, run_campaign
+from orchestrator.experiments import eos
+
+
+def _summary(folder):
+    return {(r["case"], r["instrument"], r["axis"], r["metric"], r["window"]): r["value"]
+            for r in pq.read_table(Path(folder) / "summary.parquet").to_pylist()}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--fmu-dir", default="fmus")
+    args = ap.parse_args(argv)
+    fmu_dir = eos.ensure_fmus(args.fmu_dir)
+    camp = load_campaign(eos.CAMPAIGN)
+    with tempfile.TemporaryDirectory(prefix="bench-linear-") as tmp:
+        tmp = Path(tmp)
+        t0 = time.perf_counter()
+        co = run_campaign(camp, tmp / "cosim", MasterRunner(camp.scenario_dir, fmu_dir=fmu_dir),
+                          workers=args.workers, progress=False)
+        t_co = time.perf_counter() - t0
+
+        runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
+        t0 = time.perf_counter()
+        configs = {c.configuration: c for c in camp.cases}
+        for case in configs.values():       # the model build: one closed loop each
+            runner.compiled(case.scenario)
+            runner.record(case.scenario)   # and the run matrices of its tick pattern
+        t_build = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        li = run_campaign(dataclasses.replace(camp, engine="linear"), tmp / "linear", runner,
+                          progress=False)
+        t_li = time.perf_counter() - t0
+        a, b = _summary(tmp / "cosim"), _summary(tmp / "linear")
+        worst = max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k])
+        fr = next(iter(runner._compiled.values()))
+        mem = sum(t.G.nbytes + t.O.nbytes + t.h.nbytes + t.ML.nbytes
+                  for t in fr._types.values()) / 2**20
+    n = len(camp.cases)
+    print(f"EOS budget, {n} cases, 8 s at 1 kHz; failed: cosim {co.n_failed}, "
+          f"linear {li.n_failed}")
+    print(f"{'engine':<44}{'wall (s)':>10}{'per case (ms)':>15}")
+    print(f"{f'co-simulation, {args.workers} workers':<44}{t_co:>10.2f}{1e3 * t_co / n:>15.1f}")
+    print(f"{'linear: closing 2 configurations (build)':<44}{t_build:>10.2f}")
+    print(f"{'linear: the 24 cases (records, metrics, files)':<44}{t_li:>10.2f}"
+          f"{1e3 * t_li / n:>15.1f}")
+    print(f"{'linear: total':<44}{t_build + t_li:>10.2f}")
+    print(f"speed-up of the cases: {t_co / t_li:.0f}x, with the build: "
+          f"{t_co / (t_build + t_li):.1f}x")
+    print(f"largest relative difference of a summary cell: {worst:.1e} "
+          f"({len(a)} cells)")
+    print(f"memory state {fr.n_memory} of {fr.lin.n}; run matrices of one configuration: "
+          f"{mem:.0f} MB")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,207 @@
+"""The linear engine for campaigns (orchestrator.analysis.fast, orchestrator.campaign.linear).
+
+References: the tick-by-tick linear map (:meth:`LinearScenario.simulate`, itself equal to
+the co-simulation of a linear scenario) and the co-simulated campaign of the same cases,
+every summary cell; a rail or a nonlinear element is refused in one sentence.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from orchestrator.analysis import AnalysisError, linearize
+from orchestrator.analysis.fast import FastResponse
+from orchestrator.campaign import (CampaignError, LinearRunner, MasterRunner,
+                                   campaign_from_dict, keyed, load_campaign, run_campaign,
+                                   verify_campaign)
+from orchestrator.experiments import eos
+from orchestrator.experiments.eos import CAMPAIGN as EOS_CAMPAIGN
+
+pytestmark = pytest.mark.slow
+
+# the events whose sources have edges (a slew, a scan, a chopper) and a harmonic one
+EOS_EVENTS = ("CERES scan", "SWIR pointing", "TIR chopper", "RWA")
+EOS_STOP = 3.0
+
+
+def _summary(folder):
+    return {(r["case"], r["instrument"], r["axis"], r["metric"], r["window"]): r["value"]
+            for r in pq.read_table(folder / "summary.parquet").to_pylist()}
+
+
+def _eos_campaign(events=EOS_EVENTS, stop=EOS_STOP):
+    camp = load_campaign(EOS_CAMPAIGN)
+    cases = []
+    for c in camp.cases:
+        if c.event in events:
+            sc = json.loads(json.dumps(c.scenario))
+            sc["experiment"]["stop"] = stop
+            cases.append(dataclasses.replace(c, scenario=sc, key=c.key + "-short"))
+    return dataclasses.replace(camp, cases=tuple(cases))
+
+
+@pytest.fixture(scope="module")
+def eos_fmus(suite_fmu_dir):
+    return eos.ensure_fmus(suite_fmu_dir)
+
+
+@pytest.fixture(scope="module")
+def eos_pair(tmp_path_factory, eos_fmus):
+    """The same EOS cases co-simulated and through the linear engine."""
+    camp = _eos_campaign()
+    out = tmp_path_factory.mktemp("linear_eos")
+    co = run_campaign(camp, out / "cosim", MasterRunner(camp.scenario_dir, fmu_dir=eos_fmus),
+                      workers=2, progress=False)
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=eos_fmus)
+    li = run_campaign(dataclasses.replace(camp, engine="linear"), out / "linear", runner,
+                      progress=False)
+    return camp, out, co, li, runner
+
+
+def test_linear_campaign_equals_cosimulation_eos(eos_pair):
+    """Every summary cell (cases, RSS) of the multi-rate EOS budget (10 Hz ACS, fifteen
+    1 kHz loops), isolation off and on, to 1e-9 relative."""
+    camp, out, co, li, _ = eos_pair
+    assert co.n_failed == li.n_failed == 0
+    a, b = _summary(out / "cosim"), _summary(out / "linear")
+    assert set(a) == set(b) and len(a) > 100
+    worst = max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k] != 0)
+    assert worst < 1e-9, worst
+    assert json.loads((out / "linear" / "campaign.json").read_text())["engine"] == "linear"
+
+
+def test_linear_record_equals_cosimulated_record(eos_pair, eos_fmus):
+    """The recorded table itself, column by column, not only its metrics."""
+    camp, out, *_ = eos_pair
+    case = next(c for c in keyed(camp, LinearRunner(camp.scenario_dir, eos_fmus)).cases
+                if c.event == "SWIR pointing")
+    co_case = next(c for c in keyed(camp, MasterRunner(camp.scenario_dir, eos_fmus)).cases
+                   if c.label == case.label)
+    lin = pq.read_table(out / "linear" / "cases" / case.key / "results.parquet").to_pydict()
+    co = pq.read_table(out / "cosim" / "cases" / co_case.key / "results.parquet").to_pydict()
+    assert list(lin) == list(co)
+    np.testing.assert_array_equal(lin["time"], co["time"])
+    for name in co:
+        x, y = np.asarray(co[name]), np.asarray(lin[name])
+        scale = max(np.max(np.abs(x)), 1e-300)
+        assert np.max(np.abs(x - y)) <= 1e-9 * scale, name
+
+
+def test_fast_response_equals_the_tick_by_tick_map(eos_pair, eos_fmus):
+    """All sources driven at once with seeded noise; the ACS at 10 Hz makes the tick map
+    periodic over 100 ticks, run as one tick plus a run of 99."""
+    _, _, _, _, runner = eos_pair
+    camp = _eos_campaign()
+    case = next(c for c in camp.cases if c.configuration == "isolation on")
+    fr = runner.compiled(case.scenario)
+    n_ticks = 450
+    rng = np.random.default_rng(7)
+    W = rng.standard_normal((n_ticks + 1, fr.m))
+    rec = fr.run(W, check=False)
+    refs = [r for r in rec.refs if not fr._is_flag(r)]
+
+    def w(name, k):
+        off = fr._in_off[name]
+        return W[k, off:off + len(fr.lin.blocks[name].outputs)]
+
+    want, _ = fr.lin.simulate(n_ticks + 1, w=w, record=refs)
+    got = np.column_stack([rec.column(r) for r in refs])
+    scale = np.maximum(np.abs(want).max(axis=0), 1e-300)
+    assert np.max(np.abs(got - want) / scale) < 1e-11
+    assert [L for _, L in fr._runs] == [1, 99]
+
+
+def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):
+    """A rail the linear record crosses fails the case in one sentence; nothing else."""
+    camp = _eos_campaign(events=("SWIR pointing",), stop=1.5)
+    on = [c for c in camp.cases if c.configuration == "isolation on"]
+    sc = json.loads(json.dumps(on[0].scenario))
+    params = sc["fmus"]["piezo_swir_mount1"].setdefault("parameters", {})
+    params["v_min"], params["v_max"] = -1e-6, 1e-6   # |v| reaches about 3e-5 V
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=eos_fmus)
+    with pytest.raises(AnalysisError, match=r"piezo_swir_mount1\.voltage reaches its voltage "
+                                            r"rail .* at t = .* s.*--engine cosim"):
+        runner(sc, tmp_path / "rail")
+
+
+@pytest.mark.parametrize("param, value, words", [
+    ("hysteresis", True, "hysteresis on"),
+    ("noise_std", 1e-6, "strain-gauge noise on"),
+    ("resolution", 1e-9, "quantises its strain"),
+])
+def test_unmodelled_element_is_refused_before_running(eos_fmus, tmp_path, param, value,
+                                                      words):
+    camp = _eos_campaign(events=("SWIR pointing",), stop=1.5)
+    sc = json.loads(json.dumps(camp.cases[0].scenario))
+    sc["fmus"]["piezo_iso2"].setdefault("parameters", {})[param] = value
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=eos_fmus)
+    with pytest.raises(AnalysisError, match=f"piezo_iso2.*{words}"):
+        runner(sc, tmp_path / "x")
+    assert not (tmp_path / "x" / "results.parquet").exists()
+
+
+def test_recording_an_output_the_model_leaves_out_is_refused(eos_fmus, tmp_path):
+    camp = _eos_campaign(events=("SWIR pointing",), stop=1.5)
+    sc = json.loads(json.dumps(camp.cases[0].scenario))
+    sc["record"]["variables"].append("acs.wheel_speed_x")
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=eos_fmus)
+    with pytest.raises(AnalysisError, match="acs.wheel_speed_x .*wheel speeds are not in the "
+                                            "linear model"):
+        runner(sc, tmp_path / "x")
+
+
+def test_verify_reports_the_difference_per_axis(eos_pair, eos_fmus):
+    camp, out, *_ = eos_pair
+    lcamp = keyed(dataclasses.replace(camp, engine="linear"),
+                  LinearRunner(camp.scenario_dir, fmu_dir=eos_fmus))
+    rep = verify_campaign(lcamp, out / "linear", 1, fmu_dir=eos_fmus)
+    assert rep["n"] == 1 and not rep["nonlinear"]
+    assert set(rep["largest_difference"]) == {f"{i}/{a}" for i, axes in
+                                              camp.instruments.items() for a in axes}
+    assert max(d["metric"] for d in rep["largest_difference"].values()) < 1e-9
+    assert rep["cases"][0]["nonlinear_flags"] == []
+    on_disk = json.loads((out / "linear" / "verify.json").read_text())
+    assert on_disk["n"] == 1
+
+
+@pytest.mark.parametrize("head, words", [
+    ({"engine": "fast"}, "engine is 'fast'; expected one of"),
+    ({"verify": -1}, "verify is -1; expected a whole number"),
+    ({"verify": 1.5}, "verify is 1.5"),
+])
+def test_bad_engine_settings_are_one_sentence(head, words):
+    data = {"campaign": {"name": "x", "scenario": {
+        "experiment": {"stop": 0.1}, "fmus": {"a": {"fmu": "x.fmu", "period": 1e-3}}},
+        **head}, "instruments": [{"name": "i", "axes": {"x": "a.y"}}]}
+    with pytest.raises(CampaignError, match=words):
+        campaign_from_dict(data)
+
+
+def test_fast_response_refuses_an_unknown_source(eos_pair):
+    _, _, _, _, runner = eos_pair
+    fr = next(iter(runner._compiled.values()))
+    with pytest.raises(AnalysisError, match="'nope' is not a source of the scenario"):
+        fr.input_matrix({"nope": np.zeros((3, 6))}, 2)
+
+
+def test_linear_engine_on_the_truss_campaign(tmp_path, suite_fmus, suite_fmu_dir):
+    """Sources at 4 ms in a 1 ms loop: the super-period is 64 ticks of runs of 1 and 3."""
+    from orchestrator.campaign import ENGINES
+    assert ENGINES == ("cosim", "linear")
+    from tests.orchestrator.test_truss10_campaign import CAMPAIGN, FMUS
+    suite_fmus(*FMUS)
+    camp = load_campaign(CAMPAIGN)
+    co = run_campaign(camp, tmp_path / "co", MasterRunner(camp.scenario_dir,
+                                                          fmu_dir=suite_fmu_dir),
+                      workers=2, progress=False)
+    li = run_campaign(dataclasses.replace(camp, engine="linear"), tmp_path / "li",
+                      LinearRunner(camp.scenario_dir, fmu_dir=suite_fmu_dir), progress=False)
+    assert co.n_failed == li.n_failed == 0
+    a, b = _summary(tmp_path / "co"), _summary(tmp_path / "li")
+    assert set(a) == set(b)
+    assert max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k]) < 1e-9

@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft as sfft
 
 from .blocks import AnalysisError
 from .scenario import LinearScenario
@@ -85,8 +86,9 @@ class _RunType:
     L: int
     ML: np.ndarray      # (s, s)       M^L
     G: np.ndarray       # (s, L, m)    M^(L-1-l) N
-    O: np.ndarray       # (L, r, s)    C M^q
-    h: np.ndarray       # (L, r, m)    Markov parameters, h_0 = D
+    O: np.ndarray       # (L * r_live, s)  C M^q, the rows that are not zero by structure
+    h: np.ndarray       # (L, r_live, m)   Markov parameters, h_0 = D
+    live: np.ndarray    # (r_live,)    those rows (e.g. a loop at gain 0 leaves its own out)
 
 
 class FastResponse:
@@ -158,6 +160,8 @@ class FastResponse:
             self._runs.append((sigs[k], j - k + 1))
             k = j + 1
         self._types = {}
+        self._times = {}
+        self._kernels = {}
 
     # ------------------------------------------------------------------ compile
     def _is_flag(self, ref: str) -> bool:
@@ -183,6 +187,19 @@ class FastResponse:
         X = lin._tick(X, k, w_next)   # k < the super-period, a multiple of every period
         return X[:, :n], X[:, n:]
 
+    def _conv(self, key, t: _RunType, active, Wu):
+        """The Markov convolution of a run type with the active inputs (kernel cached)."""
+        if t.L <= 8:
+            return _causal_conv(t.h[:, :, active], Wu)
+        ck = (key, active.tobytes())
+        Hf = self._kernels.get(ck)
+        if Hf is None:
+            Hf = sfft.rfft(t.h[:, :, active], _fft_length(t.L), axis=0)
+            if len(self._kernels) > 64:
+                self._kernels.clear()
+            self._kernels[ck] = Hf
+        return _causal_conv(t.h[:, :, active], Wu, Hf)
+
     def _type(self, sig, L: int) -> _RunType:
         key = (sig, L)
         t = self._types.get(key)
@@ -203,11 +220,24 @@ class FastResponse:
         h[0] = D
         if L > 1:
             h[1:] = np.einsum("qrs,sm->qrm", O[:L - 1], N)   # C M^(p-1) N
-        t = _RunType(L, ML, np.ascontiguousarray(G), O, h)
+        live = np.flatnonzero(np.any(O != 0, axis=(0, 2)) | np.any(h != 0, axis=(0, 2)))
+        t = _RunType(L, ML, np.ascontiguousarray(G),
+                     np.ascontiguousarray(O[:, live]).reshape(L * live.size, s),
+                     np.ascontiguousarray(h[:, live]), live)
         self._types[key] = t
         return t
 
     # ------------------------------------------------------------------ running
+    def times(self, n_ticks: int, every: int = 1) -> np.ndarray:
+        """Exact times (s) of the ticks ``0, every, 2 every, ...`` up to ``n_ticks``."""
+        key = (n_ticks, every)
+        t = self._times.get(key)
+        if t is None:
+            t = np.array(self.lin.plan.timebase.times(range(0, n_ticks + 1, every)))
+            t.flags.writeable = False
+            self._times[key] = t
+        return t
+
     def input_matrix(self, series: dict, n_ticks: int) -> np.ndarray:
         """Source values ``W`` (n_ticks + 1, m) from each source's values.
 
@@ -250,7 +280,6 @@ class FastResponse:
             For a source whose outputs are not a function of time alone (an input-driven
             wheel, or a source taken out of the loop).
         """
-        tb = self.lin.plan.timebase
         out = {}
         for name in (self.lin.sources if only is None else only):
             b = self.lin.blocks[name]
@@ -258,9 +287,7 @@ class FastResponse:
                 raise AnalysisError(f"source {name!r} has no open-loop series (an input-"
                                     "driven wheel, or an instance taken out of the loop); "
                                     "the linear engine cannot drive it")
-            ticks = range(0, n_ticks + 1, b.period)
-            times = np.array(tb.times(ticks))
-            out[name] = b.series(times)
+            out[name] = b.series(self.times(n_ticks, b.period))
         return out
 
     def run(self, W: np.ndarray, check: bool = True) -> Record:
@@ -316,32 +343,38 @@ class FastResponse:
         for key, idx in by_type.items():
             t = self._type(*key)
             starts = np.array([units[i][1] for i in idx])
-            L, r_, s_ = t.O.shape
-            free = (t.O.reshape(L * r_, s_) @ X0[idx].T).T.reshape(len(idx), L, r_)
+            free = (t.O @ X0[idx].T).T.reshape(len(idx), t.L, t.live.size)
             if active.size:
                 Wu = Wa[starts[:, None] + np.arange(t.L)]
-                free += _causal_conv(t.h[:, :, active], Wu)
-            Y[starts[:, None] + np.arange(t.L)] = free
-        tb = self.lin.plan.timebase
-        times = np.array(tb.times(range(K)))
+                free += self._conv(key, t, active, Wu)
+            rows = (starts[:, None] + np.arange(t.L)).ravel()
+            if t.live.size == r:
+                Y[rows] = free.reshape(-1, r)
+            else:
+                Y[rows[:, None], t.live] = free.reshape(-1, t.live.size)
+        times = self.times(K - 1)
         n_ref = len(self._computed)
         limits = {}
+        top, bottom = Y[:, n_ref:].max(axis=0), Y[:, n_ref:].min(axis=0)
         for j, (ref, lo, hi, what) in enumerate(self._checks):
-            y = Y[:, n_ref + j]
-            used = max(y.max() / hi if hi > 0 else 0.0, y.min() / lo if lo < 0 else 0.0)
+            used = max(top[j] / hi if hi > 0 else 0.0, bottom[j] / lo if lo < 0 else 0.0)
             limits[ref] = float(used)
-            if check and (y.max() > hi or y.min() < lo):
+            if check and (top[j] > hi or bottom[j] < lo):
+                y = Y[:, n_ref + j]
                 bad = np.flatnonzero((y > hi) | (y < lo))[0]
                 raise NonlinearError(
                     f"{ref} reaches its {what} ({y[bad]:.4g} outside [{lo:.4g}, {hi:.4g}]) "
                     f"at t = {times[bad]:.6g} s, where the FMU leaves the linear model: "
                     "run this case with the co-simulation (--engine cosim)")
-        values = np.zeros((K, len(self.refs)))
-        values[:, self._computed] = Y[:, :n_ref]
+        if self._zero:
+            values = np.zeros((K, len(self.refs)))
+            values[:, self._computed] = Y[:, :n_ref]
+        else:
+            values = Y[:, :n_ref]
         return Record(values, times, self.refs, limits)
 
 
-def _causal_conv(h: np.ndarray, w: np.ndarray) -> np.ndarray:
+def _causal_conv(h: np.ndarray, w: np.ndarray, Hf=None) -> np.ndarray:
     """``y[u, q] = sum_{l <= q} h[q - l] w[u, l]`` for every run ``u``, by FFT.
 
     Parameters
@@ -359,8 +392,17 @@ def _causal_conv(h: np.ndarray, w: np.ndarray) -> np.ndarray:
         for q in range(L):
             y[:, q] = np.einsum("lrm,ulm->ur", h[q::-1], w[:, :q + 1])
         return y
-    n = 1 << (2 * L - 1).bit_length()
-    Hf = np.fft.rfft(h, n, axis=0)                  # (f, r, m)
-    Wf = np.fft.rfft(w, n, axis=1)                  # (u, f, m)
-    Yf = np.einsum("frm,ufm->ufr", Hf, Wf, optimize=True)
-    return np.fft.irfft(Yf, n, axis=1)[:, :L]
+    n = _fft_length(L)
+    if Hf is None:
+        Hf = sfft.rfft(h, n, axis=0)                # (f, r, m)
+    Wf = sfft.rfft(w, n, axis=1, workers=-1)        # (u, f, m)
+    if Wf.shape[2] == 1:
+        Yf = Wf * Hf[None, :, :, 0]
+    else:
+        Yf = np.einsum("frm,ufm->ufr", Hf, Wf, optimize=True)
+    return sfft.irfft(Yf, n, axis=1, workers=-1)[:, :L]
+
+
+def _fft_length(L: int) -> int:
+    """A fast FFT length for a linear convolution of two ``L``-long sequences."""
+    return sfft.next_fast_len(2 * L - 1, real=True)

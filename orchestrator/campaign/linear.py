@@ -128,8 +128,7 @@ class LinearRunner:
                 raise AnalysisError(f"source {name!r} has no open-loop series (an input-"
                                     "driven wheel); the linear engine cannot drive it: run "
                                     "this case with the co-simulation (--engine cosim)")
-            times = np.array(tb.times(range(0, n_ticks + 1, b.period)))
-            series[name] = b.series(times)
+            series[name] = b.series(fr.times(n_ticks, b.period))
         return fr.run(fr.input_matrix(series, n_ticks)), tb.output_ticks
 
     def __call__(self, scenario: dict, out_dir) -> RunResult:

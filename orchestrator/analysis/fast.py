@@ -373,6 +373,96 @@ class FastResponse:
             values = Y[:, :n_ref]
         return Record(values, times, self.refs, limits)
 
+    # ------------------------------------------------------------------ steady state
+    def ref_rows(self, refs) -> np.ndarray:
+        """Rows of the computed outputs (``Y`` columns) holding ``refs``."""
+        computed = [self.refs[j] for j in self._computed]
+        missing = [r for r in refs if r not in computed]
+        if missing:
+            raise AnalysisError(f"{missing[0]!r} is not among the recorded outputs of the "
+                                f"compiled scenario ({', '.join(computed[:8])} ...)")
+        return np.array([computed.index(r) for r in refs], int)
+
+    def steady_state(self, freqs_hz, phasors, refs, chunk: int = 256) -> np.ndarray:
+        """Periodic steady state of ``refs`` under harmonic sources, one per frequency.
+
+        Source channel ``c`` publishes ``Re(a_c exp(j 2 pi f t_k))`` at its due ticks.
+        With mixed rates the response to one frequency is not one sinusoid (the slow
+        instances alias it), but it is periodic in the super-period ``P`` up to the
+        factor ``z = exp(j 2 pi f P base)``: the record is
+        ``y(t_(nP + p)) = Re(z^n Y[p])``, exact.
+
+        Parameters
+        ----------
+        freqs_hz : array_like, shape (n_f,)
+            Frequencies (Hz).
+        phasors : array_like, shape (n_f, m)
+            Complex amplitude of every source channel at each frequency (the columns of
+            :meth:`input_matrix`).
+        refs : sequence of str
+            Recorded outputs to return.
+        chunk : int
+            Frequencies computed together (memory ``~ P r m chunk``).
+
+        Returns
+        -------
+        ndarray, shape (P, n_f, len(refs)), complex
+            ``Y[p]`` per frequency.
+        """
+        import scipy.linalg as la
+
+        freqs = np.atleast_1d(np.asarray(freqs_hz, float))
+        A = np.asarray(phasors, complex).reshape(freqs.size, self.m)
+        sel = self.ref_rows(refs)
+        active = np.flatnonzero(np.any(A != 0, axis=0))
+        base = float(self.lin.plan.timebase.base)
+        units, k = [], 0
+        for sig, L in self._runs:
+            units.append((self._type(sig, L), k))
+            k += L
+        Phi = np.eye(self.n_memory)
+        for t, _ in units:
+            Phi = t.ML @ Phi
+        # exact power-of-two balancing: the memory state mixes metres, volts and strains
+        Phi_b, (scale, _) = la.matrix_balance(Phi, permute=False, separate=True)
+        T, Q = la.schur(Phi_b, output="complex")
+        out = np.zeros((self.P, freqs.size, sel.size), complex)
+        for c0 in range(0, freqs.size, chunk):
+            f = freqs[c0:c0 + chunk]
+            a = A[c0:c0 + chunk][:, active]                           # (n_c, m_a)
+            wv = 2 * np.pi * f * base                                  # rad per tick
+            forcing = []
+            for t, start in units:
+                E = np.exp(1j * np.outer(np.arange(t.L), wv))          # (L, n_c)
+                Ga = np.einsum("slm,cm->slc", t.G[:, :, active], a)
+                forcing.append(np.exp(1j * wv * start) * np.einsum("slc,lc->sc", Ga, E))
+            x = np.zeros((self.n_memory, f.size), complex)
+            for (t, _), g in zip(units, forcing):
+                x = t.ML @ x + g                                       # forced, from rest
+            z = np.exp(1j * wv * self.P)
+            y = Q.conj().T @ (x / scale[:, None])
+            X0 = np.empty_like(y)
+            for i in range(f.size):
+                X0[:, i] = la.solve_triangular(z[i] * np.eye(T.shape[0]) - T, y[:, i])
+            x = (Q @ X0) * scale[:, None]
+            for (t, start), g in zip(units, forcing):
+                live = np.searchsorted(t.live, sel)
+                present = (live < t.live.size) & (t.live[np.minimum(live, t.live.size - 1)]
+                                                  == sel)
+                O = t.O.reshape(t.L, t.live.size, -1)[:, live[present]]
+                Y = np.zeros((t.L, f.size, sel.size), complex)
+                Y[:, :, present] = np.einsum("qrs,sc->qcr", O, x)
+                if active.size:
+                    h = t.h[:, live[present]][:, :, active]            # (L, r, m_a)
+                    E = np.exp(-1j * np.outer(np.arange(t.L), wv))     # (L, n_c)
+                    H = np.cumsum(np.einsum("prm,pc->prmc", h, E), axis=0)
+                    conv = np.einsum("qrmc,cm->qcr", H, a)
+                    phase = np.exp(1j * np.outer(start + np.arange(t.L), wv))   # (L, n_c)
+                    Y[:, :, present] += phase[:, :, None] * conv
+                out[start:start + t.L, c0:c0 + chunk] = Y
+                x = t.ML @ x + g
+        return out
+
 
 def _causal_conv(h: np.ndarray, w: np.ndarray, Hf=None) -> np.ndarray:
     """``y[u, q] = sum_{l <= q} h[q - l] w[u, l]`` for every run ``u``, by FFT.

@@ -65,6 +65,7 @@ class Block:
     active: bool = True
     continuous: tuple | None = field(default=None, repr=False)
     series: Callable | None = field(default=None, repr=False)
+    source: object = field(default=None, repr=False)
     limits: tuple = ()
     unmodelled: tuple = ()
     flags: tuple = ()
@@ -336,7 +337,8 @@ def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:
     slave.setup_experiment(float(plan.scenario.experiment.start), None, None)
     if base in _SOURCES:
         block = _source_block(inst.name, period, outs)
-        return replace(block, series=_series(slave, outs, inst.name))
+        config = slave._config() if hasattr(slave, "_config") else None
+        return replace(block, series=_series(slave, outs, inst.name), source=config)
     block = _KINDS[base](slave, inst.name, period, h, None)
     ft = np.array([bool(info.feedthrough.get(o)) for o in block.outputs])
     return replace(block, feedthrough=ft)

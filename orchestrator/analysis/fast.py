@@ -426,6 +426,7 @@ class FastResponse:
         # exact power-of-two balancing: the memory state mixes metres, volts and strains
         Phi_b, (scale, _) = la.matrix_balance(Phi, permute=False, separate=True)
         T, Q = la.schur(Phi_b, output="complex")
+        zT, diag = -T, np.diag(T).copy()
         out = np.zeros((self.P, freqs.size, sel.size), complex)
         for c0 in range(0, freqs.size, chunk):
             f = freqs[c0:c0 + chunk]
@@ -434,8 +435,9 @@ class FastResponse:
             forcing = []
             for t, start in units:
                 E = np.exp(1j * np.outer(np.arange(t.L), wv))          # (L, n_c)
-                Ga = np.einsum("slm,cm->slc", t.G[:, :, active], a)
-                forcing.append(np.exp(1j * wv * start) * np.einsum("slc,lc->sc", Ga, E))
+                B = E[:, None, :] * a.T[None, :, :]                    # (L, m_a, n_c)
+                G = t.G[:, :, active].reshape(self.n_memory, -1)
+                forcing.append(np.exp(1j * wv * start) * (G @ B.reshape(-1, f.size)))
             x = np.zeros((self.n_memory, f.size), complex)
             for (t, _), g in zip(units, forcing):
                 x = t.ML @ x + g                                       # forced, from rest
@@ -443,22 +445,28 @@ class FastResponse:
             y = Q.conj().T @ (x / scale[:, None])
             X0 = np.empty_like(y)
             for i in range(f.size):
-                X0[:, i] = la.solve_triangular(z[i] * np.eye(T.shape[0]) - T, y[:, i])
+                if not np.any(a[i]):   # nothing drives (a wheel at rest): no solve at z = 1
+                    X0[:, i] = 0.0
+                    continue
+                np.fill_diagonal(zT, z[i] - diag)                      # z I - T
+                X0[:, i] = la.solve_triangular(zT, y[:, i], check_finite=False)
             x = (Q @ X0) * scale[:, None]
             for (t, start), g in zip(units, forcing):
                 live = np.searchsorted(t.live, sel)
                 present = (live < t.live.size) & (t.live[np.minimum(live, t.live.size - 1)]
                                                   == sel)
-                O = t.O.reshape(t.L, t.live.size, -1)[:, live[present]]
-                Y = np.zeros((t.L, f.size, sel.size), complex)
-                Y[:, :, present] = np.einsum("qrs,sc->qcr", O, x)
+                rows = live[present]
+                O = t.O.reshape(t.L, t.live.size, -1)[:, rows].reshape(t.L * rows.size, -1)
+                Yq = (O @ x).reshape(t.L, rows.size, f.size)          # (L, r, n_c)
                 if active.size:
-                    h = t.h[:, live[present]][:, :, active]            # (L, r, m_a)
+                    h = t.h[:, rows][:, :, active]                     # (L, r, m_a)
                     E = np.exp(-1j * np.outer(np.arange(t.L), wv))     # (L, n_c)
-                    H = np.cumsum(np.einsum("prm,pc->prmc", h, E), axis=0)
-                    conv = np.einsum("qrmc,cm->qcr", H, a)
+                    B = E[:, None, :] * a.T[None, :, :]                # (L, m_a, n_c)
+                    conv = np.cumsum(h @ B, axis=0)                    # (L, r, n_c)
                     phase = np.exp(1j * np.outer(start + np.arange(t.L), wv))   # (L, n_c)
-                    Y[:, :, present] += phase[:, :, None] * conv
+                    Yq = Yq + phase[:, None, :] * conv
+                Y = np.zeros((t.L, f.size, sel.size), complex)
+                Y[:, :, present] = Yq.transpose(0, 2, 1)
                 out[start:start + t.L, c0:c0 + chunk] = Y
                 x = t.ML @ x + g
         return out

@@ -616,6 +616,40 @@ class WheelImbalance:
         """Wrench at times ``t`` (s) for the constant or profiled speed (N, N m)."""
         return self.wrench_at(self.phase(t), self.speed_at(t))
 
+    def lines(self, speed: float) -> tuple[np.ndarray, np.ndarray]:
+        """The spectral lines of the wrench at a constant wheel speed.
+
+        ``wrench(t) = sum_i Re(a_i exp(j 2 pi f_i t))`` with ``theta = speed t``.
+
+        Parameters
+        ----------
+        speed : float
+            Wheel speed (rad/s).
+
+        Returns
+        -------
+        freqs : ndarray, shape (n_harmonics,)
+            ``f_i = h_i |speed| / (2 pi)`` (Hz).
+        phasors : ndarray, shape (n_harmonics, 6), complex
+            ``a_i`` for ``[Fx, Fy, Fz, Mx, My, Mz]`` (N, N m).
+        """
+        n = len(self.harmonics)
+        h = np.asarray(self.harmonics, dtype=float)
+        phi = np.zeros(n) if self.phases is None else np.asarray(self.phases, dtype=float)
+        C = np.asarray(self.force_coeffs, dtype=float)
+        D = np.asarray(self.torque_coeffs, dtype=float)
+        A = np.zeros(n) if self.axial_coeffs is None else np.asarray(self.axial_coeffs, float)
+        # sin(h theta + phi) = Re(-j e^{j(h theta + phi)}), cos(...) = Re(e^{j(...)});
+        # a negative speed runs theta backwards: the conjugate line at |h speed|
+        e = np.exp(1j * phi) * speed**2
+        local_f = np.stack([-1j * C, C + 0j, -1j * A], axis=-1) * e[:, None]
+        local_m = np.stack([-1j * D, D + 0j, np.zeros(n, complex)], axis=-1) * e[:, None]
+        frame = self._frame
+        ph = np.concatenate([local_f @ frame, local_m @ frame], axis=-1)
+        if speed < 0:
+            ph = ph.conj()
+        return h * abs(speed) / (2 * np.pi), ph
+
 
 def advance_wheel(theta: float, omega: float, dt: float) -> float:
     """Advance the rotor angle over a step with the wheel speed held.

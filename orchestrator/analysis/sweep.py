@@ -1,0 +1,181 @@
+"""Wheel-speed sweeps: the steady-state jitter of a reaction wheel over its speed range.
+
+At a constant speed ``Omega`` a wheel-imbalance source is a sum of spectral lines
+(:meth:`distfmu.sources.WheelImbalance.lines`: harmonics ``h_i Omega`` with amplitudes
+``~ Omega^2``).  The closed loop answers each line with its periodic steady state
+(:meth:`~orchestrator.analysis.fast.FastResponse.steady_state`, exact with mixed rates),
+so the record at every speed is a sum of a few known sequences; the jitter metrics of
+the campaign are computed on that record, over the campaign's record length, as a
+co-simulated case that had settled would give them.
+
+A loop with an unstable pole has no steady state: the sweep says so, naming the pole.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as la
+
+from .. import metrics as M
+from .blocks import AnalysisError
+from .fast import FastResponse
+
+__all__ = ["WheelSweep", "wheel_sweep", "record_metrics", "unstable_poles"]
+
+RPM = 2 * math.pi / 60.0   # rad/s per rpm
+
+
+@dataclass(frozen=True)
+class WheelSweep:
+    """The steady-state jitter at each wheel speed.
+
+    Attributes
+    ----------
+    speeds_rpm : ndarray, shape (n_s,)
+    refs : tuple of str
+        Recorded outputs, ``instance.variable``.
+    metrics : tuple of (str, float or None)
+        ``(kind, window)`` as a campaign's.
+    values : ndarray, shape (n_s, n_refs, n_metrics)
+        Metric values (unit of the outputs, e.g. rad).
+    """
+
+    speeds_rpm: np.ndarray
+    refs: tuple
+    metrics: tuple
+    values: np.ndarray
+
+    def worst(self, ref: str, metric=None) -> tuple[float, float]:
+        """``(speed_rpm, value)`` of the largest value of ``ref`` (first metric default)."""
+        j = self.refs.index(ref)
+        m = 0 if metric is None else self.metrics.index(metric)
+        i = int(np.argmax(self.values[:, j, m]))
+        return float(self.speeds_rpm[i]), float(self.values[i, j, m])
+
+
+def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
+    """Poles of the loop over its super-period with ``|z| > 1 + tol`` (none if stable).
+
+    A free rigid body is a double pole at 1, which a solver finds only to about
+    ``sqrt(eps)``: ``tol`` sits above that.
+    """
+    Phi = np.eye(fr.n_memory)
+    for sig, L in fr._runs:
+        Phi = fr._type(sig, L).ML @ Phi
+    Phi_b, _ = la.matrix_balance(Phi, permute=False, separate=True)
+    ev = np.linalg.eigvals(Phi_b)
+    return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True)
+
+
+def record_metrics(x: np.ndarray, dt: float, metrics) -> np.ndarray:
+    """The campaign's metrics of records ``x`` (..., n_samples), as ``case_metrics`` does.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n_samples)
+        Records, time last (rad).
+    dt : float
+        Sample interval (s).
+    metrics : sequence of (str, float or None)
+        ``(kind, window)`` pairs.
+
+    Returns
+    -------
+    ndarray, shape (..., n_metrics)
+    """
+    out = []
+    for kind, w in metrics:
+        if kind == "peak_to_peak":
+            v = M.peak_to_peak(x, dt, w, short="whole")
+        elif kind == "rms_jitter":
+            v = M.jitter_rms(x, dt, w)
+        elif kind == "stability":
+            v = M.stability_rms(x, dt, w)
+        else:
+            v = np.std(x, axis=-1)
+        out.append(np.asarray(v, float))
+    return np.stack(out, axis=-1)
+
+
+def wheel_sweep(fr: FastResponse, instance: str, speeds_rpm, refs, metrics, duration: float,
+                *, chunk: int = 25) -> WheelSweep:
+    """Steady-state jitter of ``refs`` with the wheel ``instance`` at each speed.
+
+    Parameters
+    ----------
+    fr : FastResponse
+        The compiled closed loop (other sources are ignored: only the wheel drives).
+    instance : str
+        Source instance whose source is a :class:`~distfmu.sources.WheelImbalance`
+        (its scale applies; its own speed is replaced by each swept speed).
+    speeds_rpm : array_like, shape (n_s,)
+        Wheel speeds (rpm).
+    refs : sequence of str
+        Recorded outputs (e.g. lines of sight, rad).
+    metrics : sequence of (str, float or None)
+        ``(kind, window)`` pairs, as a campaign's.
+    duration : float
+        Record length the metrics see (s), e.g. the campaign's ``stop - skip``.
+    chunk : int
+        Speeds reconstructed together (memory ``~ chunk x n_samples x n_refs``).
+
+    Returns
+    -------
+    WheelSweep
+
+    Raises
+    ------
+    AnalysisError
+        When ``instance`` is not a wheel source, or the loop is unstable.
+    """
+    from distfmu.sources import WheelImbalance
+
+    b = fr.lin.blocks.get(instance)
+    cfg = None if b is None else b.source
+    if cfg is None or not isinstance(cfg.source, WheelImbalance):
+        raise AnalysisError(f"{instance!r} is not a wheel-imbalance source of the scenario "
+                            "(set its preset to a wheel, e.g. 'rwa', in the sweep's "
+                            "overrides)")
+    bad = unstable_poles(fr)
+    if bad:
+        z = bad[0]
+        T = fr.P * float(fr.lin.plan.timebase.base)
+        raise AnalysisError(
+            f"the closed loop is unstable (a pole at |z| = {abs(z):.6f} per {T:g} s, "
+            f"{abs(np.angle(z)) / (2 * np.pi * T):.3g} Hz or an alias of it): it has no "
+            "steady state; take the slow loop out (open = [\"acs\"]) or fix the design")
+    speeds = np.atleast_1d(np.asarray(speeds_rpm, float))
+    refs = tuple(refs)
+    tb = fr.lin.plan.timebase
+    every = tb.output_ticks
+    dt = every * float(tb.base)
+    n_samples = int(round(duration / dt)) + 1
+    n_blocks = -(-((n_samples - 1) * every + 1) // fr.P)    # super-periods the record spans
+    off = fr._in_off[instance]
+    n_h = len(cfg.source.harmonics)
+    freqs = np.zeros((speeds.size, n_h))
+    ph = np.zeros((speeds.size, n_h, fr.m), complex)
+    for i, s in enumerate(speeds):
+        f, a = cfg.source.lines(s * RPM)
+        freqs[i] = f
+        ph[i, :, off:off + 6] = cfg.scale * a
+    Y = fr.steady_state(freqs.ravel(), ph.reshape(-1, fr.m), refs)   # (P, n_s n_h, r)
+    Y = Y.reshape(fr.P, speeds.size, n_h, len(refs))
+    values = np.zeros((speeds.size, len(refs), len(metrics)))
+    z = np.exp(2j * np.pi * freqs * fr.P * float(tb.base))             # (n_s, n_h)
+    blocks = np.arange(n_blocks)
+
+    def one_chunk(c0):
+        sl = slice(c0, c0 + chunk)
+        zn = z[sl, :, None] ** blocks                                  # (c, n_h, n_b)
+        Yc = Y[:, sl].transpose(1, 2, 0, 3).reshape(zn.shape[0], n_h, -1)   # (c, n_h, P r)
+        x = np.real(zn.transpose(0, 2, 1) @ Yc)                        # (c, n_b, P r)
+        x = x.reshape(x.shape[0], n_blocks * fr.P, len(refs))[:, ::every][:, :n_samples]
+        values[sl] = record_metrics(x.transpose(0, 2, 1), dt, metrics)
+
+    for c0 in range(0, speeds.size, chunk):
+        one_chunk(c0)
+    return WheelSweep(speeds, refs, tuple(metrics), values)

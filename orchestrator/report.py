@@ -45,6 +45,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .campaign import ANGLE_UNITS, RSS_EVENT, slug
+from .report_sweeps import WORST_HEAD, sweep_sections
 
 __all__ = ["BudgetGrid", "ReportError", "budget_grid", "write_report"]
 
@@ -79,6 +80,9 @@ def _budget_metric(camp, summary):
             return r["metric"], r.get("window")
     if summary:
         return summary[0]["metric"], summary[0]["window"]
+    metrics = camp.get("metrics") or []
+    if metrics:
+        return metrics[0][0], metrics[0][1]
     return None, None
 
 
@@ -595,6 +599,9 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
                             _scatter_figure(series, inst, event, unit, scale, pair)))
     for p in _frf_files(out_dir):
         figures.append(("frf", f"Frequency response: {p.stem}", _frf_figure(p)))
+    sweep_figs, worst = sweep_sections(out_dir, summary, instruments, metric, window, unit,
+                                       RSS_EVENT)
+    figures += [("sweep", t, f) for t, f in sweep_figs]
 
     failed = [[c["case"], c["error"]] for c in cases if c["status"] != "ok"]
     btab = _budget_rows(summary, metric, window)
@@ -617,7 +624,8 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
                  "<h2>Budget</h2>", _html_table(BUDGET_HEAD, btab, "budget")]
         section = None
         names = {"budget": "Budget chart", "history": "Time histories of dominant cases",
-                 "scatter": "Boresight image plane", "frf": "Frequency responses"}
+                 "scatter": "Boresight image plane", "frf": "Frequency responses",
+                 "sweep": "Sweeps: jitter against the swept quantity"}
         for sec, ftitle, fig in figures:
             if sec != section:
                 parts.append(f"<h2>{names[sec]}</h2>")
@@ -626,6 +634,9 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
             parts.append(f"<figure><img alt='{html.escape(ftitle)}' "
                          f"src='data:image/png;base64,{b64}'><figcaption>"
                          f"{html.escape(ftitle)}</figcaption></figure>")
+        if worst:
+            parts += ["<h2>Worst points of the sweeps</h2>",
+                      _html_table(WORST_HEAD, worst)]
         if check_rows or flagged:
             parts += ["<h2>Cross-check of the linear engine</h2>",
                       _html_table(CHECK_HEAD, check_rows)]
@@ -648,6 +659,8 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
         name = f"{i:02d}_{sec}_{slug(ftitle)[:40]}.png"
         (fig_dir / name).write_bytes(_png(fig))
         parts += [f"### {ftitle}", "", f"![{ftitle}](report_files/{name})", ""]
+    if worst:
+        parts += ["## Worst points of the sweeps", "", _md_table(WORST_HEAD, worst), ""]
     if check_rows or flagged:
         parts += ["## Cross-check of the linear engine", "", _md_table(CHECK_HEAD, check_rows),
                   ""]

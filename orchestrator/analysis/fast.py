@@ -424,7 +424,8 @@ class FastResponse:
         for t, _ in units:
             Phi = t.ML @ Phi
         # exact power-of-two balancing: the memory state mixes metres, volts and strains
-        Phi_b, (scale, _) = la.matrix_balance(Phi, permute=False, separate=True)
+        Phi_b, Tb = la.matrix_balance(Phi, permute=False)
+        scale = np.diag(Tb).copy()
         T, Q = la.schur(Phi_b, output="complex")
         zT, diag = -T, np.diag(T).copy()
         out = np.zeros((self.P, freqs.size, sel.size), complex)

@@ -23,7 +23,7 @@ from .. import metrics as M
 from .blocks import AnalysisError
 from .fast import FastResponse
 
-__all__ = ["WheelSweep", "wheel_sweep", "record_metrics", "unstable_poles"]
+__all__ = ["WheelSweep", "record_metrics", "steady_jitter", "unstable_poles", "wheel_sweep"]
 
 RPM = 2 * math.pi / 60.0   # rad/s per rpm
 
@@ -65,7 +65,7 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
     Phi = np.eye(fr.n_memory)
     for sig, L in fr._runs:
         Phi = fr._type(sig, L).ML @ Phi
-    Phi_b, _ = la.matrix_balance(Phi, permute=False, separate=True)
+    Phi_b, _ = la.matrix_balance(Phi, permute=False)
     ev = np.linalg.eigvals(Phi_b)
     return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True)
 
@@ -98,6 +98,66 @@ def record_metrics(x: np.ndarray, dt: float, metrics) -> np.ndarray:
             v = np.std(x, axis=-1)
         out.append(np.asarray(v, float))
     return np.stack(out, axis=-1)
+
+
+def steady_jitter(fr: FastResponse, freqs_hz, phasors, refs, metrics, duration: float, *,
+                  chunk: int = 25) -> np.ndarray:
+    """The campaign's metrics of the steady-state record at each point of a sweep.
+
+    Point ``i`` drives the sources with ``sum_h Re(phasors[i, h] exp(j 2 pi f_ih t))``;
+    its record (ticks ``0, every, ...`` over ``duration``, ``y(t_(nP+p)) = Re(sum_h
+    z_h^n Y_h[p])``, exact with mixed rates) gets the metrics.
+
+    Parameters
+    ----------
+    fr : FastResponse
+        The compiled closed loop; it must be stable.
+    freqs_hz : array_like, shape (n_p, n_h)
+        Frequencies of the lines at each point (Hz).
+    phasors : array_like, shape (n_p, n_h, m), complex
+        Their amplitudes on every source channel.
+    refs : sequence of str
+        Recorded outputs.
+    metrics : sequence of (str, float or None)
+        ``(kind, window)`` pairs.
+    duration : float
+        Record length (s).
+    chunk : int
+        Points reconstructed together.
+
+    Returns
+    -------
+    ndarray, shape (n_p, len(refs), len(metrics))
+    """
+    bad = unstable_poles(fr)
+    if bad:
+        z = bad[0]
+        T = fr.P * float(fr.lin.plan.timebase.base)
+        raise AnalysisError(
+            f"the closed loop is unstable (a pole at |z| = {abs(z):.6f} per {T:g} s, "
+            f"{abs(np.angle(z)) / (2 * np.pi * T):.3g} Hz or an alias of it): it has no "
+            "steady state; take the slow loop out (open = [\"acs\"]) or fix the design")
+    freqs = np.asarray(freqs_hz, float)
+    n_p, n_h = freqs.shape
+    refs = tuple(refs)
+    tb = fr.lin.plan.timebase
+    every = tb.output_ticks
+    dt = every * float(tb.base)
+    n_samples = int(round(duration / dt)) + 1
+    n_blocks = -(-((n_samples - 1) * every + 1) // fr.P)    # super-periods the record spans
+    Y = fr.steady_state(freqs.ravel(), np.asarray(phasors).reshape(-1, fr.m), refs)
+    Y = Y.reshape(fr.P, n_p, n_h, len(refs))
+    values = np.zeros((n_p, len(refs), len(metrics)))
+    z = np.exp(2j * np.pi * freqs * fr.P * float(tb.base))             # (n_p, n_h)
+    blocks = np.arange(n_blocks)
+    for c0 in range(0, n_p, chunk):
+        sl = slice(c0, c0 + chunk)
+        zn = z[sl, :, None] ** blocks                                  # (c, n_h, n_b)
+        Yc = Y[:, sl].transpose(1, 2, 0, 3).reshape(zn.shape[0], n_h, -1)   # (c, n_h, P r)
+        x = np.real(zn.transpose(0, 2, 1) @ Yc)                        # (c, n_b, P r)
+        x = x.reshape(x.shape[0], n_blocks * fr.P, len(refs))[:, ::every][:, :n_samples]
+        values[sl] = record_metrics(x.transpose(0, 2, 1), dt, metrics)
+    return values
 
 
 def wheel_sweep(fr: FastResponse, instance: str, speeds_rpm, refs, metrics, duration: float,
@@ -139,21 +199,7 @@ def wheel_sweep(fr: FastResponse, instance: str, speeds_rpm, refs, metrics, dura
         raise AnalysisError(f"{instance!r} is not a wheel-imbalance source of the scenario "
                             "(set its preset to a wheel, e.g. 'rwa', in the sweep's "
                             "overrides)")
-    bad = unstable_poles(fr)
-    if bad:
-        z = bad[0]
-        T = fr.P * float(fr.lin.plan.timebase.base)
-        raise AnalysisError(
-            f"the closed loop is unstable (a pole at |z| = {abs(z):.6f} per {T:g} s, "
-            f"{abs(np.angle(z)) / (2 * np.pi * T):.3g} Hz or an alias of it): it has no "
-            "steady state; take the slow loop out (open = [\"acs\"]) or fix the design")
     speeds = np.atleast_1d(np.asarray(speeds_rpm, float))
-    refs = tuple(refs)
-    tb = fr.lin.plan.timebase
-    every = tb.output_ticks
-    dt = every * float(tb.base)
-    n_samples = int(round(duration / dt)) + 1
-    n_blocks = -(-((n_samples - 1) * every + 1) // fr.P)    # super-periods the record spans
     off = fr._in_off[instance]
     n_h = len(cfg.source.harmonics)
     freqs = np.zeros((speeds.size, n_h))
@@ -162,20 +208,5 @@ def wheel_sweep(fr: FastResponse, instance: str, speeds_rpm, refs, metrics, dura
         f, a = cfg.source.lines(s * RPM)
         freqs[i] = f
         ph[i, :, off:off + 6] = cfg.scale * a
-    Y = fr.steady_state(freqs.ravel(), ph.reshape(-1, fr.m), refs)   # (P, n_s n_h, r)
-    Y = Y.reshape(fr.P, speeds.size, n_h, len(refs))
-    values = np.zeros((speeds.size, len(refs), len(metrics)))
-    z = np.exp(2j * np.pi * freqs * fr.P * float(tb.base))             # (n_s, n_h)
-    blocks = np.arange(n_blocks)
-
-    def one_chunk(c0):
-        sl = slice(c0, c0 + chunk)
-        zn = z[sl, :, None] ** blocks                                  # (c, n_h, n_b)
-        Yc = Y[:, sl].transpose(1, 2, 0, 3).reshape(zn.shape[0], n_h, -1)   # (c, n_h, P r)
-        x = np.real(zn.transpose(0, 2, 1) @ Yc)                        # (c, n_b, P r)
-        x = x.reshape(x.shape[0], n_blocks * fr.P, len(refs))[:, ::every][:, :n_samples]
-        values[sl] = record_metrics(x.transpose(0, 2, 1), dt, metrics)
-
-    for c0 in range(0, speeds.size, chunk):
-        one_chunk(c0)
-    return WheelSweep(speeds, refs, tuple(metrics), values)
+    values = steady_jitter(fr, freqs, ph, refs, metrics, duration, chunk=chunk)
+    return WheelSweep(speeds, tuple(refs), tuple(metrics), values)

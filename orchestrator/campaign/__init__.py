@@ -96,6 +96,9 @@ Modules, in pipeline order
 :mod:`~orchestrator.campaign.linear`
     the linear engine as a runner (``engine = "linear"``), and ``--verify N``: the cases
     with the largest jitter co-simulated and compared;
+:mod:`~orchestrator.campaign.wheel`
+    ``[[wheel_sweeps]]``: steady-state jitter over a wheel's speed range, per
+    configuration, on the linear engine;
 :mod:`~orchestrator.campaign.summary`
     the summary table: jitter, RSS over the events, margins;
 :mod:`~orchestrator.campaign.store`
@@ -106,6 +109,7 @@ Modules, in pipeline order
 from .cases import Campaign, Case, campaign_from_dict, keyed, load_campaign
 from .engine import CampaignResult, run_campaign
 from .linear import LinearRunner, verify_campaign
+from .wheel import run_wheel_sweeps
 from .runner import MasterRunner, case_metrics, execute_case
 from .spec import ANGLE_UNITS, ENGINES, METRIC_KINDS, RSS_EVENT, CampaignError
 from .store import slug
@@ -129,6 +133,7 @@ __all__ = [
     "keyed",
     "load_campaign",
     "run_campaign",
+    "run_wheel_sweeps",
     "slug",
     "summarize",
     "verify_campaign",

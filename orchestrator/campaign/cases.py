@@ -75,6 +75,10 @@ class Campaign:
     verify : int
         With the linear engine: the cases with the largest jitter to co-simulate and
         compare (:func:`~orchestrator.campaign.verify_campaign`).
+    wheel_sweeps : tuple of dict
+        Per ``[[wheel_sweeps]]`` entry and configuration: ``name``, ``configuration``,
+        ``instance``, ``rpm``, ``points``, ``open`` and the ``scenario`` (base with the
+        configuration's and the sweep's overrides).
     """
 
     name: str
@@ -88,6 +92,7 @@ class Campaign:
     scenario_dir: Path = field(default_factory=Path.cwd)
     engine: str = "cosim"
     verify: int = 2
+    wheel_sweeps: tuple = ()
 
     def requirement(self, instrument: str, axis: str, metric: str, window) -> float:
         """Requirement (in ``unit``) for one summary row, NaN if none applies.
@@ -148,9 +153,14 @@ def expand(spec: CampaignSpec) -> Campaign:
     if len(set(keys)) != len(keys):
         dup = [c.label for c in cases if keys.count(c.key) > 1]
         raise CampaignError(f"cases {dup} have identical definitions; make their overrides differ")
+    wheel = tuple({"name": w.name, "configuration": cf.name, "instance": w.instance,
+                   "rpm": w.rpm, "points": w.points, "open": w.open,
+                   "scenario": _with_overrides(spec.scenario, {**cf.overrides,
+                                                               **w.overrides})}
+                  for w in spec.wheel_sweeps for cf in spec.configurations)
     return Campaign(spec.name, tuple(cases), spec.instruments, spec.metrics, spec.requirements,
                     spec.unit, spec.skip, spec.base_dir, spec.scenario_dir, spec.engine,
-                    spec.verify)
+                    spec.verify, wheel)
 
 
 def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:

@@ -40,7 +40,7 @@ METRIC_KINDS = {
 RSS_EVENT = "RSS"
 # Valid keys of every table of a campaign file.
 _KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metrics",
-         "requirements")
+         "requirements", "wheel_sweeps")
 _CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm",
                   "engine", "verify")
 #: Campaign engines: the co-simulation master (the reference) and the linear fast path.
@@ -52,6 +52,7 @@ _ITEM_KEYS = {
     "instruments": ("name", "axes", "requirement"),
     "metrics": ("kind", "windows", "window"),
     "requirements": ("instrument", "value", "axis", "metric", "window"),
+    "wheel_sweeps": ("name", "instance", "overrides", "rpm", "points", "open"),
 }
 
 
@@ -105,6 +106,34 @@ class CampaignSpec:
     scenario_dir: Path
     engine: str = "cosim"
     verify: int = 2
+    wheel_sweeps: tuple = ()
+
+
+@dataclass(frozen=True)
+class WheelSweepSpec:
+    """A ``[[wheel_sweeps]]`` entry: a wheel source swept over its speed range.
+
+    Attributes
+    ----------
+    name : str
+    instance : str
+        The wheel-imbalance source instance.
+    overrides : dict
+        Set with every configuration's (e.g. the wheel's preset).
+    rpm : tuple of float
+        ``(low, high)`` speed range (rpm).
+    points : int
+        Speeds, evenly spaced, ends included.
+    open : tuple of str
+        Instances taken out of the loop (e.g. a slow ACS whose loop is unstable).
+    """
+
+    name: str
+    instance: str
+    overrides: dict
+    rpm: tuple
+    points: int
+    open: tuple = ()
 
 
 def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
@@ -162,9 +191,10 @@ def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
     metrics = _metrics(data.get("metrics", [{"kind": "peak_to_peak", "windows": [1.0]}]))
     requirements = _requirements(data.get("requirements", []), shorthand, instruments, metrics)
     events, configurations = _variants(events, configurations, sweeps, scenario["fmus"])
+    wheel = _wheel_sweeps(data.get("wheel_sweeps", []), scenario["fmus"])
     return CampaignSpec(name, scenario, events, configurations, sweeps, instruments,
                         tuple(metrics), requirements, unit, skip, base_dir, scenario_dir,
-                        engine, verify)
+                        engine, verify, wheel)
 
 
 def read_spec(path) -> CampaignSpec:
@@ -318,20 +348,61 @@ def _variants(events: list, configurations: list, sweeps: tuple, fmus: dict) -> 
     """
     swept = {parameter: None for sweep in sweeps for parameter, _ in sweep}
     ov_events, ov_configurations = {}, {}
-    for (i, ev), (j, cf) in itertools.product(enumerate(events), enumerate(configurations)):
-        ov_e = ov_events[i] = _overrides(ev, f"event {ev['name']!r}")
-        ov_c = ov_configurations[j] = _overrides(cf, f"configuration {cf['name']!r}")
-        for key in {**ov_c, **ov_e, **swept}:
+
+    def check(keys):
+        for key in keys:
             inst, _ = key.split(".", 1)
             if inst not in fmus:
                 raise CampaignError(
                     f"override {key!r} names instance {inst!r}, which the base scenario does "
                     f"not have (instances: {sorted(fmus)})"
                 )
-    # without cases (no events or no configurations) nothing reads the overrides
+
+    for (i, ev), (j, cf) in itertools.product(enumerate(events), enumerate(configurations)):
+        ov_e = ov_events[i] = _overrides(ev, f"event {ev['name']!r}")
+        ov_c = ov_configurations[j] = _overrides(cf, f"configuration {cf['name']!r}")
+        check({**ov_c, **ov_e, **swept})
+    # without events the configurations still carry the wheel sweeps' overrides
+    for j, cf in enumerate(configurations):
+        if j not in ov_configurations:
+            ov_configurations[j] = _overrides(cf, f"configuration {cf['name']!r}")
+            check(ov_configurations[j])
     return (tuple(Variant(str(e["name"]), ov_events.get(i, {})) for i, e in enumerate(events)),
             tuple(Variant(str(c["name"]), ov_configurations.get(j, {}))
                   for j, c in enumerate(configurations)))
+
+
+def _wheel_sweeps(items, fmus: dict) -> tuple:
+    """``[[wheel_sweeps]]``: each checked, with its instance and overrides in the scenario."""
+    _table_list(items, "wheel_sweeps", _ITEM_KEYS["wheel_sweeps"])
+    out = []
+    for i, w in enumerate(items):
+        what = f"wheel sweep {i + 1}"
+        inst = w.get("instance")
+        if not isinstance(inst, str) or inst not in fmus:
+            raise CampaignError(f"{what} instance is {inst!r}; expected a source instance of "
+                                f"the base scenario (instances: {sorted(fmus)})")
+        rpm = w.get("rpm", [0.0, 6000.0])
+        if not (isinstance(rpm, list) and len(rpm) == 2
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in rpm)
+                and 0 <= rpm[0] < rpm[1] and math.isfinite(rpm[1])):
+            raise CampaignError(f"{what} rpm is {rpm!r}; expected [low, high] with "
+                                "0 <= low < high (rpm)")
+        points = w.get("points", 500)
+        if isinstance(points, bool) or not isinstance(points, int) or points < 2:
+            raise CampaignError(f"{what} points is {points!r}; expected a whole number >= 2")
+        opened = w.get("open", [])
+        if not isinstance(opened, list) or any(o not in fmus for o in opened):
+            raise CampaignError(f"{what} open is {opened!r}; expected a list of instances of "
+                                f"the base scenario (instances: {sorted(fmus)})")
+        overrides = _overrides(w, what)
+        for key in overrides:
+            if key.split(".", 1)[0] not in fmus:
+                raise CampaignError(f"{what} override {key!r} names an instance the base "
+                                    "scenario does not have")
+        out.append(WheelSweepSpec(str(w.get("name", inst)), inst, overrides,
+                                  (float(rpm[0]), float(rpm[1])), points, tuple(opened)))
+    return tuple(out)
 
 
 def _overrides(item, what: str) -> dict:

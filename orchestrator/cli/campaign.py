@@ -52,8 +52,8 @@ def run(args) -> int:
     # deferred: the parser imports every subcommand (orchestrator.cli)
     import dataclasses
 
-    from ..campaign import (LinearRunner, MasterRunner, load_campaign, run_campaign, slug,
-                            verify_campaign, write_summary)
+    from ..campaign import (LinearRunner, MasterRunner, load_campaign, run_campaign,
+                            run_wheel_sweeps, slug, verify_campaign, write_summary)
 
     camp = load_campaign(args.campaign)
     engine = args.engine or camp.engine
@@ -93,4 +93,8 @@ def run(args) -> int:
             if "error" in item:
                 print(f"  co-simulation failed: {item['case']}: {item['error']}",
                       file=sys.stderr)
+    if camp.wheel_sweeps:
+        path = run_wheel_sweeps(camp, out, runner if engine == "linear" else None,
+                                progress=lambda text: print(f"  {text}"))
+        print(f"wheel sweeps: {path} (worst speeds in {out / 'wheel_sweeps_worst.csv'})")
     return min(res.n_failed, 100)

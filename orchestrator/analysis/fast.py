@@ -424,8 +424,7 @@ class FastResponse:
         for t, _ in units:
             Phi = t.ML @ Phi
         # exact power-of-two balancing: the memory state mixes metres, volts and strains
-        Phi_b, Tb = la.matrix_balance(Phi, permute=False)
-        scale = np.diag(Tb).copy()
+        Phi_b, scale = balance(Phi)
         T, Q = la.schur(Phi_b, output="complex")
         zT, diag = -T, np.diag(T).copy()
         out = np.zeros((self.P, freqs.size, sel.size), complex)
@@ -471,6 +470,19 @@ class FastResponse:
                 out[start:start + t.L, c0:c0 + chunk] = Y
                 x = t.ML @ x + g
         return out
+
+
+def balance(A: np.ndarray):
+    """Exact power-of-two diagonal balancing: ``(D^-1 A D, diag(D))``.
+
+    The memory state of a loop mixes metres, volts and strains; without it a Schur form
+    or an eigenvalue of the loop loses digits to the spread of scales.
+    """
+    import scipy.linalg as la
+
+    with np.errstate(invalid="ignore"):   # scipy casts its unused permutation
+        Ab, T = la.matrix_balance(A, permute=False)
+    return Ab, np.diag(T).copy()
 
 
 def _causal_conv(h: np.ndarray, w: np.ndarray, Hf=None) -> np.ndarray:

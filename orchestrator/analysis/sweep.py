@@ -17,11 +17,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as la
 
 from .. import metrics as M
 from .blocks import AnalysisError
-from .fast import FastResponse
+from .fast import FastResponse, balance
 
 __all__ = ["WheelSweep", "record_metrics", "steady_jitter", "unstable_poles", "wheel_sweep"]
 
@@ -65,7 +64,7 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
     Phi = np.eye(fr.n_memory)
     for sig, L in fr._runs:
         Phi = fr._type(sig, L).ML @ Phi
-    Phi_b, _ = la.matrix_balance(Phi, permute=False)
+    Phi_b, _ = balance(Phi)
     ev = np.linalg.eigvals(Phi_b)
     return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True)
 

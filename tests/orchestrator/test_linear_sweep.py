@@ -1,0 +1,182 @@
+"""Steady state and sweeps on the linear engine (orchestrator.analysis.fast, .sweep).
+
+References: a long co-simulation of the ten-bay truss settled under a sine (the FMUs,
+not the linear model), the linear record itself run long enough to settle, the
+single-frequency response of :meth:`LinearScenario.frequency_response`, and the wheel's
+own wrench for its spectral lines.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from orchestrator.analysis import AnalysisError
+from orchestrator.analysis.sweep import steady_jitter, unstable_poles, wheel_sweep
+from orchestrator.campaign import (CampaignError, LinearRunner, MasterRunner,
+                                   campaign_from_dict, load_campaign, run_campaign,
+                                   run_wheel_sweeps)
+from orchestrator.campaign.runner import case_metrics
+
+pytestmark = pytest.mark.slow
+
+F_HZ = 9.1           # between the truss modes (8.4, 9.5 Hz), with control on
+AMP = 3.0            # V on the diagonal's excitation channel
+REFS = ("structure.los_tip_roll", "structure.los_tip_pitch", "structure.los_tip_yaw")
+
+
+@pytest.fixture(scope="module")
+def truss(suite_fmus, suite_fmu_dir):
+    from tests.orchestrator.test_truss10_campaign import CAMPAIGN, FMUS
+    suite_fmus(*FMUS)
+    camp = load_campaign(CAMPAIGN)
+    case = next(c for c in camp.cases if c.configuration == "control on")
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=suite_fmu_dir)
+    return camp, case, runner, runner.compiled(case.scenario), suite_fmu_dir
+
+
+def _sine(fr, n_ticks):
+    W = np.zeros((n_ticks + 1, fr.m))
+    W[:, fr._in_off["excitation"]] = AMP * np.sin(2 * np.pi * F_HZ * fr.times(n_ticks))
+    return W
+
+
+def _phasor(fr):
+    a = np.zeros(fr.m, complex)
+    a[fr._in_off["excitation"]] = -1j * AMP       # sin(wt) = Re(-j e^{jwt})
+    return a
+
+
+def test_steady_state_equals_a_long_cosimulation_settled(truss, tmp_path):
+    """The FMUs co-simulated 24 s under the sine; the last 0.5 s against the steady state
+    (the loop's slowest pole decays 0.93 per 64 ms: 1e-10 left after 20 s)."""
+    camp, case, _, fr, _ = truss
+    sc = json.loads(json.dumps(case.scenario))
+    sc["experiment"]["stop"] = 24.0
+    p = sc["fmus"]["excitation"].setdefault("parameters", {})
+    p.update({"amp1": AMP, "freq1": F_HZ, "amp2": 0.0, "t_start": 0.0, "t_stop": 1e30})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = MasterRunner(camp.scenario_dir, fmu_dir=truss[4])(sc, tmp_path / "long")
+    t = np.asarray(res.table["time"])
+    Y = fr.steady_state([F_HZ], _phasor(fr)[None], REFS)[:, 0]          # (P, r)
+    base = float(fr.lin.plan.timebase.base)
+    k = np.rint(t / base).astype(int)
+    keep = t >= 23.5
+    z = np.exp(2j * np.pi * F_HZ * fr.P * base)
+    pred = np.real(z ** (k[keep] // fr.P)[:, None] * Y[k[keep] % fr.P])
+    got = np.column_stack([res.table[r] for r in REFS])[keep]
+    scale = np.abs(got).max(axis=0)
+    assert np.max(np.abs(pred - got) / scale) < 1e-8
+    assert np.all(scale > 0)
+
+
+def test_steady_state_fundamental_equals_frequency_response(truss):
+    _, _, _, fr, _ = truss
+    base = float(fr.lin.plan.timebase.base)
+    Y = fr.steady_state([F_HZ], _phasor(fr)[None], REFS)[:, 0]
+    fund = (Y * np.exp(-2j * np.pi * F_HZ * base * np.arange(fr.P))[:, None]).mean(axis=0)
+    H = fr.lin.frequency_response(["excitation.v1"], REFS, [F_HZ])[:, 0, 0]
+    np.testing.assert_allclose(fund, H * _phasor(fr)[fr._in_off["excitation"]], rtol=1e-10)
+
+
+def test_steady_jitter_equals_the_settled_record_metrics(truss):
+    """The sweep's metrics of a reconstructed steady record against the metrics the
+    campaign computes on the linear record run 30 s from rest (its last 10 s: 91 whole
+    cycles, so that the RMS of the record does not depend on where it starts)."""
+    camp, _, _, fr, _ = truss
+    n_ticks = 30000
+    rec = fr.run(_sine(fr, n_ticks), check=False)
+    keep = rec.times >= 20.0 - 1e-9
+    rows = case_metrics(rec.times[keep], {r: rec.column(r)[keep] for r in REFS},
+                        {"tip": dict(zip(("roll", "pitch", "yaw"), REFS))}, camp.metrics)
+    want = np.array([r["value"] for r in rows]).reshape(3, len(camp.metrics))
+    got = steady_jitter(fr, np.array([[F_HZ]]), _phasor(fr)[None, None], REFS,
+                        camp.metrics, 10.0)[0]
+    np.testing.assert_allclose(got, want, rtol=1e-8)
+
+
+def test_unstable_loop_has_no_steady_state(truss):
+    """The truss loops at 25 times their gain are unstable: refused, naming the pole."""
+    _, case, runner, _, _ = truss
+    sc = json.loads(json.dumps(case.scenario))
+    for c in ("ctrl_diag", "ctrl_long"):
+        sc["fmus"][c].setdefault("parameters", {})["gain"] = 25.0
+    fr = runner.compiled(sc)
+    assert unstable_poles(fr)
+    with pytest.raises(AnalysisError, match=r"unstable \(a pole at \|z\| = .* per .* s"):
+        steady_jitter(fr, np.array([[F_HZ]]), _phasor(fr)[None, None], REFS, [("rms", None)],
+                      1.0)
+
+
+def test_wheel_lines_are_the_wheel_wrench():
+    from distfmu.presets import get_preset
+    src = get_preset("rwa").source
+    for speed in (314.0, -157.0):
+        f, a = src.lines(speed)
+        t = np.linspace(0.0, 0.9, 1801)
+        direct = src.wrench_at(speed * t, np.full(t.shape, speed))
+        lines = np.real(np.einsum("hc,th->tc", a, np.exp(2j * np.pi * np.outer(t, f))))
+        np.testing.assert_allclose(lines, direct, atol=1e-13 * np.abs(direct).max())
+
+
+def test_wheel_sweep_needs_a_wheel(truss):
+    _, _, _, fr, _ = truss
+    with pytest.raises(AnalysisError, match="'excitation' is not a wheel-imbalance source"):
+        wheel_sweep(fr, "excitation", [100.0], REFS, [("rms", None)], 1.0)
+
+
+@pytest.fixture(scope="module")
+def rwa_sweep(tmp_path_factory, suite_fmu_dir):
+    from orchestrator.experiments import eos
+    fmu_dir = eos.ensure_fmus(suite_fmu_dir)
+    src = (eos.CAMPAIGN.parent / "eos_rwa_sweep.toml")
+    camp = load_campaign(src)
+    out = tmp_path_factory.mktemp("rwa_sweep")
+    run_campaign(camp, out, LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir), progress=False)
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
+    path = run_wheel_sweeps(camp, out, runner)
+    return camp, out, path, runner
+
+
+def test_shipped_rwa_sweep_runs_and_isolation_lowers_swir(rwa_sweep):
+    import pyarrow.parquet as pq
+    camp, out, path, _ = rwa_sweep
+    rows = pq.read_table(path).to_pylist()
+    assert len(rows) == 2 * 15 * 500
+    worst = {}
+    for r in rows:
+        k = (r["configuration"], r["instrument"], r["axis"])
+        worst[k] = max(worst.get(k, 0.0), r["value"])
+    # isolation on never raises a worst value by more than the rounding of its own law
+    for (cf, inst, axis), v in worst.items():
+        if cf == "isolation on":
+            assert v <= 1.05 * worst[("isolation off", inst, axis)], (inst, axis)
+    assert worst[("isolation on", "SWIR", "yaw")] < 0.8 * worst[("isolation off", "SWIR", "yaw")]
+    assert (out / "wheel_sweeps_worst.csv").is_file()
+
+
+def test_rwa_sweep_with_the_acs_is_refused(rwa_sweep):
+    camp, out, _, runner = rwa_sweep
+    sw = dict(camp.wheel_sweeps[0], open=())
+    camp2 = dataclasses.replace(camp, wheel_sweeps=(sw,))
+    with pytest.raises(AnalysisError, match="unstable"):
+        run_wheel_sweeps(camp2, out / "acs", runner)
+
+
+@pytest.mark.parametrize("entry, words", [
+    ({"instance": "nope"}, "instance is 'nope'"),
+    ({"instance": "a", "rpm": [100, 50]}, "rpm is \\[100, 50\\]"),
+    ({"instance": "a", "points": 1}, "points is 1"),
+    ({"instance": "a", "open": ["zz"]}, "open is \\['zz'\\]"),
+])
+def test_bad_wheel_sweep_is_one_sentence(entry, words):
+    data = {"campaign": {"name": "x", "scenario": {
+        "experiment": {"stop": 0.1}, "fmus": {"a": {"fmu": "x.fmu", "period": 1e-3}}}},
+        "instruments": [{"name": "i", "axes": {"x": "a.y"}}], "wheel_sweeps": [entry]}
+    with pytest.raises(CampaignError, match=words):
+        campaign_from_dict(data)

@@ -69,6 +69,7 @@ class Block:
     limits: tuple = ()
     unmodelled: tuple = ()
     flags: tuple = ()
+    model: object = field(default=None, repr=False)
 
     @property
     def n(self) -> int:
@@ -85,15 +86,40 @@ def _lift(A, B, n):
 
 
 def _structure_block(slave, name, period, h, ft):
-    stepper = slave.stepper
-    model = stepper.model
+    return structure_block(slave.stepper.model, name, period, h, ft)
+
+
+def structure_block(model, name: str, period: int, h: float, ft=None) -> Block:
+    """The block of a reduced structure stepped by ``h`` (exact ZOH, as its FMU).
+
+    Parameters
+    ----------
+    model : structfmu.reduced.ReducedModel
+        The reduced model (e.g. with perturbed modal frequencies).
+    name : str
+        Instance name.
+    period : int
+        Period in base ticks.
+    h : float
+        Step (s).
+    ft : ndarray of bool, optional
+        Feedthrough outputs (as the FMU declares them).
+
+    Returns
+    -------
+    Block
+    """
+    from structfmu.discrete import ZohStepper
+
+    stepper = ZohStepper(model)
     dm = discretize(model, h)
     n, m = model.n_states, model.n_inputs
     A = np.column_stack([step(dm, e, np.zeros(m)) for e in np.eye(n)]) if n else np.zeros((0, 0))
     B = np.column_stack([step(dm, np.zeros(n), e) for e in np.eye(m)])
+    ft = np.zeros(model.n_outputs, bool) if ft is None else ft
     return Block(name, "structure", period, A, B, stepper.C_x.copy(), stepper.D.copy(),
                  tuple(model.input_names), tuple(model.output_names), ft,
-                 continuous=first_order(model))
+                 continuous=first_order(model), model=model)
 
 
 def _piezo_block(slave, name, period, h, ft):

@@ -158,6 +158,27 @@ class LinearScenario:
                                       b.feedthrough)
         return LinearScenario(self.plan, blocks, self.order)
 
+    def with_block(self, block) -> "LinearScenario":
+        """Copy with one instance's block replaced (same name, inputs and outputs).
+
+        Parameters
+        ----------
+        block : Block
+            E.g. :func:`~orchestrator.analysis.blocks.structure_block` of a perturbed
+            model; it keeps the feedthrough of the block it replaces.
+
+        Returns
+        -------
+        LinearScenario
+        """
+        old = self.blocks.get(block.name)
+        if old is None or old.inputs != block.inputs or old.outputs != block.outputs:
+            raise AnalysisError(f"block {block.name!r} does not replace an instance with the "
+                                "same inputs and outputs")
+        blocks = dict(self.blocks)
+        blocks[block.name] = replace(block, feedthrough=old.feedthrough)
+        return LinearScenario(self.plan, blocks, self.order)
+
     def opened(self, instances) -> "LinearScenario":
         """Copy with the named instances removed: their outputs become free inputs.
 

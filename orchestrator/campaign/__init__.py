@@ -99,6 +99,9 @@ Modules, in pipeline order
 :mod:`~orchestrator.campaign.wheel`
     ``[[wheel_sweeps]]``: steady-state jitter over a wheel's speed range, per
     configuration, on the linear engine;
+:mod:`~orchestrator.campaign.montecarlo`
+    ``[uncertainty]``: the budget as a distribution over uncertain modes, gains and
+    sources, with ECSS statistics and a sensitivity ranking, on the linear engine;
 :mod:`~orchestrator.campaign.summary`
     the summary table: jitter, RSS over the events, margins;
 :mod:`~orchestrator.campaign.store`
@@ -109,6 +112,7 @@ Modules, in pipeline order
 from .cases import Campaign, Case, campaign_from_dict, keyed, load_campaign
 from .engine import CampaignResult, run_campaign
 from .linear import LinearRunner, verify_campaign
+from .montecarlo import run_uncertainty
 from .wheel import run_wheel_sweeps
 from .runner import MasterRunner, case_metrics, execute_case
 from .spec import ANGLE_UNITS, ENGINES, METRIC_KINDS, RSS_EVENT, CampaignError
@@ -133,6 +137,7 @@ __all__ = [
     "keyed",
     "load_campaign",
     "run_campaign",
+    "run_uncertainty",
     "run_wheel_sweeps",
     "slug",
     "summarize",

@@ -79,6 +79,9 @@ class Campaign:
         Per ``[[wheel_sweeps]]`` entry and configuration: ``name``, ``configuration``,
         ``instance``, ``rpm``, ``points``, ``open`` and the ``scenario`` (base with the
         configuration's and the sweep's overrides).
+    uncertainty : dict or None
+        The ``[uncertainty]`` table checked: ``samples``, ``seed``, ``confidence`` and
+        ``parameters`` (:class:`~orchestrator.analysis.uncertainty.Uncertain`).
     """
 
     name: str
@@ -93,6 +96,7 @@ class Campaign:
     engine: str = "cosim"
     verify: int = 2
     wheel_sweeps: tuple = ()
+    uncertainty: dict | None = None
 
     def requirement(self, instrument: str, axis: str, metric: str, window) -> float:
         """Requirement (in ``unit``) for one summary row, NaN if none applies.
@@ -160,7 +164,7 @@ def expand(spec: CampaignSpec) -> Campaign:
                   for w in spec.wheel_sweeps for cf in spec.configurations)
     return Campaign(spec.name, tuple(cases), spec.instruments, spec.metrics, spec.requirements,
                     spec.unit, spec.skip, spec.base_dir, spec.scenario_dir, spec.engine,
-                    spec.verify, wheel)
+                    spec.verify, wheel, spec.uncertainty)
 
 
 def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:

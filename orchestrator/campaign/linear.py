@@ -95,7 +95,9 @@ class LinearRunner:
         self._compiled[self._config_key(scenario, lin.sources)] = fr
         return fr
 
-    def _source_block(self, fr: FastResponse, inst):
+    def _source_block(self, fr: FastResponse, inst, cache: bool = True):
+        """The block of a source instance with its parameters (kept unless ``cache``
+        is false, e.g. for one sample's random phases)."""
         key = (inst.name, inst.fmu, json.dumps(dict(inst.parameters), sort_keys=True,
                                                default=str))
         b = self._source_blocks.get(key)
@@ -103,7 +105,8 @@ class LinearRunner:
             if self._tmp is None:
                 self._tmp = tempfile.TemporaryDirectory(prefix="jitterfmu-linear-")
             b = _instance_block(fr.lin.plan, inst, Path(self._tmp.name), self._extracted)
-            self._source_blocks[key] = b
+            if cache:
+                self._source_blocks[key] = b
         return b
 
     def record(self, scenario: dict):

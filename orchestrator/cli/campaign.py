@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import json
 import sys
 from pathlib import Path
 
@@ -53,7 +54,8 @@ def run(args) -> int:
     import dataclasses
 
     from ..campaign import (LinearRunner, MasterRunner, load_campaign, run_campaign,
-                            run_wheel_sweeps, slug, verify_campaign, write_summary)
+                            run_uncertainty, run_wheel_sweeps, slug, verify_campaign,
+                            write_summary)
 
     camp = load_campaign(args.campaign)
     engine = args.engine or camp.engine
@@ -97,4 +99,18 @@ def run(args) -> int:
         path = run_wheel_sweeps(camp, out, runner if engine == "linear" else None,
                                 progress=lambda text: print(f"  {text}"))
         print(f"wheel sweeps: {path} (worst speeds in {out / 'wheel_sweeps_worst.csv'})")
+    if camp.uncertainty:
+        path = run_uncertainty(camp, out, runner if engine == "linear" else None,
+                               progress=False if args.quiet else None)
+        rep = json.loads(path.read_text(encoding="utf-8"))
+        print(f"uncertainty: {rep['samples']} samples in {rep['wall_s']:.1f} s ({path}); "
+              f"{rep['interpretation']}")
+        for line in rep["lines"]:
+            qs = ", ".join(f"P{100 * float(pc):g} = {q['value']:.4g}"
+                           + ("" if q["converged"] else " (not converged)")
+                           for pc, q in line.get("quantiles", {}).items())
+            meet = (f", meets {line['requirement']:g} with p = {line['p_meet']:.3f}"
+                    if "p_meet" in line else "")
+            print(f"  {line['configuration']:<16} {line['instrument']:>6}/{line['axis']:<6}"
+                  f" {qs} {line['unit']}{meet}")
     return min(res.n_failed, 100)

@@ -1,0 +1,245 @@
+"""Uncertainty: distributions of the inputs, samples, and the statistics of a budget.
+
+Pure numerics, no FMU: :func:`draw` samples the uncertain parameters of an
+``[uncertainty]`` table, and :func:`statistics` turns the samples of a budget (one
+value per sample: the RSS over the events) into what ECSS-E-ST-60-10C asks of a
+statistical requirement ``prob(X < X_max) >= P_c``: the value at each confidence level
+with a bootstrap interval that says whether the sample count suffices, the probability
+of meeting the requirement, and a sensitivity ranking (Spearman rank correlation of the
+budget with every uncertain input).
+
+Interpretation (stated in every result): each sample's value is the worst window of its
+own record (windowed metrics are maxima over time), and the statistics run over the
+ensemble of samples: ECSS's *mixed* interpretation (temporal worst case, ensemble over
+the uncertain parameters).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Distribution", "Uncertain", "draw", "statistics", "rank_correlation",
+           "INTERPRETATION", "UncertaintyError"]
+
+INTERPRETATION = ("mixed: each sample is the worst window of its record (temporal), the "
+                  "probability is over the ensemble of samples")
+
+DISTRIBUTIONS = ("uniform", "normal", "lognormal")
+KINDS = ("modal_frequency", "modal_damping", "amplitude", "phase", "gain")
+
+
+class UncertaintyError(ValueError):
+    """An ``[uncertainty]`` table that cannot be sampled."""
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """A scalar distribution, optionally truncated to ``[low, high]``.
+
+    ``uniform``: on ``[low, high]``.  ``normal``: ``mean``, ``std``.  ``lognormal``:
+    ``median`` and ``sigma`` of the logarithm.  Truncation redraws the samples outside.
+    """
+
+    kind: str
+    low: float = -math.inf
+    high: float = math.inf
+    mean: float = 0.0
+    std: float = 0.0
+    median: float = 1.0
+    sigma: float = 0.0
+
+    def __post_init__(self):
+        if self.kind not in DISTRIBUTIONS:
+            raise UncertaintyError(f"distribution {self.kind!r} is unknown; expected one of "
+                                   f"{list(DISTRIBUTIONS)}")
+        if not self.low < self.high:
+            raise UncertaintyError(f"{self.kind} distribution has low = {self.low} >= "
+                                   f"high = {self.high}; expected low < high")
+        if self.kind == "uniform" and not (math.isfinite(self.low)
+                                           and math.isfinite(self.high)):
+            raise UncertaintyError("a uniform distribution needs finite low and high")
+        if self.kind == "normal" and not self.std > 0:
+            raise UncertaintyError(f"a normal distribution needs std > 0, got {self.std}")
+        if self.kind == "lognormal" and not (self.sigma > 0 and self.median > 0):
+            raise UncertaintyError("a lognormal distribution needs median > 0 and sigma > 0")
+
+    def sample(self, rng: np.random.Generator, size) -> np.ndarray:
+        """Samples, shape ``size``, inside the bounds."""
+        size = tuple(np.atleast_1d(size))
+        n = int(np.prod(size))
+        out = np.empty(0)
+        for _ in range(1000):
+            if self.kind == "uniform":
+                x = rng.uniform(self.low, self.high, n)
+            elif self.kind == "normal":
+                x = rng.normal(self.mean, self.std, n)
+            else:
+                x = self.median * np.exp(rng.normal(0.0, self.sigma, n))
+            out = np.concatenate([out, x[(x >= self.low) & (x <= self.high)]])
+            if out.size >= n:
+                return out[:n].reshape(size)
+        raise UncertaintyError(f"the {self.kind} distribution has almost no mass in "
+                               f"[{self.low}, {self.high}]; widen the bounds")
+
+
+@dataclass(frozen=True)
+class Uncertain:
+    """One uncertain input of a budget.
+
+    Attributes
+    ----------
+    name : str
+    kind : str
+        ``modal_frequency`` (factor on the modal frequencies), ``modal_damping`` (factor
+        on the modal damping ratios), ``amplitude`` (factor on a source's wrench),
+        ``phase`` (random phases of a source: its ``seed``), ``gain`` (factor on a
+        controller's gain).
+    distribution : Distribution or None
+        None for ``phase``.
+    instances : tuple of str
+        Sources (``amplitude``, ``phase``) or controllers (``gain``); empty for the
+        modal kinds.
+    per_mode : bool
+        Modal kinds: an independent draw per mode (else one factor for all).
+    band : tuple of float
+        Modal kinds: modes with frequencies in ``[low, high]`` Hz.
+    """
+
+    name: str
+    kind: str
+    distribution: Distribution | None
+    instances: tuple = ()
+    per_mode: bool = False
+    band: tuple = (0.0, math.inf)
+
+
+@dataclass(frozen=True)
+class Draws:
+    """The samples of every uncertain input: ``values[name]`` shape (n, k)."""
+
+    n: int
+    values: dict = field(default_factory=dict)
+    modes: dict = field(default_factory=dict)   # name -> indices of the modes it moves
+    labels: dict = field(default_factory=dict)  # name -> the instances of its columns
+
+    def scalar_inputs(self) -> dict:
+        """Every scalar input (a mode of a per-mode draw is one) -> its samples (n,)."""
+        out = {}
+        for name, v in self.values.items():
+            modes = self.modes.get(name)
+            labels = self.labels.get(name)
+            if v.shape[1] == 1:
+                out[name] = v[:, 0]
+                continue
+            for j in range(v.shape[1]):
+                tag = (f"mode {modes[j] + 1}" if modes is not None else
+                       labels[j] if labels else f"{j + 1}")
+                out[f"{name} [{tag}]"] = v[:, j]
+        return out
+
+
+def draw(items, n: int, seed: int, frequencies_hz=None) -> Draws:
+    """Sample every uncertain input ``n`` times.
+
+    Parameters
+    ----------
+    items : sequence of Uncertain
+    n : int
+        Samples (>= 1).
+    seed : int
+        Seed of ``numpy.random.default_rng``; the same seed gives the same samples.
+    frequencies_hz : ndarray, shape (n_m,), optional
+        Modal frequencies of the structure (the modal kinds select modes by band).
+
+    Returns
+    -------
+    Draws
+    """
+    if not (isinstance(n, int) and n >= 1):
+        raise UncertaintyError(f"samples is {n!r}; expected a whole number >= 1")
+    rng = np.random.default_rng(seed)
+    values, modes = {}, {}
+    for it in items:
+        if it.kind in ("modal_frequency", "modal_damping"):
+            f = np.asarray(frequencies_hz if frequencies_hz is not None else [], float)
+            idx = np.flatnonzero((f >= it.band[0]) & (f <= it.band[1]) & (f > 0))
+            if idx.size == 0:
+                raise UncertaintyError(f"uncertain {it.name!r}: no mode in the band "
+                                       f"{list(it.band)} Hz")
+            modes[it.name] = idx
+            k = idx.size if it.per_mode else 1
+            values[it.name] = it.distribution.sample(rng, (n, k))
+        elif it.kind == "phase":
+            values[it.name] = rng.integers(1, 2**31 - 1, size=(n, len(it.instances)))
+        else:   # amplitude, gain: one independent factor per instance
+            values[it.name] = it.distribution.sample(rng, (n, len(it.instances)))
+    labels = {it.name: list(it.instances) for it in items if it.instances}
+    return Draws(n, values, modes, labels)
+
+
+def rank_correlation(x: np.ndarray, y: np.ndarray) -> float:
+    """Spearman's rank correlation of two samples (ties get their mean rank)."""
+    def ranks(v):
+        order = np.argsort(v, kind="mergesort")
+        r = np.empty(v.size)
+        r[order] = np.arange(v.size, dtype=float)
+        _, inv, counts = np.unique(v, return_inverse=True, return_counts=True)
+        sums = np.bincount(inv, weights=r)
+        return (sums / counts)[inv]
+    rx, ry = ranks(np.asarray(x, float)), ranks(np.asarray(y, float))
+    sx, sy = rx.std(), ry.std()
+    if sx == 0 or sy == 0:
+        return 0.0
+    return float(np.mean((rx - rx.mean()) * (ry - ry.mean())) / (sx * sy))
+
+
+def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *,
+               inputs: dict | None = None, n_boot: int = 400, seed: int = 0) -> dict:
+    """ECSS statistics of the samples of one budget value.
+
+    Parameters
+    ----------
+    samples : ndarray, shape (n,)
+        The budget value of every sample (e.g. arcsec).
+    confidence : sequence of float
+        Levels ``P_c`` in (0, 1), e.g. ``0.95, 0.9973``.
+    requirement : float
+        ``X_max`` (NaN for none).
+    inputs : dict of str to ndarray (n,), optional
+        The uncertain scalar inputs, for the sensitivity ranking.
+    n_boot : int
+        Bootstrap resamples of the quantile interval.
+    seed : int
+        Seed of the bootstrap.
+
+    Returns
+    -------
+    dict
+        ``mean``, ``std``, ``quantiles`` (``P_c -> {value, low, high, rel_width,
+        converged}``, the 95 % bootstrap interval and ``converged`` when its width is
+        below 2 % of the value), ``p_meet`` (fraction of samples ``<= X_max``, with its
+        binomial standard error ``p_meet_se``), ``sensitivity`` (input -> rank
+        correlation, largest magnitude first) and ``interpretation``.
+    """
+    x = np.asarray(samples, float)
+    rng = np.random.default_rng(seed)
+    boot = rng.integers(0, x.size, size=(n_boot, x.size))
+    out = {"n": int(x.size), "mean": float(x.mean()), "std": float(x.std(ddof=1))
+           if x.size > 1 else 0.0, "quantiles": {}, "interpretation": INTERPRETATION}
+    for pc in confidence:
+        v = float(np.quantile(x, pc))
+        bq = np.quantile(x[boot], pc, axis=1)
+        lo, hi = (float(q) for q in np.quantile(bq, [0.025, 0.975]))
+        width = (hi - lo) / abs(v) if v else math.inf
+        out["quantiles"][float(pc)] = {"value": v, "low": lo, "high": hi,
+                                       "rel_width": width, "converged": bool(width < 0.02)}
+    if not math.isnan(requirement):
+        p = float(np.mean(x <= requirement))
+        out["p_meet"] = p
+        out["p_meet_se"] = math.sqrt(max(p * (1 - p), 0.0) / x.size)
+    sens = {name: rank_correlation(v, x) for name, v in (inputs or {}).items()}
+    out["sensitivity"] = dict(sorted(sens.items(), key=lambda kv: -abs(kv[1])))
+    return out

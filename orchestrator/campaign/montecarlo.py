@@ -1,0 +1,221 @@
+"""A campaign's ``[uncertainty]``: the budget as a distribution, on the linear engine.
+
+Every sample draws the uncertain inputs (:func:`orchestrator.analysis.uncertainty.draw`),
+closes each configuration's loop with them (modal frequencies and damping on the reduced
+structure, controller gains), drives it with every event (source amplitudes and phases),
+takes the campaign's metrics of each record and the RSS over the events.  Only those
+numbers are kept: memory holds ``samples x configurations x events x axes x metrics``
+floats and one record at a time, whatever the sample count or the record length.
+
+Written to the campaign folder: ``uncertainty_samples.parquet`` (every sample's RSS per
+configuration, instrument, axis and metric), ``uncertainty.json`` (per line: mean, std,
+the value at each confidence level with its bootstrap interval, the probability of
+meeting the requirement, the sensitivity ranking and the ECSS interpretation) and
+``uncertainty_summary.csv`` (one row per line and confidence level).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+
+from ..progress import ProgressBar
+from .spec import ANGLE_UNITS
+from .store import write_json, write_table
+
+__all__ = ["run_uncertainty", "SAMPLES_FILE", "UNCERTAINTY_FILE"]
+
+SAMPLES_FILE = "uncertainty_samples.parquet"
+UNCERTAINTY_FILE = "uncertainty.json"
+
+
+def _perturbed(model, draws, items, s):
+    """The reduced model of sample ``s`` (modal frequency and damping factors)."""
+    f_omega = np.ones(model.n_modes)
+    f_zeta = np.ones(model.n_modes)
+    for it in items:
+        if it.kind not in ("modal_frequency", "modal_damping"):
+            continue
+        idx = draws.modes[it.name]
+        v = draws.values[it.name][s]
+        target = f_omega if it.kind == "modal_frequency" else f_zeta
+        target[idx] *= v if v.size == idx.size else v[0]
+    # c = 2 zeta omega: both factors scale the damping coefficient
+    return dataclasses.replace(model, omega=model.omega * f_omega,
+                               modal_damping=model.modal_damping * f_omega * f_zeta)
+
+
+def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None) -> Path | None:
+    """Run a campaign's ``[uncertainty]`` on the linear engine; ``uncertainty.json``.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        With ``uncertainty`` set (else nothing is done and None returned).
+    out_dir : path-like
+        The campaign folder.
+    runner : LinearRunner, optional
+        Reused for its compiled loops.
+    progress : bool, optional
+        Progress bar on stderr (default: when stderr is a terminal).
+    """
+    from ..analysis.blocks import structure_block
+    from ..analysis.fast import FastResponse, NonlinearError
+    from ..analysis.sweep import record_metrics
+    from ..analysis.uncertainty import INTERPRETATION, draw, statistics
+    from .linear import LinearRunner
+
+    unc = campaign.uncertainty
+    if not unc:
+        return None
+    wall = time.perf_counter()
+    runner = runner if isinstance(runner, LinearRunner) else LinearRunner(campaign.scenario_dir)
+    items = unc["parameters"]
+    pairs = [(inst, axis, var) for inst, axes in campaign.instruments.items()
+             for axis, var in axes.items()]
+    refs = [var for _, _, var in pairs]
+    configs = list(dict.fromkeys(c.configuration for c in campaign.cases))
+    events = list(dict.fromkeys(c.event for c in campaign.cases))
+    case_of = {(c.configuration, c.event): c for c in campaign.cases if not c.sweep}
+    base = {}
+    for cf in configs:
+        fr0 = runner.compiled(case_of[(cf, events[0])].scenario)
+        structs = [n for n, b in fr0.lin.blocks.items() if b.kind == "structure"]
+        base[cf] = (fr0.lin, structs, FastResponse(fr0.lin, refs))
+    lin0, structs, _ = base[configs[0]]
+    model0 = lin0.blocks[structs[0]].model if structs else None
+    freqs = None if model0 is None else model0.frequencies_hz
+    draws = draw(items, unc["samples"], unc["seed"], freqs)
+    # each event's sources, at the campaign's record (cached once)
+    inputs = {}
+    for cf in configs:
+        for ev in events:
+            sc = case_of[(cf, ev)].scenario
+            fr = runner.compiled(sc)
+            inputs[(cf, ev)] = (sc, _input(runner, fr, sc, {}))
+    structural = any(it.kind in ("modal_frequency", "modal_damping", "gain") for it in items)
+    tb = lin0.plan.timebase
+    dt = tb.output_ticks * float(tb.base)
+    n, m = unc["samples"], len(campaign.metrics)
+    values = np.full((n, len(configs), len(events), len(pairs), m), np.nan)
+    nonlinear = 0
+    bar = ProgressBar(n, "uncertainty", "sample", enabled=progress)
+    try:
+        for s in range(n):
+            for ci, cf in enumerate(configs):
+                lin, structs, fr = base[cf]
+                if structural:
+                    for name in structs:
+                        b = lin.blocks[name]
+                        lin = lin.with_block(structure_block(
+                            _perturbed(b.model, draws, items, s), name, b.period,
+                            b.period * lin.base, b.feedthrough))
+                    for it in items:
+                        if it.kind == "gain":
+                            for j, inst in enumerate(it.instances):
+                                lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
+                    fr = FastResponse(lin, refs)
+                for ei, ev in enumerate(events):
+                    sc, W = inputs[(cf, ev)]
+                    W = _sample_input(runner, fr, sc, W, draws, items, s)
+                    try:
+                        rec = fr.run(W)
+                    except NonlinearError:
+                        nonlinear += 1
+                        continue
+                    keep = rec.times >= rec.times[0] + campaign.skip - 0.5 * dt
+                    x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
+                    values[s, ci, ei] = record_metrics(x.T, dt, campaign.metrics)
+            bar.update("ok")
+    finally:
+        bar.close()
+    rss = np.sqrt(np.sum(values**2, axis=2))                   # (n, configs, pairs, m)
+    scale = ANGLE_UNITS[campaign.unit]
+    scalar = draws.scalar_inputs()
+    lines, rows, summary = [], [], []
+    for ci, cf in enumerate(configs):
+        for j, (inst, axis, _) in enumerate(pairs):
+            for k, (kind, window) in enumerate(campaign.metrics):
+                x = rss[:, ci, j, k] * scale
+                ok = np.isfinite(x)
+                req = campaign.requirement(inst, axis, kind, window)
+                st = statistics(x[ok], unc["confidence"], req,
+                                inputs={nm: v[ok] for nm, v in scalar.items()},
+                                seed=unc["seed"]) if ok.any() else {}
+                st["sensitivity"] = dict(list(st.get("sensitivity", {}).items())[:10])
+                lines.append({"configuration": cf, "instrument": inst, "axis": axis,
+                              "metric": kind, "window": window, "unit": campaign.unit,
+                              "requirement": req, "samples_used": int(ok.sum()), **st})
+                rows += [{"sample": i, "configuration": cf, "instrument": inst,
+                          "axis": axis, "metric": kind, "window": window,
+                          "unit": campaign.unit, "value": float(x[i])} for i in range(n)]
+                for pc, q in st.get("quantiles", {}).items():
+                    summary.append({"configuration": cf, "instrument": inst, "axis": axis,
+                                    "metric": kind, "window": window, "unit": campaign.unit,
+                                    "confidence": pc, "value": q["value"],
+                                    "boot_low": q["low"], "boot_high": q["high"],
+                                    "converged": q["converged"], "requirement": req,
+                                    "p_meet": st.get("p_meet", math.nan)})
+    out = Path(out_dir)
+    write_table(pa.Table.from_pylist(rows), out / SAMPLES_FILE)
+    write_table(pa.Table.from_pylist(summary), out / "uncertainty_summary.csv", csv=True)
+    report = {"samples": n, "seed": unc["seed"], "confidence": list(unc["confidence"]),
+              "interpretation": INTERPRETATION, "engine": "linear",
+              "parameters": [{"name": it.name, "kind": it.kind, "instances":
+                              list(it.instances), "per_mode": it.per_mode,
+                              "band": list(it.band),
+                              "distribution": None if it.distribution is None else
+                              dataclasses.asdict(it.distribution)} for it in items],
+              "nonlinear_records": nonlinear, "wall_s": time.perf_counter() - wall,
+              "memory": "per sample: the metrics of each record; one record at a time",
+              "lines": lines}
+    write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(report, default=float)))
+    return out / UNCERTAINTY_FILE
+
+
+def _input(runner, fr, scenario, seeds):
+    """The source matrix ``W`` of a case (``seeds``: instance -> phase seed)."""
+    sc = runner._master._scenario(scenario)
+    n_ticks = fr.lin.plan.timebase.n_ticks
+    series = {}
+    for inst in sc.instances:
+        if inst.name not in fr.lin.sources:
+            continue
+        if inst.name in seeds:
+            inst = dataclasses.replace(inst, parameters={**inst.parameters,
+                                                         "seed": int(seeds[inst.name])})
+        b = runner._source_block(fr, inst, cache=not seeds)
+        if b.series is None:
+            continue   # an instance taken out of the loop, or without a series: zero
+        series[inst.name] = b.series(fr.times(n_ticks, b.period))
+    return fr.input_matrix(series, n_ticks)
+
+
+def _sample_input(runner, fr, scenario, W, draws, items, s):
+    """``W`` of sample ``s``: new phases, then the amplitude factors on the columns."""
+    seeds = {}
+    for it in items:
+        if it.kind == "phase":
+            for j, inst in enumerate(it.instances):
+                seeds[inst] = draws.values[it.name][s, j]
+    if seeds:
+        W = _input(runner, fr, scenario, seeds)
+    factors = {}
+    for it in items:
+        if it.kind == "amplitude":
+            for j, inst in enumerate(it.instances):
+                factors[inst] = factors.get(inst, 1.0) * float(draws.values[it.name][s, j])
+    if not factors:
+        return W
+    W = W.copy()
+    for inst, f in factors.items():
+        off = fr._in_off.get(inst)
+        if off is not None:
+            W[:, off:off + len(fr.lin.blocks[inst].outputs)] *= f
+    return W

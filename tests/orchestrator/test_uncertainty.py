@@ -1,0 +1,165 @@
+"""Monte Carlo budgets (orchestrator.analysis.uncertainty, orchestrator.campaign.montecarlo).
+
+References: the closed form of a budget whose only uncertainty is a uniform amplitude
+factor (every metric is positively homogeneous: the sample is the factor times the
+nominal value, exactly), a ranking where only one input matters, and the order
+statistics of a uniform sample.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from orchestrator.analysis.uncertainty import (Distribution, UncertaintyError, draw,
+                                               rank_correlation, statistics)
+from orchestrator.campaign import (CampaignError, LinearRunner, campaign_from_dict,
+                                   run_campaign, run_uncertainty)
+
+ROOT_SCENARIO = "scenarios/truss10_campaign.toml"
+
+
+def _campaign(uncertainty, configurations=None):
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    return {
+        "campaign": {"name": "mc", "scenario": str(root / ROOT_SCENARIO), "unit": "arcsec",
+                     "skip": 0.0, "stop": 2.0, "output_interval": 1e-3, "engine": "linear",
+                     "verify": 0},
+        "events": [{"name": "diagonal", "overrides": {"excitation.amp1": 10.0}}],
+        "configurations": configurations or [
+            {"name": "on", "overrides": {"ctrl_diag.gain": 1.0, "ctrl_long.gain": 1.0}}],
+        "instruments": [{"name": "tip", "axes": {"roll": "structure.los_tip_roll",
+                                                 "pitch": "structure.los_tip_pitch"}}],
+        "metrics": [{"kind": "peak_to_peak", "windows": [0.5]}, {"kind": "rms"}],
+        "requirements": [{"instrument": "tip", "metric": "peak_to_peak", "window": 0.5,
+                          "value": 2.0}],
+        "uncertainty": uncertainty,
+    }
+
+
+def test_distributions_stay_in_bounds_and_repeat_with_the_seed():
+    rng = np.random.default_rng(1)
+    for d in (Distribution("uniform", 0.8, 1.2), Distribution("normal", 0.5, 1.5, mean=1.0,
+                                                                std=0.3),
+              Distribution("lognormal", 0.5, 2.0, median=1.0, sigma=0.5)):
+        x = d.sample(rng, 5000)
+        assert x.min() >= d.low and x.max() <= d.high
+    u = Distribution("uniform", 0.0, 1.0)
+    # the uniform's order statistics: the empirical 0.95 quantile of 20000 draws is
+    # within 3 standard errors sqrt(p (1 - p) / n) of 0.95
+    q = np.quantile(u.sample(np.random.default_rng(2), 20000), 0.95)
+    assert abs(q - 0.95) < 3 * math.sqrt(0.95 * 0.05 / 20000)
+
+
+def test_rank_correlation_of_monotone_and_independent_samples():
+    rng = np.random.default_rng(0)
+    x = rng.uniform(size=400)
+    assert rank_correlation(x, np.exp(3 * x)) == pytest.approx(1.0)
+    assert rank_correlation(x, -x**3) == pytest.approx(-1.0)
+    assert abs(rank_correlation(x, rng.uniform(size=400))) < 0.2
+
+
+def test_statistics_quantile_interval_and_probability():
+    x = np.random.default_rng(5).uniform(1.0, 2.0, 4000)
+    st = statistics(x, [0.95], requirement=1.5, seed=1)
+    q = st["quantiles"][0.95]
+    assert q["low"] <= q["value"] <= q["high"] and abs(q["value"] - 1.95) < 0.01
+    assert q["converged"]                      # the interval is well below 2 % of 1.95
+    assert abs(st["p_meet"] - 0.5) < 3 * st["p_meet_se"]
+    assert "mixed" in st["interpretation"]
+
+
+@pytest.fixture(scope="module")
+def truss_fmus(suite_fmus, suite_fmu_dir):
+    from tests.orchestrator.test_truss10_campaign import FMUS
+    suite_fmus(*FMUS)
+    return suite_fmu_dir
+
+
+def _run(tmp_path, data, fmu_dir):
+    camp = campaign_from_dict(data)
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
+    run_campaign(camp, tmp_path, runner, progress=False)
+    path = run_uncertainty(camp, tmp_path, runner, progress=False)
+    return camp, json.loads(path.read_text())
+
+
+@pytest.mark.slow
+def test_uniform_amplitude_gives_the_closed_form_budget(tmp_path, truss_fmus):
+    """Jitter = factor x nominal for every sample: the 95 % value is the nominal times
+    the factor's own 95 % quantile, and P(meet) that of the uniform."""
+    import pyarrow.parquet as pq
+    unc = {"samples": 400, "seed": 11, "confidence": [0.95],
+           "parameters": [{"name": "amp", "kind": "amplitude", "instances": ["excitation"],
+                           "distribution": "uniform", "low": 0.8, "high": 1.2}]}
+    camp, rep = _run(tmp_path, _campaign(unc), truss_fmus)
+    nominal = {(r["instrument"], r["axis"], r["metric"]): r["value"]
+               for r in pq.read_table(tmp_path / "summary.parquet").to_pylist()
+               if r["event"] == "RSS"}
+    factors = draw(camp.uncertainty["parameters"], 400, 11).values["amp"][:, 0]
+    samples = pq.read_table(tmp_path / "uncertainty_samples.parquet").to_pylist()
+    for line in rep["lines"]:
+        key = (line["instrument"], line["axis"], line["metric"])
+        x = np.array([s["value"] for s in samples if (s["instrument"], s["axis"],
+                                                      s["metric"]) == key])
+        np.testing.assert_allclose(x, nominal[key] * factors, rtol=1e-9)
+        q = line["quantiles"]["0.95"]["value"]
+        assert abs(q / nominal[key] - (0.8 + 0.4 * 0.95)) < 0.01
+        if line["metric"] == "peak_to_peak":
+            want = min(max((2.0 / nominal[key] - 0.8) / 0.4, 0.0), 1.0)
+            assert abs(line["p_meet"] - want) <= 3 * max(line["p_meet_se"], 1 / 400)
+        top = next(iter(line["sensitivity"]))
+        assert top == "amp" and line["sensitivity"]["amp"] == pytest.approx(1.0)
+
+
+@pytest.mark.slow
+def test_sensitivity_names_the_only_input_that_matters(tmp_path, truss_fmus):
+    """The longeron's loop is at gain 0 in this configuration: a factor on it changes
+    nothing, the modal frequencies do."""
+    unc = {"samples": 40, "seed": 4, "confidence": [0.95],
+           "parameters": [
+               {"name": "freq", "kind": "modal_frequency", "distribution": "uniform",
+                "low": 0.9, "high": 1.1},
+               {"name": "dead gain", "kind": "gain", "instances": ["ctrl_long"],
+                "distribution": "uniform", "low": 0.5, "high": 1.5}]}
+    cfg = [{"name": "diag only", "overrides": {"ctrl_diag.gain": 1.0, "ctrl_long.gain": 0.0}}]
+    _, rep = _run(tmp_path, _campaign(unc, cfg), truss_fmus)
+    for line in rep["lines"]:
+        sens = line["sensitivity"]
+        assert abs(sens["freq"]) > 0.5
+        assert abs(sens["dead gain"]) < 0.35
+        assert line["samples_used"] == 40
+
+
+@pytest.mark.parametrize("unc, words", [
+    ({"samples": 0, "parameters": [{"kind": "phase", "instances": ["a"]}]},
+     "samples is 0; expected a whole number >= 1"),
+    ({"parameters": [{"kind": "modal_damping", "distribution": "beta", "low": 0.5,
+                      "high": 2}]}, "has distribution 'beta'; expected one of"),
+    ({"parameters": [{"kind": "modal_damping", "distribution": "uniform", "low": -0.5,
+                      "high": 2}]}, "give it bounds low >= 0"),
+    ({"parameters": [{"kind": "amplitude", "instances": ["nope"], "distribution": "uniform",
+                      "low": 0.5, "high": 2}]}, "instances is \\['nope'\\]"),
+    ({"parameters": [{"kind": "stiffness", "distribution": "uniform", "low": 0.5,
+                      "high": 2}]}, "kind 'stiffness'; expected one of"),
+    ({"parameters": [{"kind": "gain", "instances": ["a"], "distribution": "normal",
+                      "mean": 1.0, "std": 0.0}]}, "std > 0"),
+    ({"parameters": []}, "needs 'parameters'"),
+])
+def test_bad_uncertainty_is_one_sentence_before_any_case(unc, words):
+    data = {"campaign": {"name": "x", "scenario": {
+        "experiment": {"stop": 0.1}, "fmus": {"a": {"fmu": "x.fmu", "period": 1e-3}}}},
+        "instruments": [{"name": "i", "axes": {"x": "a.y"}}], "uncertainty": unc}
+    with pytest.raises(CampaignError, match=words):
+        campaign_from_dict(data)
+
+
+def test_modal_band_without_modes_is_refused():
+    from orchestrator.analysis.uncertainty import Uncertain
+    it = Uncertain("f", "modal_frequency", Distribution("uniform", 0.9, 1.1), band=(500, 600))
+    with pytest.raises(UncertaintyError, match="no mode in the band"):
+        draw([it], 3, 0, np.array([8.4, 9.5]))

@@ -45,7 +45,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .campaign import ANGLE_UNITS, RSS_EVENT, slug
-from .report_sweeps import WORST_HEAD, sweep_sections
+from .report_sweeps import (WORST_HEAD, spectrum_figure, sweep_sections,
+                            uncertainty_sections)
+
+UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
+            "bootstrap 95 %", "converged", "requirement", "P(meet)"]
 
 __all__ = ["BudgetGrid", "ReportError", "budget_grid", "write_report"]
 
@@ -108,7 +112,8 @@ def _group_label(g) -> str:
 # ----------------------------------------------------------------------------- figures
 
 
-def _png(fig: Figure) -> bytes:
+def png_bytes(fig: Figure) -> bytes:
+    """A figure as PNG bytes (Agg canvas, 110 dpi)."""
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
@@ -593,6 +598,9 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
             continue
         figures.append(("history", f"{inst}: time history of {event}",
                         _history_figure(series, inst, event, unit, scale)))
+        figures.append(("spectrum", f"{inst}: PSD and cumulative RMS, {event}",
+                        spectrum_figure(series, inst, event, unit, scale,
+                                        float(camp.get("skip", 0.0)))))
         if len(axes) >= 2:
             pair = _scatter_axes(axes)
             figures.append(("scatter", f"{inst}: boresight scatter, {event}",
@@ -602,6 +610,8 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
     sweep_figs, worst = sweep_sections(out_dir, summary, instruments, metric, window, unit,
                                        RSS_EVENT)
     figures += [("sweep", t, f) for t, f in sweep_figs]
+    unc_figs, unc_rows, unc_text = uncertainty_sections(out_dir, instruments, unit)
+    figures += [("uncertainty", t, f) for t, f in unc_figs]
 
     failed = [[c["case"], c["error"]] for c in cases if c["status"] != "ok"]
     btab = _budget_rows(summary, metric, window)
@@ -625,18 +635,23 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
         section = None
         names = {"budget": "Budget chart", "history": "Time histories of dominant cases",
                  "scatter": "Boresight image plane", "frf": "Frequency responses",
-                 "sweep": "Sweeps: jitter against the swept quantity"}
+                 "sweep": "Sweeps: jitter against the swept quantity",
+                 "spectrum": "Spectra of dominant cases",
+                 "uncertainty": "Uncertainty: the budget as a distribution"}
         for sec, ftitle, fig in figures:
             if sec != section:
                 parts.append(f"<h2>{names[sec]}</h2>")
                 section = sec
-            b64 = base64.b64encode(_png(fig)).decode("ascii")
+            b64 = base64.b64encode(png_bytes(fig)).decode("ascii")
             parts.append(f"<figure><img alt='{html.escape(ftitle)}' "
                          f"src='data:image/png;base64,{b64}'><figcaption>"
                          f"{html.escape(ftitle)}</figcaption></figure>")
         if worst:
             parts += ["<h2>Worst points of the sweeps</h2>",
                       _html_table(WORST_HEAD, worst)]
+        if unc_rows:
+            parts += ["<h2>Budget at confidence levels</h2>",
+                      f"<p>{html.escape(unc_text)}</p>", _html_table(UNC_HEAD, unc_rows)]
         if check_rows or flagged:
             parts += ["<h2>Cross-check of the linear engine</h2>",
                       _html_table(CHECK_HEAD, check_rows)]
@@ -657,10 +672,13 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
     parts = [f"# {title}", "", intro, "", "## Budget", "", _md_table(BUDGET_HEAD, btab), ""]
     for i, (sec, ftitle, fig) in enumerate(figures):
         name = f"{i:02d}_{sec}_{slug(ftitle)[:40]}.png"
-        (fig_dir / name).write_bytes(_png(fig))
+        (fig_dir / name).write_bytes(png_bytes(fig))
         parts += [f"### {ftitle}", "", f"![{ftitle}](report_files/{name})", ""]
     if worst:
         parts += ["## Worst points of the sweeps", "", _md_table(WORST_HEAD, worst), ""]
+    if unc_rows:
+        parts += ["## Budget at confidence levels", "", unc_text, "",
+                  _md_table(UNC_HEAD, unc_rows), ""]
     if check_rows or flagged:
         parts += ["## Cross-check of the linear engine", "", _md_table(CHECK_HEAD, check_rows),
                   ""]

@@ -1,4 +1,4 @@
-"""Sweep figures and tables of a campaign report: jitter versus a swept quantity.
+"""Sweep and spectrum figures: jitter versus a swept quantity, closed-loop transfers.
 
 Two kinds of sweep reach the report:
 
@@ -20,7 +20,8 @@ import numpy as np
 import pyarrow.parquet as pq
 from matplotlib.figure import Figure
 
-__all__ = ["WORST_HEAD", "sweep_sections"]
+__all__ = ["WORST_HEAD", "sweep_sections", "transfer_figure", "spectrum_figure",
+           "uncertainty_sections"]
 
 WORST_HEAD = ["sweep", "configuration", "instrument", "axis", "metric", "worst at", "value",
               "requirement", "margin"]
@@ -171,3 +172,181 @@ def sweep_sections(out_dir, summary, instruments, metric, window, unit, rss_even
     f1, w1 = _wheel(Path(out_dir), instruments, metric, window, unit)
     f2, w2 = _parameter(summary, instruments, metric, window, unit, rss_event)
     return f1 + f2, w1 + w2
+
+
+def transfer_figure(tr, psd=None, cum=None) -> Figure:
+    """Magnitudes of closed-loop transfers (and output PSD, cumulative RMS).
+
+    Parameters
+    ----------
+    tr : orchestrator.analysis.spectra.Transfer
+    psd, cum : ndarray, shape (n_out, n_f), optional
+        Output PSD and its cumulative RMS (:func:`~orchestrator.analysis.spectra.output_psd`).
+
+    Returns
+    -------
+    Figure
+    """
+    rows = 1 if psd is None else 3
+    fig = Figure(figsize=(9, 2.6 * rows + 0.8))
+    axs = fig.subplots(rows, 1, squeeze=False, sharex=True)
+    ax = axs[0][0]
+    for i, o in enumerate(tr.outputs):
+        for j, src in enumerate(tr.inputs):
+            ax.loglog(tr.freqs, np.abs(tr.H[i, j]), lw=0.9, label=f"{src} -> {o}")
+    ax.set_ylabel("|H| (output / input)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=6, loc="lower left", ncol=2)
+    if psd is not None:
+        for i, o in enumerate(tr.outputs):
+            axs[1][0].loglog(tr.freqs, np.maximum(psd[i], 1e-300), lw=0.9, label=o)
+            axs[2][0].semilogx(tr.freqs, cum[i], lw=0.9, label=o)
+        axs[1][0].set_ylabel("PSD (unit^2/Hz)")
+        axs[2][0].set_ylabel("cumulative RMS")
+        for a in (axs[1][0], axs[2][0]):
+            a.grid(alpha=0.3, which="both")
+        axs[2][0].legend(fontsize=6, loc="upper left")
+    axs[-1][0].set_xlabel("frequency (Hz)")
+    fig.suptitle("closed-loop transfer (fundamental of the steady state)", fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
+    """One-sided PSD and cumulative RMS of each axis of a recorded line of sight.
+
+    ``series`` as the report's time histories: ``(label, t, {axis: values})``; the
+    record after ``skip`` s, mean removed, Hann-windowed periodogram (the window's power
+    restored), cumulative RMS its running integral (its end is the record's RMS).
+
+    Parameters
+    ----------
+    series : list of (str, ndarray, dict)
+        Label, times (s) and ``{axis: values (rad)}`` per case.
+    inst, event : str
+        Instrument and event named in the title.
+    unit : str
+        Unit of the axes.
+    scale : float
+        Factor from rad to ``unit``.
+    skip : float
+        Transient dropped (s).
+
+    Returns
+    -------
+    Figure
+    """
+    axes = sorted(series[0][2], key=lambda a: _ORDER.get(a, 3))
+    fig = Figure(figsize=(9, 2.2 * len(axes) + 0.8))
+    axs = fig.subplots(len(axes), 2, squeeze=False, sharex=True)
+    for i, axis in enumerate(axes):
+        for label, t, cols in series:
+            if axis not in cols or t.size < 8:
+                continue
+            keep = t >= t[0] + skip - 1e-9
+            x = np.asarray(cols[axis], float)[keep] * scale
+            dt = float(np.median(np.diff(t)))
+            x = x - x.mean()
+            w = np.hanning(x.size)
+            X = np.fft.rfft(x * w)
+            f = np.fft.rfftfreq(x.size, dt)
+            psd = 2.0 * np.abs(X) ** 2 * dt / np.sum(w**2)
+            psd[0] /= 2.0
+            cum = np.sqrt(np.concatenate([[0.0], np.cumsum(0.5 * (psd[1:] + psd[:-1])
+                                                            * np.diff(f))]))
+            axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), lw=0.7, label=label)
+            axs[i][1].semilogx(f[1:], cum[1:], lw=0.9, label=label)
+        axs[i][0].set_ylabel(f"{axis} ({unit}^2/Hz)")
+        axs[i][1].set_ylabel(f"{axis} cum. RMS ({unit})")
+        for a in axs[i]:
+            a.grid(alpha=0.3, which="both")
+    axs[0][1].legend(fontsize=7, loc="lower right")
+    for a in axs[-1]:
+        a.set_xlabel("frequency (Hz)")
+    fig.suptitle(f"{inst} line of sight: PSD and cumulative RMS, {event}", fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+def uncertainty_sections(out_dir, instruments, unit):
+    """CDF and sensitivity figures of ``uncertainty.json``, and its table rows.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        The campaign folder.
+    instruments : dict
+        ``{instrument: {axis: variable}}``.
+    unit : str
+        Unit of the values.
+
+    Returns
+    -------
+    figures : list of (str, Figure)
+    rows : list of list of str
+        ``configuration, instrument, axis, metric, P_c, value, bootstrap interval,
+        converged, requirement, P(meet)``.
+    text : str
+        The interpretation and sample count, or "" without an uncertainty run.
+    """
+    import json
+
+    out_dir = Path(out_dir)
+    path = out_dir / "uncertainty.json"
+    samples_path = out_dir / "uncertainty_samples.parquet"
+    if not path.is_file() or not samples_path.is_file():
+        return [], [], ""
+    rep = json.loads(path.read_text(encoding="utf-8"))
+    samples = pq.read_table(samples_path).to_pylist()
+    figures, rows = [], []
+    first_metric = rep["lines"][0]["metric"] if rep["lines"] else None
+    for inst, axes in instruments.items():
+        axes = sorted(axes, key=lambda a: _ORDER.get(a, 3))
+        fig = Figure(figsize=(9, 2.0 * len(axes) + 0.9))
+        axs = fig.subplots(len(axes), 2, squeeze=False,
+                           gridspec_kw={"width_ratios": [3, 2]})
+        for i, axis in enumerate(axes):
+            lines = [ln for ln in rep["lines"] if ln["instrument"] == inst
+                     and ln["axis"] == axis and ln["metric"] == first_metric]
+            for ln in lines:
+                x = np.sort([r["value"] for r in samples if (r["configuration"],
+                            r["instrument"], r["axis"], r["metric"]) ==
+                            (ln["configuration"], inst, axis, first_metric)
+                            and np.isfinite(r["value"])])
+                if x.size == 0:
+                    continue
+                cdf = np.arange(1, x.size + 1) / x.size
+                line, = axs[i][0].step(x, cdf, where="post", lw=1.0,
+                                       label=ln["configuration"])
+                for pc, q in ln.get("quantiles", {}).items():
+                    axs[i][0].plot([q["value"]], [float(pc)], "o", ms=4,
+                                   color=line.get_color())
+                    rows.append([ln["configuration"], inst, axis, first_metric,
+                                 f"{100 * float(pc):g} %", _fmt(q["value"]),
+                                 f"[{_fmt(q['low'])}, {_fmt(q['high'])}]",
+                                 "yes" if q["converged"] else "no",
+                                 _fmt(ln.get("requirement")),
+                                 _fmt(ln.get("p_meet"), 3)])
+                req = ln.get("requirement")
+                if req is not None and not math.isnan(req):
+                    axs[i][0].axvline(req, color="crimson", ls="--", lw=1.0)
+            if lines:
+                sens = lines[-1].get("sensitivity", {})
+                names = list(sens)[:6][::-1]
+                axs[i][1].barh(range(len(names)), [sens[n] for n in names], color="0.45")
+                axs[i][1].set_yticks(range(len(names)), names, fontsize=6)
+                axs[i][1].set_xlim(-1, 1)
+                axs[i][1].axvline(0, color="k", lw=0.5)
+                axs[i][1].set_title(f"rank correlation ({lines[-1]['configuration']})",
+                                    fontsize=7)
+            axs[i][0].set_ylabel(f"{axis}: P(X <= x)")
+            axs[i][0].grid(alpha=0.3)
+        axs[0][0].legend(fontsize=7, loc="lower right")
+        axs[-1][0].set_xlabel(f"RSS over the events ({unit}); dashed: requirement")
+        fig.suptitle(f"{inst}: budget distribution over {rep['samples']} samples", fontsize=11)
+        fig.tight_layout()
+        figures.append((f"{inst}: budget distribution", fig))
+    text = (f"{rep['samples']} samples (seed {rep['seed']}), linear engine; "
+            f"interpretation: {rep['interpretation']}; converged: the 95 % bootstrap "
+            "interval of the value is narrower than 2 % of it.")
+    return figures, rows, text

@@ -229,7 +229,20 @@ class FastResponse:
 
     # ------------------------------------------------------------------ running
     def times(self, n_ticks: int, every: int = 1) -> np.ndarray:
-        """Exact times (s) of the ticks ``0, every, 2 every, ...`` up to ``n_ticks``."""
+        """Exact times (s) of the ticks ``0, every, 2 every, ...`` up to ``n_ticks``.
+
+        Parameters
+        ----------
+        n_ticks : int
+            Last tick.
+        every : int
+            Tick stride (a source's period, the output interval).
+
+        Returns
+        -------
+        ndarray, shape (n_ticks // every + 1,)
+            Read-only, cached.
+        """
         key = (n_ticks, every)
         t = self._times.get(key)
         if t is None:

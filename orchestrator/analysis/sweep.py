@@ -48,7 +48,19 @@ class WheelSweep:
     values: np.ndarray
 
     def worst(self, ref: str, metric=None) -> tuple[float, float]:
-        """``(speed_rpm, value)`` of the largest value of ``ref`` (first metric default)."""
+        """``(speed_rpm, value)`` of the largest value of ``ref``.
+
+        Parameters
+        ----------
+        ref : str
+            A recorded output of the sweep.
+        metric : tuple of (str, float or None), optional
+            One of :attr:`metrics` (default the first).
+
+        Returns
+        -------
+        tuple of float
+        """
         j = self.refs.index(ref)
         m = 0 if metric is None else self.metrics.index(metric)
         i = int(np.argmax(self.values[:, j, m]))
@@ -60,6 +72,18 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
 
     A free rigid body is a double pole at 1, which a solver finds only to about
     ``sqrt(eps)``: ``tol`` sits above that.
+
+    Parameters
+    ----------
+    fr : FastResponse
+        The compiled loop.
+    tol : float
+        Margin above ``|z| = 1`` (-).
+
+    Returns
+    -------
+    list of complex
+        Largest magnitude first.
     """
     Phi = np.eye(fr.n_memory)
     for sig, L in fr._runs:

@@ -67,7 +67,18 @@ class Distribution:
             raise UncertaintyError("a lognormal distribution needs median > 0 and sigma > 0")
 
     def sample(self, rng: np.random.Generator, size) -> np.ndarray:
-        """Samples, shape ``size``, inside the bounds."""
+        """Samples inside the bounds.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        size : int or tuple of int
+            Shape of the result.
+
+        Returns
+        -------
+        ndarray, shape ``size``
+        """
         size = tuple(np.atleast_1d(size))
         n = int(np.prod(size))
         out = np.empty(0)
@@ -181,7 +192,17 @@ def draw(items, n: int, seed: int, frequencies_hz=None) -> Draws:
 
 
 def rank_correlation(x: np.ndarray, y: np.ndarray) -> float:
-    """Spearman's rank correlation of two samples (ties get their mean rank)."""
+    """Spearman's rank correlation of two samples (ties get their mean rank).
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (n,)
+
+    Returns
+    -------
+    float
+        In [-1, 1]; 0 when either sample is constant.
+    """
     def ranks(v):
         order = np.argsort(v, kind="mergesort")
         r = np.empty(v.size)

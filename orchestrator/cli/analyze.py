@@ -41,8 +41,25 @@ def add_arguments(parser) -> None:
                         help="with --reference: co-simulate this long (s; default the "
                              "scenario's stop time)")
     parser.add_argument("--output", action="append", default=[], metavar="INST.VAR",
-                        help="with --reference: output to compare (repeatable; default the "
-                             "scenario's [record])")
+                        help="with --reference or --transfer: output to compare or to "
+                             "reach (repeatable; default the scenario's [record])")
+    parser.add_argument("--transfer", action="append", default=[], metavar="INST.VAR",
+                        help="closed-loop transfer from this source output to each "
+                             "--output (repeatable; a frequency grid from --fmin to --fmax)")
+    parser.add_argument("--fmin", type=float, default=0.1, help="lowest frequency (Hz)")
+    parser.add_argument("--fmax", type=float, default=None,
+                        help="highest frequency (Hz; default 0.45 x the base rate)")
+    parser.add_argument("--points", type=int, default=400, help="frequencies (log spaced)")
+    parser.add_argument("--psd", type=float, default=None, metavar="LEVEL",
+                        help="with --transfer: one random signal of this one-sided PSD "
+                             "((input unit)^2/Hz, white in --psd-band) on the --transfer "
+                             "inputs together: output PSD and cumulative RMS")
+    parser.add_argument("--psd-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                        help="band of the --psd signal (Hz; default the whole grid)")
+    parser.add_argument("--plot", default=None, metavar="FILE.png",
+                        help="with --transfer: draw the transfers (and PSD) to this file")
+    parser.add_argument("--csv", default=None, metavar="FILE.csv",
+                        help="with --transfer: write the frequency table to this file")
 
 
 def run(args) -> int:
@@ -62,6 +79,8 @@ def run(args) -> int:
     lin = linearize(args.scenario, overrides=overrides, fmu_dir=args.fmu_dir)
     if args.open:
         lin = lin.opened(args.open)
+    if args.transfer:
+        return _spectra(lin, args)
     print(report(lin, modes=args.mode, margins=not args.no_margins, band=args.band))
     if args.performance:
         if not (args.disturbance and args.freq):
@@ -79,4 +98,71 @@ def run(args) -> int:
             what = ("cancel the controllers' sensors" if m == "cancel"
                     else "best commands at each frequency")
             print(f"  {m:<8} ({what}): {c.reduction_pct:6.1f} % reduction")
+    return 0
+
+
+def _spectra(lin, args) -> int:
+    """``--transfer``: the closed-loop transfers, and with ``--psd`` the output PSDs."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from orchestrator.analysis import AnalysisError
+    from orchestrator.analysis.fast import FastResponse
+    from orchestrator.analysis.spectra import cumulative_rms, output_psd, transfer
+
+    outputs = args.output or list(lin.plan.scenario.record)
+    if not outputs:
+        raise AnalysisError("--transfer needs --output INST.VAR (the scenario records none)")
+    fmax = args.fmax or 0.45 / lin.base
+    if not 0 < args.fmin < fmax or args.points < 2:
+        raise AnalysisError(f"the grid {args.fmin:g} to {fmax:g} Hz with {args.points} "
+                            "points is empty; expected 0 < --fmin < --fmax and --points >= 2")
+    freqs = np.geomspace(args.fmin, fmax, args.points)
+    fr = FastResponse(lin, outputs)
+    tr = transfer(fr, args.transfer, outputs, freqs)
+    print(f"closed-loop transfer, {freqs.size} frequencies {args.fmin:g}-{fmax:g} Hz "
+          "(fundamental of the steady state; 'aliased' = the rest, relative)")
+    print(f"  {'from':<22} {'to':<28} {'peak |H|':>11} {'at Hz':>9} {'aliased':>8}")
+    for i, o in enumerate(outputs):
+        for j, src in enumerate(args.transfer):
+            mag = np.abs(tr.H[i, j])
+            k = int(np.argmax(mag))
+            print(f"  {src:<22} {o:<28} {mag[k]:11.4g} {freqs[k]:9.4g} "
+                  f"{np.max(tr.aliased[i, j]):8.1e}")
+    psd = cum = None
+    if args.psd is not None:
+        lo, hi = args.psd_band or (freqs[0], freqs[-1])
+        level = np.where((freqs >= lo) & (freqs <= hi), args.psd, 0.0)
+        psd = output_psd(tr, level)
+        cum = cumulative_rms(freqs, psd)
+        print(f"random signal {args.psd:g} /Hz in {lo:g}-{hi:g} Hz on "
+              f"{', '.join(args.transfer)} together: RMS of each output")
+        for i, o in enumerate(outputs):
+            half = freqs[int(np.searchsorted(cum[i], cum[i, -1] / np.sqrt(2)))]
+            print(f"  {o:<28} {cum[i, -1]:11.4g}  (half the variance below {half:.4g} Hz)")
+    if args.csv:
+        import csv
+        with open(args.csv, "w", newline="", encoding="utf-8") as f:
+            w = csv.writer(f)
+            head = ["freq_hz"] + [f"|H| {s} -> {o}" for o in outputs for s in args.transfer]
+            if psd is not None:
+                head += [f"psd {o}" for o in outputs] + [f"cumulative rms {o}" for o in outputs]
+            w.writerow(head)
+            for k, fk in enumerate(freqs):
+                row = [repr(float(fk))] + [repr(float(abs(tr.H[i, j, k])))
+                                           for i in range(len(outputs))
+                                           for j in range(len(args.transfer))]
+                if psd is not None:
+                    row += [repr(float(v)) for v in psd[:, k]]
+                    row += [repr(float(v)) for v in cum[:, k]]
+                w.writerow(row)
+        print(f"table: {args.csv}")
+    if args.plot:
+        from orchestrator.report_sweeps import transfer_figure
+        from orchestrator.files import atomic_write
+        from orchestrator.report import png_bytes
+        data = png_bytes(transfer_figure(tr, psd, cum))
+        atomic_write(args.plot, lambda tmp: Path(tmp).write_bytes(data))
+        print(f"figure: {args.plot}")
     return 0

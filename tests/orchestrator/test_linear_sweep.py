@@ -180,3 +180,34 @@ def test_bad_wheel_sweep_is_one_sentence(entry, words):
         "instruments": [{"name": "i", "axes": {"x": "a.y"}}], "wheel_sweeps": [entry]}
     with pytest.raises(CampaignError, match=words):
         campaign_from_dict(data)
+
+
+def test_transfer_fundamental_equals_frequency_response(truss):
+    from orchestrator.analysis.spectra import cumulative_rms, output_psd, transfer
+    _, _, _, fr, _ = truss
+    freqs = np.array([3.3, 8.4, 9.5, 27.0])
+    tr = transfer(fr, ["excitation.v1", "excitation.v2"], REFS, freqs)
+    H = fr.lin.frequency_response(["excitation.v1", "excitation.v2"], REFS, freqs)
+    np.testing.assert_allclose(tr.H, H, rtol=1e-9, atol=1e-12 * np.abs(H).max())
+    # a random signal on v1 alone: PSD = |H|^2 S; cumulative RMS of a flat PSD
+    psd = output_psd(tr, np.full(freqs.size, 2.0), direction=[1.0, 0.0])
+    np.testing.assert_allclose(psd, 2.0 * np.abs(H[:, 0]) ** 2, rtol=1e-9)
+    f = np.linspace(0.0, 10.0, 101)
+    np.testing.assert_allclose(cumulative_rms(f, np.full(f.size, 4.0)), 2.0 * np.sqrt(f))
+
+
+def test_analyze_transfer_cli_writes_table_and_figure(truss, tmp_path, capsys):
+    import csv
+    from orchestrator.cli import main
+    camp, _, _, _, fmu_dir = truss
+    code = main(["analyze", str(camp.scenario_dir / "truss10_closed_loop.toml"),
+                 "--fmu-dir", str(fmu_dir), "--transfer", "excitation.v1",
+                 "--output", REFS[2], "--psd", "1.0", "--psd-band", "1", "50",
+                 "--fmin", "1", "--fmax", "100", "--points", "50",
+                 "--csv", str(tmp_path / "t.csv"), "--plot", str(tmp_path / "t.png")])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "closed-loop transfer" in out and "RMS of each output" in out
+    rows = list(csv.reader(open(tmp_path / "t.csv", encoding="utf-8")))
+    assert len(rows) == 51 and rows[0][0] == "freq_hz" and len(rows[0]) == 4
+    assert (tmp_path / "t.png").stat().st_size > 1000

@@ -81,8 +81,10 @@ def test_html_report_is_self_contained_with_table_and_images(campaign_dir):
     assert "<td>-80.0 %</td>" in text and "change vs first configuration" in text
     assert "RuntimeError: cryocooler model has no data" in text
     images = re.findall(r"src='data:image/png;base64,([A-Za-z0-9+/=]+)'", text)
-    # budget chart, time history, boresight scatter, transmissibility
-    assert len(images) == 4
+    # budget chart, time history, its PSD and cumulative RMS, boresight scatter,
+    # transmissibility
+    assert len(images) == 5
+    assert "PSD and cumulative RMS" in text
     assert all(base64.b64decode(b)[:8] == PNG_MAGIC for b in images)
     assert not re.search(r"src=['\"](?!data:)", text)  # nothing loaded from elsewhere
 
@@ -155,7 +157,7 @@ def test_markdown_report_links_existing_pngs(campaign_dir, tmp_path):
     assert text.startswith("# Jitter report: report demo")
     assert "| instrument | axis | configuration | RSS |" in text
     links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
-    assert len(links) == 4
+    assert len(links) == 5
     for link in links:
         assert (path.parent / link).read_bytes()[:8] == PNG_MAGIC
 
@@ -164,7 +166,7 @@ def test_report_without_frf_folder_has_no_frf_section(tmp_path):
     out = make_campaign(tmp_path, with_frf=False)
     text = write_report(out, "html").read_text(encoding="utf-8")
     assert "Frequency responses" not in text
-    assert text.count("data:image/png;base64,") == 3
+    assert text.count("data:image/png;base64,") == 4
 
 
 def test_report_cli_and_errors(campaign_dir, tmp_path, capsys):

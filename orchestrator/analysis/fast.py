@@ -141,7 +141,10 @@ class FastResponse:
         P = int(np.lcm.reduce(periods))
         self.P = P * max(1, math.ceil(_MIN_TICKS / P))   # the super-period
         sigs = [self._signature(k) for k in range(self.P)]
-        maps = {sig: self._tick_map(k) for k, sig in reversed(list(enumerate(sigs)))}
+        first = {}
+        for k, sig in enumerate(sigs):
+            first.setdefault(sig, k)
+        maps = {sig: self._tick_map(k) for sig, k in first.items()}   # one per kind of tick
         n = lin.n
         read = np.zeros(n, bool)
         for M, _ in maps.values():

@@ -51,7 +51,81 @@ def _perturbed(model, draws, items, s):
                                modal_damping=model.modal_damping * f_omega * f_zeta)
 
 
-def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None) -> Path | None:
+def _setup(campaign, runner):
+    """Everything a process needs to evaluate samples: compiled loops, event inputs."""
+    from ..analysis.fast import FastResponse
+
+    pairs = [(inst, axis, var) for inst, axes in campaign.instruments.items()
+             for axis, var in axes.items()]
+    refs = [var for _, _, var in pairs]
+    configs = list(dict.fromkeys(c.configuration for c in campaign.cases))
+    events = list(dict.fromkeys(c.event for c in campaign.cases))
+    case_of = {(c.configuration, c.event): c for c in campaign.cases if not c.sweep}
+    base, inputs = {}, {}
+    for cf in configs:
+        fr0 = runner.compiled(case_of[(cf, events[0])].scenario)
+        structs = [n for n, b in fr0.lin.blocks.items() if b.kind == "structure"]
+        base[cf] = (fr0.lin, structs, FastResponse(fr0.lin, refs))
+        for ev in events:
+            sc = case_of[(cf, ev)].scenario
+            inputs[(cf, ev)] = (sc, _input(runner, runner.compiled(sc), sc, {}))
+    return {"pairs": pairs, "refs": refs, "configs": configs, "events": events,
+            "base": base, "inputs": inputs}
+
+
+def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
+    """Metrics ``(len(samples), configs, events, pairs, metrics)`` and the records that
+    reached a limit (left NaN)."""
+    from ..analysis.blocks import structure_block
+    from ..analysis.fast import FastResponse, NonlinearError
+    from ..analysis.sweep import record_metrics
+
+    items = campaign.uncertainty["parameters"]
+    structural = any(it.kind in ("modal_frequency", "modal_damping", "gain") for it in items)
+    lin0 = ctx["base"][ctx["configs"][0]][0]
+    tb = lin0.plan.timebase
+    dt = tb.output_ticks * float(tb.base)
+    values = np.full((len(samples), len(ctx["configs"]), len(ctx["events"]),
+                      len(ctx["pairs"]), len(campaign.metrics)), np.nan)
+    nonlinear = 0
+    for row, s in enumerate(samples):
+        for ci, cf in enumerate(ctx["configs"]):
+            lin, structs, fr = ctx["base"][cf]
+            if structural:
+                for name in structs:
+                    b = lin.blocks[name]
+                    lin = lin.with_block(structure_block(
+                        _perturbed(b.model, draws, items, s), name, b.period,
+                        b.period * lin.base, b.feedthrough))
+                for it in items:
+                    if it.kind == "gain":
+                        for j, inst in enumerate(it.instances):
+                            lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
+                fr = FastResponse(lin, ctx["refs"])
+            for ei, ev in enumerate(ctx["events"]):
+                sc, W = ctx["inputs"][(cf, ev)]
+                W = _sample_input(runner, fr, sc, W, draws, items, s)
+                try:
+                    rec = fr.run(W)
+                except NonlinearError:
+                    nonlinear += 1
+                    continue
+                keep = rec.times >= rec.times[0] + campaign.skip - 0.5 * dt
+                x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
+                values[row, ci, ei] = record_metrics(x.T, dt, campaign.metrics)
+    return values, nonlinear
+
+
+def _chunk(campaign, scenario_dir, fmu_dir, draws, samples) -> tuple:
+    """One worker's share: its own compiled loops, then its samples (pool and Dask)."""
+    from .linear import LinearRunner
+
+    runner = LinearRunner(scenario_dir, fmu_dir=fmu_dir)
+    return _evaluate(campaign, runner, _setup(campaign, runner), draws, samples)
+
+
+def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None, *,
+                    workers: int = 0, scheduler=None) -> Path | None:
     """Run a campaign's ``[uncertainty]`` on the linear engine; ``uncertainty.json``.
 
     Parameters
@@ -64,10 +138,12 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
         Reused for its compiled loops.
     progress : bool, optional
         Progress bar on stderr (default: when stderr is a terminal).
+    workers : int
+        0 or 1: in this process; N >= 2: N worker processes, each closing its own loops
+        (the same draws, the same numbers).
+    scheduler : str or distributed.Client, optional
+        A Dask scheduler to run the samples on instead (same numbers).
     """
-    from ..analysis.blocks import structure_block
-    from ..analysis.fast import FastResponse, NonlinearError
-    from ..analysis.sweep import record_metrics
     from ..analysis.uncertainty import INTERPRETATION, draw, statistics
     from .linear import LinearRunner
 
@@ -77,64 +153,32 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     wall = time.perf_counter()
     runner = runner if isinstance(runner, LinearRunner) else LinearRunner(campaign.scenario_dir)
     items = unc["parameters"]
-    pairs = [(inst, axis, var) for inst, axes in campaign.instruments.items()
-             for axis, var in axes.items()]
-    refs = [var for _, _, var in pairs]
-    configs = list(dict.fromkeys(c.configuration for c in campaign.cases))
-    events = list(dict.fromkeys(c.event for c in campaign.cases))
-    case_of = {(c.configuration, c.event): c for c in campaign.cases if not c.sweep}
-    base = {}
-    for cf in configs:
-        fr0 = runner.compiled(case_of[(cf, events[0])].scenario)
-        structs = [n for n, b in fr0.lin.blocks.items() if b.kind == "structure"]
-        base[cf] = (fr0.lin, structs, FastResponse(fr0.lin, refs))
-    lin0, structs, _ = base[configs[0]]
-    model0 = lin0.blocks[structs[0]].model if structs else None
-    freqs = None if model0 is None else model0.frequencies_hz
-    draws = draw(items, unc["samples"], unc["seed"], freqs)
-    # each event's sources, at the campaign's record (cached once)
-    inputs = {}
-    for cf in configs:
-        for ev in events:
-            sc = case_of[(cf, ev)].scenario
-            fr = runner.compiled(sc)
-            inputs[(cf, ev)] = (sc, _input(runner, fr, sc, {}))
-    structural = any(it.kind in ("modal_frequency", "modal_damping", "gain") for it in items)
-    tb = lin0.plan.timebase
-    dt = tb.output_ticks * float(tb.base)
     n, m = unc["samples"], len(campaign.metrics)
-    values = np.full((n, len(configs), len(events), len(pairs), m), np.nan)
-    nonlinear = 0
+    ctx = _setup(campaign, runner)
+    lin0, structs, _ = ctx["base"][ctx["configs"][0]]
+    model0 = lin0.blocks[structs[0]].model if structs else None
+    draws = draw(items, n, unc["seed"], None if model0 is None else model0.frequencies_hz)
     bar = ProgressBar(n, "uncertainty", "sample", enabled=progress)
+    parts = max(1, int(workers)) if scheduler is None else 2 * max(1, int(workers) or 2)
+    chunks = [list(c) for c in np.array_split(np.arange(n), min(n, 4 * parts)) if c.size]
+    values = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]), m),
+                     np.nan)
+    nonlinear = 0
     try:
-        for s in range(n):
-            for ci, cf in enumerate(configs):
-                lin, structs, fr = base[cf]
-                if structural:
-                    for name in structs:
-                        b = lin.blocks[name]
-                        lin = lin.with_block(structure_block(
-                            _perturbed(b.model, draws, items, s), name, b.period,
-                            b.period * lin.base, b.feedthrough))
-                    for it in items:
-                        if it.kind == "gain":
-                            for j, inst in enumerate(it.instances):
-                                lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
-                    fr = FastResponse(lin, refs)
-                for ei, ev in enumerate(events):
-                    sc, W = inputs[(cf, ev)]
-                    W = _sample_input(runner, fr, sc, W, draws, items, s)
-                    try:
-                        rec = fr.run(W)
-                    except NonlinearError:
-                        nonlinear += 1
-                        continue
-                    keep = rec.times >= rec.times[0] + campaign.skip - 0.5 * dt
-                    x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
-                    values[s, ci, ei] = record_metrics(x.T, dt, campaign.metrics)
-            bar.update("ok")
+        if scheduler is None and workers <= 1:
+            for c in chunks:
+                v, k = _evaluate(campaign, runner, ctx, draws, c)
+                values[c], nonlinear = v, nonlinear + k
+                for _ in c:
+                    bar.update("ok")
+        else:
+            for c, (v, k) in _parallel(chunks, campaign, runner, draws, workers, scheduler):
+                values[c], nonlinear = v, nonlinear + k
+                for _ in c:
+                    bar.update("ok")
     finally:
         bar.close()
+    pairs, configs = ctx["pairs"], ctx["configs"]
     rss = np.sqrt(np.sum(values**2, axis=2))                   # (n, configs, pairs, m)
     scale = ANGLE_UNITS[campaign.unit]
     scalar = draws.scalar_inputs()
@@ -177,6 +221,34 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
               "lines": lines}
     write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(report, default=float)))
     return out / UNCERTAINTY_FILE
+
+
+def _parallel(chunks, campaign, runner, draws, workers, scheduler):
+    """``(chunk, result)`` as worker processes or Dask tasks finish them."""
+    args = (campaign, runner._master.base_dir, runner.fmu_dir, draws)
+    if scheduler is not None:
+        try:
+            from distributed import Client, as_completed
+        except ImportError:
+            raise ValueError("a Dask scheduler was given but the 'distributed' package is "
+                             "not installed (install the 'cluster' extra)") from None
+        own = not hasattr(scheduler, "submit")
+        client = Client(scheduler) if own else scheduler
+        try:
+            futs = {client.submit(_chunk, *args, c, pure=False): c for c in chunks}
+            for fut in as_completed(futs):
+                yield futs[fut], fut.result()
+        finally:
+            if own:
+                client.close()
+        return
+    from concurrent.futures import ProcessPoolExecutor, as_completed as done
+
+    from .engine import _pool_context
+    with ProcessPoolExecutor(max_workers=int(workers), mp_context=_pool_context()) as pool:
+        futs = {pool.submit(_chunk, *args, c): c for c in chunks}
+        for fut in done(futs):
+            yield futs[fut], fut.result()
 
 
 def _input(runner, fr, scenario, seeds):

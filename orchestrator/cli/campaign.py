@@ -100,8 +100,10 @@ def run(args) -> int:
                                 progress=lambda text: print(f"  {text}"))
         print(f"wheel sweeps: {path} (worst speeds in {out / 'wheel_sweeps_worst.csv'})")
     if camp.uncertainty:
+        # samples run in this process unless --workers or --scheduler says otherwise
         path = run_uncertainty(camp, out, runner if engine == "linear" else None,
-                               progress=False if args.quiet else None)
+                               progress=False if args.quiet else None,
+                               workers=args.workers or 0, scheduler=args.scheduler)
         rep = json.loads(path.read_text(encoding="utf-8"))
         print(f"uncertainty: {rep['samples']} samples in {rep['wall_s']:.1f} s ({path}); "
               f"{rep['interpretation']}")

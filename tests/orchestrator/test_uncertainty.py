@@ -163,3 +163,34 @@ def test_modal_band_without_modes_is_refused():
     it = Uncertain("f", "modal_frequency", Distribution("uniform", 0.9, 1.1), band=(500, 600))
     with pytest.raises(UncertaintyError, match="no mode in the band"):
         draw([it], 3, 0, np.array([8.4, 9.5]))
+
+
+@pytest.mark.slow
+def test_pool_and_dask_give_the_same_samples(tmp_path, truss_fmus):
+    """Samples split over two worker processes, and over a Dask cluster, are the samples
+    of one process, to the last bit."""
+    import dataclasses
+
+    import distributed
+    import pyarrow.parquet as pq
+
+    unc = {"samples": 8, "seed": 2, "confidence": [0.95],
+           "parameters": [{"name": "freq", "kind": "modal_frequency", "per_mode": True,
+                           "distribution": "uniform", "low": 0.97, "high": 1.03}]}
+    camp = campaign_from_dict(_campaign(unc))
+    got = {}
+    for mode in ("serial", "pool", "dask"):
+        out = tmp_path / mode
+        runner = LinearRunner(camp.scenario_dir, fmu_dir=truss_fmus)
+        run_campaign(dataclasses.replace(camp), out, runner, progress=False)
+        if mode == "dask":
+            with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                          dashboard_address=None) as cluster:
+                run_uncertainty(camp, out, runner, progress=False,
+                                scheduler=cluster.scheduler_address)
+        else:
+            run_uncertainty(camp, out, runner, progress=False,
+                            workers=2 if mode == "pool" else 0)
+        got[mode] = [r["value"] for r in
+                     pq.read_table(out / "uncertainty_samples.parquet").to_pylist()]
+    assert got["pool"] == got["serial"] and got["dask"] == got["serial"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -100,10 +101,14 @@ def run(args) -> int:
                                 progress=lambda text: print(f"  {text}"))
         print(f"wheel sweeps: {path} (worst speeds in {out / 'wheel_sweeps_worst.csv'})")
     if camp.uncertainty:
-        # samples run in this process unless --workers or --scheduler says otherwise
+        # from 40 samples on, one worker per CPU (each closes its own loops) unless
+        # --workers says otherwise
+        many = camp.uncertainty["samples"] >= 40
+        workers = args.workers if args.workers is not None else (
+            (os.cpu_count() or 1) if many else 0)
         path = run_uncertainty(camp, out, runner if engine == "linear" else None,
                                progress=False if args.quiet else None,
-                               workers=args.workers or 0, scheduler=args.scheduler)
+                               workers=workers, scheduler=args.scheduler)
         rep = json.loads(path.read_text(encoding="utf-8"))
         print(f"uncertainty: {rep['samples']} samples in {rep['wall_s']:.1f} s ({path}); "
               f"{rep['interpretation']}")

@@ -20,6 +20,9 @@ import numpy as np
 import pyarrow.parquet as pq
 from matplotlib.figure import Figure
 
+from .analysis.spectra import cumulative_rms
+from .metrics import one_sided_psd
+
 __all__ = ["WORST_HEAD", "sweep_sections", "transfer_figure", "spectrum_figure",
            "uncertainty_sections"]
 
@@ -216,8 +219,9 @@ def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
     """One-sided PSD and cumulative RMS of each axis of a recorded line of sight.
 
     ``series`` as the report's time histories: ``(label, t, {axis: values})``; the
-    record after ``skip`` s, mean removed, Hann-windowed periodogram (the window's power
-    restored), cumulative RMS its running integral (its end is the record's RMS).
+    record after ``skip`` s, Welch's estimate over four Hann segments
+    (:func:`orchestrator.metrics.one_sided_psd`), the cumulative RMS its running integral
+    (its end is about the record's RMS).
 
     Parameters
     ----------
@@ -246,14 +250,8 @@ def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
             keep = t >= t[0] + skip - 1e-9
             x = np.asarray(cols[axis], float)[keep] * scale
             dt = float(np.median(np.diff(t)))
-            x = x - x.mean()
-            w = np.hanning(x.size)
-            X = np.fft.rfft(x * w)
-            f = np.fft.rfftfreq(x.size, dt)
-            psd = 2.0 * np.abs(X) ** 2 * dt / np.sum(w**2)
-            psd[0] /= 2.0
-            cum = np.sqrt(np.concatenate([[0.0], np.cumsum(0.5 * (psd[1:] + psd[:-1])
-                                                            * np.diff(f))]))
+            f, psd = one_sided_psd(x, dt, max(x.size * dt / 4, 10 * dt))   # Welch
+            cum = cumulative_rms(f, psd)
             axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), lw=0.7, label=label)
             axs[i][1].semilogx(f[1:], cum[1:], lw=0.9, label=label)
         axs[i][0].set_ylabel(f"{axis} ({unit}^2/Hz)")

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..metrics import response_psd
 from .blocks import AnalysisError
 from .fast import FastResponse
 
@@ -118,8 +119,9 @@ def output_psd(tr: Transfer, psd_in, direction=None) -> np.ndarray:
     if d.shape != (n_in,):
         raise AnalysisError(f"direction has shape {d.shape}; expected ({n_in},), one per "
                             "input of the transfer")
-    Hd = np.einsum("oif,i->of", tr.H, d)
-    return np.abs(Hd) ** 2 * np.asarray(psd_in, float)[None, :]
+    # one signal along d: the cross-spectral matrix of the inputs is d d^T S
+    S = np.multiply.outer(np.asarray(psd_in, float), np.outer(d, d))    # (n_f, n_in, n_in)
+    return response_psd(np.moveaxis(tr.H, -1, 0), S).T
 
 
 def cumulative_rms(freqs_hz, psd) -> np.ndarray:

@@ -22,7 +22,7 @@ from .. import metrics as M
 from .blocks import AnalysisError
 from .fast import FastResponse, balance
 
-__all__ = ["WheelSweep", "record_metrics", "steady_jitter", "unstable_poles", "wheel_sweep"]
+__all__ = ["WheelSweep", "steady_jitter", "unstable_poles", "wheel_sweep"]
 
 RPM = 2 * math.pi / 60.0   # rad/s per rpm
 
@@ -93,36 +93,6 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
     return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True)
 
 
-def record_metrics(x: np.ndarray, dt: float, metrics) -> np.ndarray:
-    """The campaign's metrics of records ``x`` (..., n_samples), as ``case_metrics`` does.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., n_samples)
-        Records, time last (rad).
-    dt : float
-        Sample interval (s).
-    metrics : sequence of (str, float or None)
-        ``(kind, window)`` pairs.
-
-    Returns
-    -------
-    ndarray, shape (..., n_metrics)
-    """
-    out = []
-    for kind, w in metrics:
-        if kind == "peak_to_peak":
-            v = M.peak_to_peak(x, dt, w, short="whole")
-        elif kind == "rms_jitter":
-            v = M.jitter_rms(x, dt, w)
-        elif kind == "stability":
-            v = M.stability_rms(x, dt, w)
-        else:
-            v = np.std(x, axis=-1)
-        out.append(np.asarray(v, float))
-    return np.stack(out, axis=-1)
-
-
 def steady_jitter(fr: FastResponse, freqs_hz, phasors, refs, metrics, duration: float, *,
                   chunk: int = 25) -> np.ndarray:
     """The campaign's metrics of the steady-state record at each point of a sweep.
@@ -179,7 +149,7 @@ def steady_jitter(fr: FastResponse, freqs_hz, phasors, refs, metrics, duration: 
         Yc = Y[:, sl].transpose(1, 2, 0, 3).reshape(zn.shape[0], n_h, -1)   # (c, n_h, P r)
         x = np.real(zn.transpose(0, 2, 1) @ Yc)                        # (c, n_b, P r)
         x = x.reshape(x.shape[0], n_blocks * fr.P, len(refs))[:, ::every][:, :n_samples]
-        values[sl] = record_metrics(x.transpose(0, 2, 1), dt, metrics)
+        values[sl] = M.metric_values(x.transpose(0, 2, 1), dt, metrics)
     return values
 
 

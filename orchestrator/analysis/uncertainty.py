@@ -9,9 +9,9 @@ of meeting the requirement, and a sensitivity ranking (Spearman rank correlation
 budget with every uncertain input).
 
 Interpretation (stated in every result): each sample's value is the worst window of its
-own record (windowed metrics are maxima over time), and the statistics run over the
-ensemble of samples: ECSS's *mixed* interpretation (temporal worst case, ensemble over
-the uncertain parameters).
+own record (windowed metrics are maxima over time), so a sample meets the requirement only
+if it does at all times, and the probability runs over the samples: ECSS's *ensemble*
+interpretation, as :func:`orchestrator.metrics.check_requirement` computes it.
 """
 
 from __future__ import annotations
@@ -21,11 +21,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..metrics import check_requirement
+
 __all__ = ["Distribution", "Uncertain", "draw", "statistics", "rank_correlation",
            "INTERPRETATION", "UncertaintyError"]
 
-INTERPRETATION = ("mixed: each sample is the worst window of its record (temporal), the "
-                  "probability is over the ensemble of samples")
+INTERPRETATION = ("ensemble: each sample is the worst window of its record (it meets the "
+                  "requirement only if it does at all times), the probability is over the "
+                  "samples")
 
 DISTRIBUTIONS = ("uniform", "normal", "lognormal")
 KINDS = ("modal_frequency", "modal_damping", "amplitude", "phase", "gain")
@@ -241,8 +244,8 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
     dict
         ``mean``, ``std``, ``quantiles`` (``P_c -> {value, low, high, rel_width,
         converged}``, the 95 % bootstrap interval and ``converged`` when its width is
-        below 2 % of the value), ``p_meet`` (fraction of samples ``<= X_max``, with its
-        binomial standard error ``p_meet_se``), ``sensitivity`` (input -> rank
+        below 2 % of the value, and ``meets``: ``prob(X < X_max) >= P_c``), ``p_meet``
+        (fraction of samples ``< X_max``, with its binomial standard error ``p_meet_se``), ``sensitivity`` (input -> rank
         correlation, largest magnitude first) and ``interpretation``.
     """
     x = np.asarray(samples, float)
@@ -258,7 +261,10 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         out["quantiles"][float(pc)] = {"value": v, "low": lo, "high": hi,
                                        "rel_width": width, "converged": bool(width < 0.02)}
     if not math.isnan(requirement):
-        p = float(np.mean(x <= requirement))
+        for pc in confidence:
+            chk = check_requirement(x[:, None], requirement, pc, "ensemble")
+            out["quantiles"][float(pc)]["meets"] = bool(chk.passed)
+        p = check_requirement(x[:, None], requirement, 1.0, "ensemble").probability
         out["p_meet"] = p
         out["p_meet_se"] = math.sqrt(max(p * (1 - p), 0.0) / x.size)
     sens = {name: rank_correlation(v, x) for name, v in (inputs or {}).items()}

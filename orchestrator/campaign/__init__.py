@@ -113,11 +113,11 @@ from .cases import Campaign, Case, campaign_from_dict, keyed, load_campaign
 from .engine import CampaignResult, run_campaign
 from .linear import LinearRunner, verify_campaign
 from .montecarlo import run_uncertainty
-from .wheel import run_wheel_sweeps
 from .runner import MasterRunner, case_metrics, execute_case
 from .spec import ANGLE_UNITS, ENGINES, METRIC_KINDS, RSS_EVENT, CampaignError
 from .store import slug
 from .summary import SUMMARY_SCHEMA, summarize, write_summary
+from .wheel import run_wheel_sweeps
 
 __all__ = [
     "ANGLE_UNITS",

@@ -79,7 +79,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     reached a limit (left NaN)."""
     from ..analysis.blocks import structure_block
     from ..analysis.fast import FastResponse, NonlinearError
-    from ..analysis.sweep import record_metrics
+    from ..metrics import metric_values
 
     items = campaign.uncertainty["parameters"]
     structural = any(it.kind in ("modal_frequency", "modal_damping", "gain") for it in items)
@@ -113,7 +113,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                     continue
                 keep = rec.times >= rec.times[0] + campaign.skip - 0.5 * dt
                 x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
-                values[row, ci, ei] = record_metrics(x.T, dt, campaign.metrics)
+                values[row, ci, ei] = metric_values(x.T, dt, campaign.metrics)
     return values, nonlinear
 
 
@@ -252,7 +252,8 @@ def _parallel(chunks, campaign, runner, draws, workers, scheduler):
         return
     import multiprocessing
     import os
-    from concurrent.futures import ProcessPoolExecutor, as_completed as done
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import as_completed as done
 
     # one BLAS thread per worker: N workers of two-threaded products on N cores run
     # three times slower than one process (measured); fresh interpreters read it

@@ -22,12 +22,21 @@ import pyarrow as pa
 
 from .. import metrics as M
 from ..cosim import find_fmu
-from ..run import run_scenario
 from ..results import RunResult, read_table
+from ..run import run_scenario
 from ..scenario import scenario_from_dict
 from .cases import Case
-from .store import (CASE_FILES, METRIC_SCHEMA, METRICS_FILE, RESULTS_FILE, STATUS_FILE,
-                    file_record, temporary_folder, write_json, write_table)
+from .store import (
+    CASE_FILES,
+    METRIC_SCHEMA,
+    METRICS_FILE,
+    RESULTS_FILE,
+    STATUS_FILE,
+    file_record,
+    temporary_folder,
+    write_json,
+    write_table,
+)
 
 # Names the time column of a results table may have.
 _TIME_COLUMNS = ("time", "t", "time_s")
@@ -160,15 +169,7 @@ def case_metrics(t, columns: Mapping, instruments: Mapping, metrics, skip: float
                     "add it to [record] variables of the scenario"
                 )
             x = np.asarray(columns[var], dtype=float)[keep]
-            for kind, w in metrics:
-                if kind == "peak_to_peak":
-                    v = M.peak_to_peak(x, dt, w, short="whole")
-                elif kind == "rms_jitter":
-                    v = M.jitter_rms(x, dt, w)
-                elif kind == "stability":
-                    v = M.stability_rms(x, dt, w)
-                else:
-                    v = float(np.std(x))
+            for (kind, w), v in zip(metrics, M.metric_values(x, dt, metrics)):
                 rows.append(dict(instrument=inst, axis=axis, metric=kind, window=w,
                                  value=float(v)))
     return rows

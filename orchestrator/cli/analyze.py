@@ -159,9 +159,9 @@ def _spectra(lin, args) -> int:
                 w.writerow(row)
         print(f"table: {args.csv}")
     if args.plot:
-        from orchestrator.report_sweeps import transfer_figure
         from orchestrator.files import atomic_write
         from orchestrator.report import png_bytes
+        from orchestrator.report_sweeps import transfer_figure
         data = png_bytes(transfer_figure(tr, psd, cum))
         atomic_write(args.plot, lambda tmp: Path(tmp).write_bytes(data))
         print(f"figure: {args.plot}")

@@ -54,9 +54,17 @@ def run(args) -> int:
     # deferred: the parser imports every subcommand (orchestrator.cli)
     import dataclasses
 
-    from ..campaign import (LinearRunner, MasterRunner, load_campaign, run_campaign,
-                            run_uncertainty, run_wheel_sweeps, slug, verify_campaign,
-                            write_summary)
+    from ..campaign import (
+        LinearRunner,
+        MasterRunner,
+        load_campaign,
+        run_campaign,
+        run_uncertainty,
+        run_wheel_sweeps,
+        slug,
+        verify_campaign,
+        write_summary,
+    )
 
     camp = load_campaign(args.campaign)
     engine = args.engine or camp.engine

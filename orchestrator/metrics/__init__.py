@@ -7,7 +7,8 @@ One module per concept:
   ``prob(X < Xmax) >= Pc`` checks (temporal, ensemble, mixed);
 * :mod:`~orchestrator.metrics.rms` — RMS windowed jitter and stability in the time domain;
 * :mod:`~orchestrator.metrics.spectral` — the same from a one-sided PSD or FRF × PSD;
-* :mod:`~orchestrator.metrics.budget` — RSS across events, margins, dominant events.
+* :mod:`~orchestrator.metrics.budget` — RSS across events, margins, dominant events;
+* :mod:`~orchestrator.metrics.kinds` — a campaign's metric kinds on records, one dispatch.
 
 Records are arrays with time on the last axis, sampled every ``dt`` seconds; durations are
 seconds; values keep the unit of the record (rad in the core, arcsec at the edges).
@@ -25,6 +26,7 @@ from .ecss import (
     rpe,
     sliding_means,
 )
+from .kinds import metric_values
 from .peak import peak_to_peak, peak_to_peak_series, window_samples
 from .rms import jitter_rms, stability_rms
 from .spectral import (
@@ -55,6 +57,7 @@ __all__ = [
     "jitter_rms_from_psd",
     "jitter_weight",
     "margin",
+    "metric_values",
     "mpe",
     "one_sided_psd",
     "pde",

@@ -70,7 +70,8 @@ def test_statistics_quantile_interval_and_probability():
     assert q["low"] <= q["value"] <= q["high"] and abs(q["value"] - 1.95) < 0.01
     assert q["converged"]                      # the interval is well below 2 % of 1.95
     assert abs(st["p_meet"] - 0.5) < 3 * st["p_meet_se"]
-    assert "mixed" in st["interpretation"]
+    assert "ensemble" in st["interpretation"]
+    assert st["quantiles"][0.95]["meets"] is False       # half the samples exceed 1.5
 
 
 @pytest.fixture(scope="module")

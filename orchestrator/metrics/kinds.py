@@ -1,0 +1,43 @@
+"""A campaign's metric kinds on records: one dispatch for cases, sweeps and samples."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .peak import peak_to_peak
+from .rms import jitter_rms, stability_rms
+
+__all__ = ["metric_values"]
+
+
+def metric_values(x, dt: float, metrics) -> np.ndarray:
+    """The metrics of records ``x``, time last.
+
+    Parameters
+    ----------
+    x : array_like, shape (..., n_samples)
+        Records (e.g. a line of sight in rad).
+    dt : float
+        Sample interval (s).
+    metrics : sequence of (str, float or None)
+        ``(kind, window)``: ``peak_to_peak`` (window T, the whole record when shorter),
+        ``rms_jitter`` (window T), ``stability`` (lag), ``rms`` (about the record mean).
+
+    Returns
+    -------
+    ndarray, shape (..., n_metrics)
+        In the unit of ``x``.
+    """
+    x = np.asarray(x, dtype=float)
+    out = []
+    for kind, w in metrics:
+        if kind == "peak_to_peak":
+            v = peak_to_peak(x, dt, w, short="whole")
+        elif kind == "rms_jitter":
+            v = jitter_rms(x, dt, w)
+        elif kind == "stability":
+            v = stability_rms(x, dt, w)
+        else:
+            v = np.std(x, axis=-1)
+        out.append(np.asarray(v, float))
+    return np.stack(out, axis=-1)

@@ -307,13 +307,13 @@ def uncertainty_sections(out_dir, instruments, unit):
             lines = [ln for ln in rep["lines"] if ln["instrument"] == inst
                      and ln["axis"] == axis and ln["metric"] == first_metric]
             for ln in lines:
-                x = np.sort([r["value"] for r in samples if (r["configuration"],
-                            r["instrument"], r["axis"], r["metric"]) ==
-                            (ln["configuration"], inst, axis, first_metric)
-                            and np.isfinite(r["value"])])
+                allx = np.array([r["value"] for r in samples if (r["configuration"],
+                                r["instrument"], r["axis"], r["metric"]) ==
+                                (ln["configuration"], inst, axis, first_metric)])
+                x = np.sort(allx[np.isfinite(allx)])   # inf: unstable, never below a bound
                 if x.size == 0:
                     continue
-                cdf = np.arange(1, x.size + 1) / x.size
+                cdf = np.arange(1, x.size + 1) / allx.size
                 line, = axs[i][0].step(x, cdf, where="post", lw=1.0,
                                        label=ln["configuration"])
                 for pc, q in ln.get("quantiles", {}).items():
@@ -347,4 +347,10 @@ def uncertainty_sections(out_dir, instruments, unit):
     text = (f"{rep['samples']} samples (seed {rep['seed']}), linear engine; "
             f"interpretation: {rep['interpretation']}; converged: the 95 % bootstrap "
             "interval of the value is narrower than 2 % of it.")
+    for cf, k in (rep.get("unstable") or {}).items():
+        lim = (rep.get("limit_reached") or {}).get(cf, 0)
+        if k or lim:
+            text += (f" {cf}: {k} sample(s) with an unstable closed loop and {lim} whose "
+                     "record reached a rail or limit, counted as exceeding every "
+                     "requirement (the CDF stops below 1).")
     return figures, rows, text

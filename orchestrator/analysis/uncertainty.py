@@ -31,6 +31,7 @@ INTERPRETATION = ("ensemble: each sample is the worst window of its record (it m
                   "samples")
 
 DISTRIBUTIONS = ("uniform", "normal", "lognormal")
+_BIG = np.finfo(float).max / 4   # the stand-in of an infinite sample
 KINDS = ("modal_frequency", "modal_damping", "amplitude", "phase", "gain")
 
 
@@ -242,22 +243,29 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
     Returns
     -------
     dict
-        ``mean``, ``std``, ``quantiles`` (``P_c -> {value, low, high, rel_width,
+        ``mean``, ``std`` (of the finite samples; ``n_infinite`` counts the others: a
+        sample outside the model, which fails every bound), ``quantiles`` (``P_c -> {value, low, high, rel_width,
         converged}``, the 95 % bootstrap interval and ``converged`` when its width is
         below 2 % of the value, and ``meets``: ``prob(X < X_max) >= P_c``), ``p_meet``
         (fraction of samples ``< X_max``, with its binomial standard error ``p_meet_se``), ``sensitivity`` (input -> rank
         correlation, largest magnitude first) and ``interpretation``.
     """
     x = np.asarray(samples, float)
+    # a sample outside the model is inf; the order statistics need a finite stand-in
+    x = np.where(np.isfinite(x), x, _BIG)
     rng = np.random.default_rng(seed)
     boot = rng.integers(0, x.size, size=(n_boot, x.size))
-    out = {"n": int(x.size), "mean": float(x.mean()), "std": float(x.std(ddof=1))
-           if x.size > 1 else 0.0, "quantiles": {}, "interpretation": INTERPRETATION}
+    fin = x[x < _BIG]
+    out = {"n": int(x.size), "n_infinite": int(x.size - fin.size),
+           "mean": float(fin.mean()) if fin.size else math.inf,
+           "std": float(fin.std(ddof=1)) if fin.size > 1 else 0.0, "quantiles": {},
+           "interpretation": INTERPRETATION}
     for pc in confidence:
         v = float(np.quantile(x, pc))
         bq = np.quantile(x[boot], pc, axis=1)
         lo, hi = (float(q) for q in np.quantile(bq, [0.025, 0.975]))
-        width = (hi - lo) / abs(v) if v else math.inf
+        v, lo, hi = (math.inf if q >= _BIG else q for q in (v, lo, hi))
+        width = (hi - lo) / abs(v) if v and math.isfinite(hi) else math.inf
         out["quantiles"][float(pc)] = {"value": v, "low": lo, "high": hi,
                                        "rel_width": width, "converged": bool(width < 0.02)}
     if not math.isnan(requirement):

@@ -75,10 +75,12 @@ def _setup(campaign, runner):
 
 
 def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
-    """Metrics ``(len(samples), configs, events, pairs, metrics)`` and the records that
-    reached a limit (left NaN)."""
+    """Metrics ``(len(samples), configs, events, pairs, metrics)`` and the status of every
+    sample and configuration: 0 evaluated, 1 a record reached a rail or limit, 2 the
+    closed loop is unstable (its metrics are ``inf``: it exceeds every requirement)."""
     from ..analysis.blocks import structure_block
     from ..analysis.fast import FastResponse, NonlinearError
+    from ..analysis.sweep import unstable_poles
     from ..metrics import metric_values
 
     items = campaign.uncertainty["parameters"]
@@ -88,7 +90,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     dt = tb.output_ticks * float(tb.base)
     values = np.full((len(samples), len(ctx["configs"]), len(ctx["events"]),
                       len(ctx["pairs"]), len(campaign.metrics)), np.nan)
-    nonlinear = 0
+    status = np.zeros((len(samples), len(ctx["configs"])), int)
     for row, s in enumerate(samples):
         for ci, cf in enumerate(ctx["configs"]):
             lin, structs, fr = ctx["base"][cf]
@@ -103,18 +105,23 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                         for j, inst in enumerate(it.instances):
                             lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
                 fr = FastResponse(lin, ctx["refs"])
+                if unstable_poles(fr):     # it diverges: no jitter, the requirement fails
+                    values[row, ci] = np.inf
+                    status[row, ci] = 2
+                    continue
             for ei, ev in enumerate(ctx["events"]):
                 sc, W = ctx["inputs"][(cf, ev)]
                 W = _sample_input(runner, fr, sc, W, draws, items, s)
                 try:
                     rec = fr.run(W)
-                except NonlinearError:
-                    nonlinear += 1
-                    continue
+                except NonlinearError:   # a rail or limit: outside the linear model
+                    values[row, ci] = np.inf
+                    status[row, ci] = max(status[row, ci], 1)
+                    break
                 keep = rec.times >= rec.times[0] + campaign.skip - 0.5 * dt
                 x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
                 values[row, ci, ei] = metric_values(x.T, dt, campaign.metrics)
-    return values, nonlinear
+    return values, status
 
 
 _WORKER: dict = {}   # per worker process: the compiled loops of the campaign it serves
@@ -171,17 +178,16 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     chunks = [list(c) for c in np.array_split(np.arange(n), min(n, 4 * parts)) if c.size]
     values = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]), m),
                      np.nan)
-    nonlinear = 0
+    status = np.zeros((n, len(ctx["configs"])), int)
     try:
         if scheduler is None and workers <= 1:
             for c in chunks:
-                v, k = _evaluate(campaign, runner, ctx, draws, c)
-                values[c], nonlinear = v, nonlinear + k
+                values[c], status[c] = _evaluate(campaign, runner, ctx, draws, c)
                 for _ in c:
                     bar.update("ok")
         else:
-            for c, (v, k) in _parallel(chunks, campaign, runner, draws, workers, scheduler):
-                values[c], nonlinear = v, nonlinear + k
+            for c, (v, st) in _parallel(chunks, campaign, runner, draws, workers, scheduler):
+                values[c], status[c] = v, st
                 for _ in c:
                     bar.update("ok")
     finally:
@@ -194,8 +200,8 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     for ci, cf in enumerate(configs):
         for j, (inst, axis, _) in enumerate(pairs):
             for k, (kind, window) in enumerate(campaign.metrics):
-                x = rss[:, ci, j, k] * scale
-                ok = np.isfinite(x)
+                x = rss[:, ci, j, k] * scale       # inf: unstable or out of the model
+                ok = ~np.isnan(x)
                 req = campaign.requirement(inst, axis, kind, window)
                 st = statistics(x[ok], unc["confidence"], req,
                                 inputs={nm: v[ok] for nm, v in scalar.items()},
@@ -203,7 +209,9 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                 st["sensitivity"] = dict(list(st.get("sensitivity", {}).items())[:10])
                 lines.append({"configuration": cf, "instrument": inst, "axis": axis,
                               "metric": kind, "window": window, "unit": campaign.unit,
-                              "requirement": req, "samples_used": int(ok.sum()), **st})
+                              "requirement": req, "samples_used": int(ok.sum()),
+                              "unstable": int(np.sum(status[:, ci] == 2)),
+                              "limit_reached": int(np.sum(status[:, ci] == 1)), **st})
                 rows += [{"sample": i, "configuration": cf, "instrument": inst,
                           "axis": axis, "metric": kind, "window": window,
                           "unit": campaign.unit, "value": float(x[i])} for i in range(n)]
@@ -224,7 +232,13 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                               "band": list(it.band),
                               "distribution": None if it.distribution is None else
                               dataclasses.asdict(it.distribution)} for it in items],
-              "nonlinear_records": nonlinear, "wall_s": time.perf_counter() - wall,
+              "unstable": {cf: int(np.sum(status[:, ci] == 2)) for ci, cf in enumerate(configs)},
+              "limit_reached": {cf: int(np.sum(status[:, ci] == 1))
+                                for ci, cf in enumerate(configs)},
+              "unstable_means": "the closed loop of the sample has a pole outside the unit "
+                                "circle, or one of its records reached a rail or limit: its "
+                                "budget counts as infinite (it exceeds every requirement)",
+              "wall_s": time.perf_counter() - wall,
               "memory": "per sample: the metrics of each record; one record at a time",
               "lines": lines}
     write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(report, default=float)))

@@ -120,6 +120,11 @@ def run(args) -> int:
         rep = json.loads(path.read_text(encoding="utf-8"))
         print(f"uncertainty: {rep['samples']} samples in {rep['wall_s']:.1f} s ({path}); "
               f"{rep['interpretation']}")
+        for cf, k in rep["unstable"].items():
+            if k or rep["limit_reached"][cf]:
+                print(f"  {cf}: {k} sample(s) with an unstable loop, "
+                      f"{rep['limit_reached'][cf]} reaching a rail or limit: counted as "
+                      "exceeding every requirement")
         for line in rep["lines"]:
             qs = ", ".join(f"P{100 * float(pc):g} = {q['value']:.4g}"
                            + ("" if q["converged"] else " (not converged)")

@@ -195,3 +195,20 @@ def test_pool_and_dask_give_the_same_samples(tmp_path, truss_fmus):
         got[mode] = [r["value"] for r in
                      pq.read_table(out / "uncertainty_samples.parquet").to_pylist()]
     assert got["pool"] == got["serial"] and got["dask"] == got["serial"]
+
+
+@pytest.mark.slow
+def test_unstable_samples_count_as_failing(tmp_path, truss_fmus):
+    """Gains up to 40 times the design: the loop is unstable beyond about 20 (the truss
+    loops at 25 x are, test_linear_sweep); such samples fail every requirement."""
+    unc = {"samples": 30, "seed": 9, "confidence": [0.5],
+           "parameters": [{"name": "g", "kind": "gain", "instances": ["ctrl_diag",
+                                                                       "ctrl_long"],
+                           "distribution": "uniform", "low": 1.0, "high": 40.0}]}
+    _, rep = _run(tmp_path, _campaign(unc), truss_fmus)
+    k = rep["unstable"]["on"]
+    assert 0 < k < 30
+    for line in rep["lines"]:
+        assert line["unstable"] == k and line["n_infinite"] >= k
+        if "p_meet" in line:
+            assert line["p_meet"] <= 1 - k / 30 + 1e-12

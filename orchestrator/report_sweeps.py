@@ -349,8 +349,10 @@ def uncertainty_sections(out_dir, instruments, unit):
             "interval of the value is narrower than 2 % of it.")
     for cf, k in (rep.get("unstable") or {}).items():
         lim = (rep.get("limit_reached") or {}).get(cf, 0)
+        fast = (rep.get("diverging_in_record") or {}).get(cf, 0)
         if k or lim:
-            text += (f" {cf}: {k} sample(s) with an unstable closed loop and {lim} whose "
-                     "record reached a rail or limit, counted as exceeding every "
-                     "requirement (the CDF stops below 1).")
+            text += (f" {cf}: {k} sample(s) with an unstable closed loop ({fast} doubling "
+                     f"within the record; their records are evaluated as the co-simulation "
+                     f"would give them) and {lim} whose record reached a rail or limit, "
+                     "counted as exceeding every requirement (the CDF stops below 1).")
     return figures, rows, text

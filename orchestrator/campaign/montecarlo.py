@@ -75,9 +75,10 @@ def _setup(campaign, runner):
 
 
 def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
-    """Metrics ``(len(samples), configs, events, pairs, metrics)`` and the status of every
-    sample and configuration: 0 evaluated, 1 a record reached a rail or limit, 2 the
-    closed loop is unstable (its metrics are ``inf``: it exceeds every requirement)."""
+    """Metrics ``(len(samples), configs, events, pairs, metrics)`` and the status bits of
+    every sample and configuration: 1 a record reached a rail or limit (its metrics are
+    ``inf``: it exceeds every requirement), 2 the closed loop is unstable, 4 so unstable
+    that it more than doubles over the record."""
     from ..analysis.blocks import structure_block
     from ..analysis.fast import FastResponse, NonlinearError
     from ..analysis.sweep import unstable_poles
@@ -88,6 +89,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     lin0 = ctx["base"][ctx["configs"][0]][0]
     tb = lin0.plan.timebase
     dt = tb.output_ticks * float(tb.base)
+    record_ticks = tb.n_ticks
     values = np.full((len(samples), len(ctx["configs"]), len(ctx["events"]),
                       len(ctx["pairs"]), len(campaign.metrics)), np.nan)
     status = np.zeros((len(samples), len(ctx["configs"])), int)
@@ -105,10 +107,10 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                         for j, inst in enumerate(it.instances):
                             lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
                 fr = FastResponse(lin, ctx["refs"])
-                if unstable_poles(fr):     # it diverges: no jitter, the requirement fails
-                    values[row, ci] = np.inf
-                    status[row, ci] = 2
-                    continue
+                bad = unstable_poles(fr)
+                if bad:   # reported; the record is what the co-simulation would give
+                    growth = abs(bad[0]) ** (record_ticks / fr.P)
+                    status[row, ci] |= 2 | (4 if growth > 2.0 else 0)
             for ei, ev in enumerate(ctx["events"]):
                 sc, W = ctx["inputs"][(cf, ev)]
                 W = _sample_input(runner, fr, sc, W, draws, items, s)
@@ -116,7 +118,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                     rec = fr.run(W)
                 except NonlinearError:   # a rail or limit: outside the linear model
                     values[row, ci] = np.inf
-                    status[row, ci] = max(status[row, ci], 1)
+                    status[row, ci] |= 1
                     break
                 keep = rec.times >= rec.times[0] + campaign.skip - 0.5 * dt
                 x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
@@ -210,8 +212,8 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                 lines.append({"configuration": cf, "instrument": inst, "axis": axis,
                               "metric": kind, "window": window, "unit": campaign.unit,
                               "requirement": req, "samples_used": int(ok.sum()),
-                              "unstable": int(np.sum(status[:, ci] == 2)),
-                              "limit_reached": int(np.sum(status[:, ci] == 1)), **st})
+                              "unstable": int(np.sum(status[:, ci] & 2 > 0)),
+                              "limit_reached": int(np.sum(status[:, ci] & 1 > 0)), **st})
                 rows += [{"sample": i, "configuration": cf, "instrument": inst,
                           "axis": axis, "metric": kind, "window": window,
                           "unit": campaign.unit, "value": float(x[i])} for i in range(n)]
@@ -232,12 +234,17 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                               "band": list(it.band),
                               "distribution": None if it.distribution is None else
                               dataclasses.asdict(it.distribution)} for it in items],
-              "unstable": {cf: int(np.sum(status[:, ci] == 2)) for ci, cf in enumerate(configs)},
-              "limit_reached": {cf: int(np.sum(status[:, ci] == 1))
+              "unstable": {cf: int(np.sum(status[:, ci] & 2 > 0))
+                           for ci, cf in enumerate(configs)},
+              "diverging_in_record": {cf: int(np.sum(status[:, ci] & 4 > 0))
+                                      for ci, cf in enumerate(configs)},
+              "limit_reached": {cf: int(np.sum(status[:, ci] & 1 > 0))
                                 for ci, cf in enumerate(configs)},
-              "unstable_means": "the closed loop of the sample has a pole outside the unit "
-                                "circle, or one of its records reached a rail or limit: its "
-                                "budget counts as infinite (it exceeds every requirement)",
+              "status_means": "unstable: the sample's closed loop has a pole outside the unit "
+                              "circle (its records are evaluated as the co-simulation would "
+                              "give them); diverging_in_record: that pole more than doubles "
+                              "over the record; limit_reached: a record reached a rail or "
+                              "limit, and the sample counts as exceeding every requirement",
               "wall_s": time.perf_counter() - wall,
               "memory": "per sample: the metrics of each record; one record at a time",
               "lines": lines}

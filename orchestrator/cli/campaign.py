@@ -122,9 +122,10 @@ def run(args) -> int:
               f"{rep['interpretation']}")
         for cf, k in rep["unstable"].items():
             if k or rep["limit_reached"][cf]:
-                print(f"  {cf}: {k} sample(s) with an unstable loop, "
-                      f"{rep['limit_reached'][cf]} reaching a rail or limit: counted as "
-                      "exceeding every requirement")
+                print(f"  {cf}: {k} sample(s) with an unstable loop "
+                      f"({rep['diverging_in_record'][cf]} doubling within the record), "
+                      f"{rep['limit_reached'][cf]} reaching a rail or limit (counted as "
+                      "exceeding every requirement)")
         for line in rep["lines"]:
             qs = ", ".join(f"P{100 * float(pc):g} = {q['value']:.4g}"
                            + ("" if q["converged"] else " (not converged)")

@@ -128,7 +128,11 @@ class FastResponse:
         self._zero = [j for j, r in enumerate(self.refs) if self._is_flag(r)]
         computed = [r for r in self.refs if not self._is_flag(r)]
         self._computed = [j for j, r in enumerate(self.refs) if not self._is_flag(r)]
-        rows = [lin.index(r) for r in computed] + [lin.index(c[0]) for c in self._checks]
+        # a checked output that is also recorded is computed once
+        extra = [c[0] for c in self._checks if c[0] not in computed]
+        self._check_col = [computed.index(c[0]) if c[0] in computed
+                           else len(computed) + extra.index(c[0]) for c in self._checks]
+        rows = [lin.index(r) for r in computed] + [lin.index(r) for r in extra]
         # exogenous inputs: every source output, in block order
         self.inputs = [(n, j) for n in lin.sources for j in range(len(lin.blocks[n].outputs))]
         self._in_off = {}
@@ -324,7 +328,7 @@ class FastResponse:
         K = W.shape[0]
         active = np.flatnonzero(np.any(W != 0.0, axis=0))
         Wa = W[:, active]
-        r = len(self._computed) + len(self._checks)
+        r = len(self._computed) + len(set(self._check_col) - set(range(len(self._computed))))
         Y = np.zeros((K, r))
         s = self.n_memory
         # the runs of the record, in order: (type key, start)
@@ -371,12 +375,12 @@ class FastResponse:
         times = self.times(K - 1)
         n_ref = len(self._computed)
         limits = {}
-        top, bottom = Y[:, n_ref:].max(axis=0), Y[:, n_ref:].min(axis=0)
+        top, bottom = Y.max(axis=0)[self._check_col], Y.min(axis=0)[self._check_col]
         for j, (ref, lo, hi, what) in enumerate(self._checks):
             used = max(top[j] / hi if hi > 0 else 0.0, bottom[j] / lo if lo < 0 else 0.0)
             limits[ref] = float(used)
             if check and (top[j] > hi or bottom[j] < lo):
-                y = Y[:, n_ref + j]
+                y = Y[:, self._check_col[j]]
                 bad = np.flatnonzero((y > hi) | (y < lo))[0]
                 raise NonlinearError(
                     f"{ref} reaches its {what} ({y[bad]:.4g} outside [{lo:.4g}, {hi:.4g}]) "

@@ -71,6 +71,15 @@ def _figure(curves, inst, axes, xlabel, unit, title):
     return fig
 
 
+def _add_curve(curves, worst, where, x, y, req, at):
+    """One configuration's curve of a panel and its worst point (a row of WORST_HEAD)."""
+    sweep, cf, inst, axis, metric = where
+    curves.setdefault(axis, []).append((cf, x, y, req))
+    k = int(np.argmax(y))
+    worst.append([sweep, cf, inst, axis, metric, at.format(x[k]), _fmt(y[k]), _fmt(req),
+                  _fmt(req - y[k]) if not math.isnan(req) else ""])
+
+
 def _wheel(out_dir: Path, instruments, metric, window, unit):
     path = out_dir / "wheel_sweeps.parquet"
     if not path.is_file():
@@ -89,12 +98,8 @@ def _wheel(out_dir: Path, instruments, metric, window, unit):
                         continue
                     x = np.array([r["rpm"] for r in sel])
                     y = np.array([r["value"] for r in sel])
-                    req = sel[0]["requirement"]
-                    curves.setdefault(axis, []).append((cf, x, y, req))
-                    k = int(np.argmax(y))
-                    worst.append([sweep, cf, inst, axis, metric, f"{x[k]:.0f} rpm",
-                                  _fmt(y[k]), _fmt(req),
-                                  _fmt(req - y[k]) if not math.isnan(req) else ""])
+                    _add_curve(curves, worst, (sweep, cf, inst, axis, metric), x, y,
+                               sel[0]["requirement"], "{:.0f} rpm")
             if curves:
                 figures.append((f"{inst}: {sweep}, steady state",
                                 _figure(curves, inst, list(axes), "wheel speed (rpm)", unit,
@@ -133,12 +138,8 @@ def _parameter(summary, instruments, metric, window, unit, rss_event):
                         continue
                     x = np.array([p for p, _ in sel])
                     y = np.array([r["value"] for _, r in sel])
-                    req = sel[0][1]["requirement"]
-                    curves.setdefault(axis, []).append((cf, x, y, req))
-                    k = int(np.argmax(y))
-                    worst.append([param, cf, inst, axis, metric, f"{param} = {x[k]:.4g}",
-                                  _fmt(y[k]), _fmt(req),
-                                  _fmt(req - y[k]) if not math.isnan(req) else ""])
+                    _add_curve(curves, worst, (param, cf, inst, axis, metric), x, y,
+                               sel[0][1]["requirement"], f"{param} = {{:.4g}}")
             if curves:
                 figures.append((f"{inst}: RSS against {param}",
                                 _figure(curves, inst, list(axes), param, unit,

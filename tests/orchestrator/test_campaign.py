@@ -577,3 +577,21 @@ def test_any_campaign_layout_is_a_campaign_or_one_clear_error(data):
         campaign_from_dict(mixed)
     except CampaignError as exc:
         assert "\n" not in str(exc) and len(str(exc)) < 2000
+
+
+def test_report_draws_the_rss_against_a_swept_parameter(tmp_path):
+    """[[sweeps]] over sc.mass: the report holds one sweep figure per instrument and the
+    worst points, the worst being the point whose RSS is the largest in the summary."""
+    from orchestrator.report import write_report
+    camp = campaign_from_dict(campaign_data(sweep=True))
+    run_campaign(camp, tmp_path, synthetic_runner, workers=0, progress=False)
+    text = write_report(tmp_path, "md").read_text(encoding="utf-8")
+    assert "RSS against sc.mass" in text and "## Worst points of the sweeps" in text
+    rss = [r for r in pq.read_table(tmp_path / "summary.parquet").to_pylist()
+           if r["event"] == "RSS" and r["metric"] == "peak_to_peak"
+           and r["configuration"] == "isolation off" and r["axis"] == "pitch"
+           and r["instrument"] == "A"]
+    top = max(rss, key=lambda r: r["value"])
+    at = float(top["sweep"].split("=")[1])
+    want = f"| sc.mass | isolation off | A | pitch | peak_to_peak | sc.mass = {at:.4g} |"
+    assert want in text

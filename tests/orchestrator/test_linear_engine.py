@@ -14,8 +14,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from orchestrator.analysis import AnalysisError, linearize
-from orchestrator.analysis.fast import FastResponse
+from orchestrator.analysis import AnalysisError
 from orchestrator.campaign import (CampaignError, LinearRunner, MasterRunner,
                                    campaign_from_dict, keyed, load_campaign, run_campaign,
                                    verify_campaign)

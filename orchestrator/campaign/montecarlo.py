@@ -17,6 +17,7 @@ meeting the requirement, the sensitivity ranking and the ECSS interpretation) an
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 import time
@@ -182,7 +183,10 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                      np.nan)
     status = np.zeros((n, len(ctx["configs"])), int)
     try:
-        if scheduler is None and workers <= 1:
+        if unc.get("engine") == "cosim":
+            values, status = _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler,
+                                         runner, bar)
+        elif scheduler is None and workers <= 1:
             for c in chunks:
                 values[c], status[c] = _evaluate(campaign, runner, ctx, draws, c)
                 for _ in c:
@@ -228,7 +232,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     write_table(pa.Table.from_pylist(rows), out / SAMPLES_FILE)
     write_table(pa.Table.from_pylist(summary), out / "uncertainty_summary.csv", csv=True)
     report = {"samples": n, "seed": unc["seed"], "confidence": list(unc["confidence"]),
-              "interpretation": INTERPRETATION, "engine": "linear",
+              "interpretation": INTERPRETATION, "engine": unc.get("engine", "linear"),
               "parameters": [{"name": it.name, "kind": it.kind, "instances":
                               list(it.instances), "per_mode": it.per_mode,
                               "band": list(it.band),
@@ -292,6 +296,70 @@ def _parallel(chunks, campaign, runner, draws, workers, scheduler):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+def _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler, runner, bar):
+    """The samples as co-simulated cases (``[uncertainty] engine = "cosim"``).
+
+    Every sample, configuration and event is a case of the base campaign with the draws
+    as parameter overrides: a source's ``scale`` (amplitude) and ``seed`` (phases), a
+    controller's ``gain``; they run as any campaign's cases (resumable, pool or Dask)
+    under ``out_dir/uncertainty_cases``.
+    """
+    from .cases import Case, keyed
+    from .runner import MasterRunner
+    from .store import METRICS_FILE, case_status
+    from .engine import run_campaign
+
+    import pyarrow.parquet as pq
+
+    items = campaign.uncertainty["parameters"]
+    configs, events, pairs = ctx["configs"], ctx["events"], ctx["pairs"]
+    case_of = {(c.configuration, c.event): c for c in campaign.cases if not c.sweep}
+    cases, where = [], []
+    for s in range(draws.n):
+        for ci, cf in enumerate(configs):
+            for ei, ev in enumerate(events):
+                base = case_of[(cf, ev)]
+                sc = json.loads(json.dumps(base.scenario))
+                for it in items:
+                    for j, inst in enumerate(it.instances):
+                        p = sc["fmus"][inst].setdefault("parameters", {})
+                        v = draws.values[it.name][s, j]
+                        if it.kind == "amplitude":
+                            p["scale"] = float(p.get("scale", 1.0)) * float(v)
+                        elif it.kind == "phase":
+                            p["seed"] = int(v)
+                        else:
+                            p["gain"] = float(p.get("gain", 1.0)) * float(v)
+                key = hashlib.sha256(json.dumps(sc, sort_keys=True).encode()).hexdigest()
+                cases.append(Case(key, f"{base.label} | sample {s}", ev, cf, f"sample={s}",
+                                  sc))
+                where.append((s, ci, ei))
+    mc = dataclasses.replace(campaign, cases=tuple(cases), uncertainty=None,
+                             wheel_sweeps=(), engine="cosim")
+    master = MasterRunner(campaign.scenario_dir, fmu_dir=runner.fmu_dir)
+    folder = Path(out_dir) / "uncertainty_cases"
+    run_campaign(mc, folder, master, workers=workers or None, scheduler=scheduler,
+                 progress=False)
+    mc = keyed(mc, master)
+    values = np.full((draws.n, len(configs), len(events), len(pairs),
+                      len(campaign.metrics)), np.nan)
+    status = np.zeros((draws.n, len(configs)), int)
+    index = {(p[0], p[1]): j for j, p in enumerate(pairs)}
+    metric_index = {(k, w): i for i, (k, w) in enumerate(campaign.metrics)}
+    for case, (s, ci, ei) in zip(mc.cases, where):
+        st = case_status(folder / "cases", case.key)
+        if not st or st.get("status") != "ok":
+            values[s, ci] = np.inf        # a failed co-simulation: no jitter to give
+            status[s, ci] |= 1
+            continue
+        for r in pq.read_table(folder / "cases" / case.key / METRICS_FILE).to_pylist():
+            values[s, ci, ei, index[(r["instrument"], r["axis"])],
+                   metric_index[(r["metric"], r["window"])]] = r["value"]
+    for _ in range(draws.n):
+        bar.update("ok")
+    return values, status
 
 
 def _input(runner, fr, scenario, seeds):

@@ -41,7 +41,7 @@ RSS_EVENT = "RSS"
 # Valid keys of every table of a campaign file.
 _KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metrics",
          "requirements", "wheel_sweeps", "uncertainty")
-_UNCERTAINTY_KEYS = ("samples", "seed", "confidence", "parameters")
+_UNCERTAINTY_KEYS = ("samples", "seed", "confidence", "parameters", "engine")
 _PARAMETER_KEYS = ("name", "kind", "distribution", "low", "high", "mean", "std", "median",
                    "sigma", "instances", "per_mode", "band")
 _CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm",
@@ -431,6 +431,10 @@ def _uncertainty(table, fmus: dict):
             for c in conf)):
         raise CampaignError(f"[uncertainty] confidence is {conf!r}; expected a list of "
                             "levels in (0, 1), e.g. [0.95, 0.9973]")
+    engine = table.get("engine", "linear")
+    if engine not in ENGINES:
+        raise CampaignError(f"[uncertainty] engine is {engine!r}; expected one of "
+                            f"{list(ENGINES)}")
     items = table.get("parameters", [])
     if not isinstance(items, list) or not items:
         raise CampaignError("[uncertainty] needs 'parameters', a non-empty list of tables")
@@ -477,8 +481,14 @@ def _uncertainty(table, fmus: dict):
     names = [u.name for u in out]
     if len(set(names)) != len(names):
         raise CampaignError(f"uncertain parameters have duplicate names {names}; name them")
+    if engine == "cosim":
+        modal = [u.name for u in out if u.kind in ("modal_frequency", "modal_damping")]
+        if modal:
+            raise CampaignError(f"uncertain {modal[0]!r} moves the structure's modes, which a "
+                                "co-simulation would need a structure FMU per sample for; "
+                                "run it on the linear engine (engine = \"linear\")")
     return {"samples": n, "seed": seed, "confidence": tuple(float(c) for c in conf),
-            "parameters": tuple(out)}
+            "parameters": tuple(out), "engine": engine}
 
 
 def _overrides(item, what: str) -> dict:

@@ -214,3 +214,32 @@ def test_unstable_samples_are_counted_and_fail_once_out_of_the_model(tmp_path, t
         assert line["unstable"] == k and line["n_infinite"] == lim
         if "p_meet" in line:
             assert line["p_meet"] <= 1 - lim / 30 + 1e-12
+
+
+@pytest.mark.slow
+def test_cosimulated_samples_equal_the_linear_ones(tmp_path, truss_fmus):
+    """engine = "cosim": every sample, configuration and event a co-simulated case with
+    the draws as overrides; the same samples as the linear engine's, to 1e-9."""
+    import pyarrow.parquet as pq
+    unc = {"samples": 3, "seed": 5, "confidence": [0.5],
+           "parameters": [{"name": "g", "kind": "gain", "instances": ["ctrl_diag"],
+                           "distribution": "uniform", "low": 0.5, "high": 1.5}]}
+    got = {}
+    for engine in ("linear", "cosim"):
+        _, rep = _run(tmp_path / engine, _campaign({**unc, "engine": engine}), truss_fmus)
+        assert rep["engine"] == engine
+        got[engine] = np.array([r["value"] for r in pq.read_table(
+            tmp_path / engine / "uncertainty_samples.parquet").to_pylist()])
+    assert (tmp_path / "cosim" / "uncertainty_cases" / "summary.parquet").is_file()
+    np.testing.assert_allclose(got["cosim"], got["linear"], rtol=1e-9)
+
+
+def test_cosimulated_modal_uncertainty_is_refused():
+    data = {"campaign": {"name": "x", "scenario": {
+        "experiment": {"stop": 0.1}, "fmus": {"a": {"fmu": "x.fmu", "period": 1e-3}}}},
+        "instruments": [{"name": "i", "axes": {"x": "a.y"}}],
+        "uncertainty": {"engine": "cosim", "parameters": [
+            {"name": "f", "kind": "modal_frequency", "distribution": "uniform",
+             "low": 0.9, "high": 1.1}]}}
+    with pytest.raises(CampaignError, match="'f' moves the structure's modes.*linear engine"):
+        campaign_from_dict(data)

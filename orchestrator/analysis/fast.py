@@ -394,6 +394,13 @@ class FastResponse:
         return Record(values, times, self.refs, limits)
 
     # ------------------------------------------------------------------ steady state
+    def period_map(self) -> np.ndarray:
+        """The memory state's map over one super-period, ``(n_memory, n_memory)``."""
+        Phi = np.eye(self.n_memory)
+        for sig, L in self._runs:
+            Phi = self._type(sig, L).ML @ Phi
+        return Phi
+
     def ref_rows(self, refs) -> np.ndarray:
         """Rows of the computed outputs (``Y`` columns) holding ``refs``."""
         computed = [self.refs[j] for j in self._computed]
@@ -440,11 +447,8 @@ class FastResponse:
         for sig, L in self._runs:
             units.append((self._type(sig, L), k))
             k += L
-        Phi = np.eye(self.n_memory)
-        for t, _ in units:
-            Phi = t.ML @ Phi
         # exact power-of-two balancing: the memory state mixes metres, volts and strains
-        Phi_b, scale = balance(Phi)
+        Phi_b, scale = balance(self.period_map())
         T, Q = la.schur(Phi_b, output="complex")
         zT, diag = -T, np.diag(T).copy()
         out = np.zeros((self.P, freqs.size, sel.size), complex)

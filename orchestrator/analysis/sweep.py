@@ -85,10 +85,7 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
     list of complex
         Largest magnitude first.
     """
-    Phi = np.eye(fr.n_memory)
-    for sig, L in fr._runs:
-        Phi = fr._type(sig, L).ML @ Phi
-    Phi_b, _ = balance(Phi)
+    Phi_b, _ = balance(fr.period_map())
     ev = np.linalg.eigvals(Phi_b)
     return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True)
 

@@ -14,6 +14,7 @@ instrument and axis, the largest difference between the two engines.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import tempfile
@@ -109,8 +110,48 @@ class LinearRunner:
                 self._source_blocks[key] = b
         return b
 
+    def inputs(self, fr: FastResponse, scenario: dict, seeds=None) -> np.ndarray:
+        """The source matrix ``W`` of a case on the compiled loop ``fr``.
+
+        Parameters
+        ----------
+        fr : FastResponse
+            :meth:`compiled` of the case.
+        scenario : dict
+            The case's scenario data (the sources' parameters are read from it).
+        seeds : dict of str to int, optional
+            Phase seeds replacing some sources' ``seed`` (one Monte Carlo sample); those
+            source blocks are not kept.
+
+        Returns
+        -------
+        ndarray, shape (n_ticks + 1, m)
+
+        Raises
+        ------
+        AnalysisError
+            For a source without an open-loop series (an input-driven wheel).
+        """
+        seeds = seeds or {}
+        sc = self._master._scenario(scenario)
+        n_ticks = fr.lin.plan.timebase.n_ticks
+        insts = {i.name: i for i in sc.instances}
+        series = {}
+        for name in fr.lin.sources:
+            inst = insts[name]
+            if name in seeds:
+                inst = dataclasses.replace(inst, parameters={**inst.parameters,
+                                                             "seed": int(seeds[name])})
+            b = self._source_block(fr, inst, cache=name not in seeds)
+            if b.series is None:
+                raise AnalysisError(f"source {name!r} has no open-loop series (an input-"
+                                    "driven wheel); the linear engine cannot drive it: run "
+                                    "this case with the co-simulation (--engine cosim)")
+            series[name] = b.series(fr.times(n_ticks, b.period))
+        return fr.input_matrix(series, n_ticks)
+
     def record(self, scenario: dict):
-        """A case's record: ``(times, {ref: values})`` at every tick, and the record.
+        """A case's record and the output stride of its table.
 
         Raises
         ------
@@ -120,19 +161,7 @@ class LinearRunner:
             a rail or limit.
         """
         fr = self.compiled(scenario)
-        sc = self._master._scenario(scenario)
-        tb = fr.lin.plan.timebase
-        n_ticks = tb.n_ticks
-        series = {}
-        insts = {i.name: i for i in sc.instances}
-        for name in fr.lin.sources:
-            b = self._source_block(fr, insts[name])
-            if b.series is None:
-                raise AnalysisError(f"source {name!r} has no open-loop series (an input-"
-                                    "driven wheel); the linear engine cannot drive it: run "
-                                    "this case with the co-simulation (--engine cosim)")
-            series[name] = b.series(fr.times(n_ticks, b.period))
-        return fr.run(fr.input_matrix(series, n_ticks)), tb.output_ticks
+        return fr.run(self.inputs(fr, scenario)), fr.lin.plan.timebase.output_ticks
 
     def __call__(self, scenario: dict, out_dir) -> RunResult:
         """Run a case's scenario into ``out_dir`` (``results.parquet``, ``run.json``).

@@ -53,15 +53,21 @@ def _perturbed(model, draws, items, s):
                                modal_damping=model.modal_damping * f_omega * f_zeta)
 
 
+def _layout(campaign) -> dict:
+    """The lines (instrument, axis, variable), configurations and events of a campaign."""
+    pairs = [(inst, axis, var) for inst, axes in campaign.instruments.items()
+             for axis, var in axes.items()]
+    return {"pairs": pairs, "refs": [var for _, _, var in pairs],
+            "configs": list(dict.fromkeys(c.configuration for c in campaign.cases)),
+            "events": list(dict.fromkeys(c.event for c in campaign.cases))}
+
+
 def _setup(campaign, runner):
     """Everything a process needs to evaluate samples: compiled loops, event inputs."""
     from ..analysis.fast import FastResponse
 
-    pairs = [(inst, axis, var) for inst, axes in campaign.instruments.items()
-             for axis, var in axes.items()]
-    refs = [var for _, _, var in pairs]
-    configs = list(dict.fromkeys(c.configuration for c in campaign.cases))
-    events = list(dict.fromkeys(c.event for c in campaign.cases))
+    ctx = _layout(campaign)
+    refs, configs, events = ctx["refs"], ctx["configs"], ctx["events"]
     case_of = {(c.configuration, c.event): c for c in campaign.cases if not c.sweep}
     base, inputs = {}, {}
     for cf in configs:
@@ -70,9 +76,8 @@ def _setup(campaign, runner):
         base[cf] = (fr0.lin, structs, FastResponse(fr0.lin, refs))
         for ev in events:
             sc = case_of[(cf, ev)].scenario
-            inputs[(cf, ev)] = (sc, _input(runner, runner.compiled(sc), sc, {}))
-    return {"pairs": pairs, "refs": refs, "configs": configs, "events": events,
-            "base": base, "inputs": inputs}
+            inputs[(cf, ev)] = (sc, runner.inputs(runner.compiled(sc), sc))
+    return {**ctx, "base": base, "inputs": inputs}
 
 
 def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
@@ -172,10 +177,13 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     runner = runner if isinstance(runner, LinearRunner) else LinearRunner(campaign.scenario_dir)
     items = unc["parameters"]
     n, m = unc["samples"], len(campaign.metrics)
-    ctx = _setup(campaign, runner)
-    lin0, structs, _ = ctx["base"][ctx["configs"][0]]
-    model0 = lin0.blocks[structs[0]].model if structs else None
-    draws = draw(items, n, unc["seed"], None if model0 is None else model0.frequencies_hz)
+    if unc.get("engine") == "cosim":   # no linear loop: modal kinds are refused there
+        ctx, freqs = _layout(campaign), None
+    else:
+        ctx = _setup(campaign, runner)
+        lin0, structs, _ = ctx["base"][ctx["configs"][0]]
+        freqs = lin0.blocks[structs[0]].model.frequencies_hz if structs else None
+    draws = draw(items, n, unc["seed"], freqs)
     bar = ProgressBar(n, "uncertainty", "sample", enabled=progress)
     parts = max(1, int(workers)) if scheduler is None else 2 * max(1, int(workers) or 2)
     chunks = [list(c) for c in np.array_split(np.arange(n), min(n, 4 * parts)) if c.size]
@@ -362,24 +370,6 @@ def _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler, runner, bar):
     return values, status
 
 
-def _input(runner, fr, scenario, seeds):
-    """The source matrix ``W`` of a case (``seeds``: instance -> phase seed)."""
-    sc = runner._master._scenario(scenario)
-    n_ticks = fr.lin.plan.timebase.n_ticks
-    series = {}
-    for inst in sc.instances:
-        if inst.name not in fr.lin.sources:
-            continue
-        if inst.name in seeds:
-            inst = dataclasses.replace(inst, parameters={**inst.parameters,
-                                                         "seed": int(seeds[inst.name])})
-        b = runner._source_block(fr, inst, cache=not seeds)
-        if b.series is None:
-            continue   # an instance taken out of the loop, or without a series: zero
-        series[inst.name] = b.series(fr.times(n_ticks, b.period))
-    return fr.input_matrix(series, n_ticks)
-
-
 def _sample_input(runner, fr, scenario, W, draws, items, s):
     """``W`` of sample ``s``: new phases, then the amplitude factors on the columns."""
     seeds = {}
@@ -388,7 +378,7 @@ def _sample_input(runner, fr, scenario, W, draws, items, s):
             for j, inst in enumerate(it.instances):
                 seeds[inst] = draws.values[it.name][s, j]
     if seeds:
-        W = _input(runner, fr, scenario, seeds)
+        W = runner.inputs(fr, scenario, seeds)
     factors = {}
     for it in items:
         if it.kind == "amplitude":

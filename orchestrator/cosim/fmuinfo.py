@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +27,10 @@ class Variable:
     variability: str
     unit: str | None
     start: object = None
+    #: declared ``min`` and ``max`` of a Real (the range outside which its value means
+    #: the model left its validity, e.g. a diverging loop); -inf and inf when undeclared
+    min: float = -math.inf
+    max: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,23 @@ class FmuInfo:
 
 
 _INFO_CACHE: dict = {}
+
+
+def _declared_range(path: Path, v) -> tuple:
+    """``(min, max)`` declared on a Real, as floats (-inf, inf where undeclared)."""
+    bounds = []
+    for attr, default in (("min", -math.inf), ("max", math.inf)):
+        text = getattr(v, attr, None) if v.type == "Real" else None
+        try:
+            bounds.append(default if text is None else float(text))
+        except ValueError:
+            raise ScenarioError(f"FMU {str(path)!r}: variable {v.name!r} has {attr}="
+                                f"{text!r}, which is not a number; fix its model "
+                                "description") from None
+    if bounds[0] > bounds[1]:
+        raise ScenarioError(f"FMU {str(path)!r}: variable {v.name!r} has min {bounds[0]!r} "
+                            f"above max {bounds[1]!r}; fix its model description")
+    return tuple(bounds)
 
 
 def read_fmu_info(path) -> FmuInfo:
@@ -87,7 +109,8 @@ def read_fmu_info(path) -> FmuInfo:
     for v in md.modelVariables:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
         variables[v.name] = Variable(v.name, int(v.valueReference), v.type, v.causality,
-                                     v.variability, unit, v.start)
+                                     v.variability, unit, v.start,
+                                     *_declared_range(path, v))
     inputs = frozenset(n for n, v in variables.items() if v.causality == "input")
     feedthrough = {}
     for u in md.outputs:

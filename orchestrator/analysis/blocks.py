@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from fmutools.archive import ArchiveError, SizeLimits, check_directory, copy_member
 from piezofmu.amplifier import linear_map
 from structfmu.discrete import discretize, step
 from structfmu.statespace import first_order
@@ -328,14 +329,19 @@ def extract_resources(path: Path, res: Path) -> Path:
     Path
         ``res``.
     """
-    with zipfile.ZipFile(path) as z:
-        for member in z.namelist():
-            if member.startswith("resources/") and not member.endswith("/"):
-                target = res / member[len("resources/"):]
-                if not target.resolve().is_relative_to(res.resolve()):
-                    raise AnalysisError(f"FMU {path.name} has an unsafe path {member!r}")
-                target.parent.mkdir(parents=True, exist_ok=True)
-                target.write_bytes(z.read(member))
+    where, limits = f"FMU {path.name!r}", SizeLimits.from_env()
+    try:
+        with zipfile.ZipFile(path) as z:
+            check_directory(z, where, limits)
+            budget = [limits.total]
+            for info in z.infolist():
+                if info.filename.startswith("resources/") and not info.is_dir():
+                    target = res.joinpath(*info.filename.split("/")[1:])
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    with open(target, "wb") as out:
+                        copy_member(z, info, out.write, where, limits, budget)
+    except ArchiveError as exc:
+        raise AnalysisError(str(exc)) from None
     return res
 
 

@@ -9,11 +9,13 @@ from pathlib import Path
 from fmpy import read_model_description
 
 from fmutools import PYTHON_SUBDIR
+from fmutools.archive import model_identifier_problem
+from fmutools.validate import archive_problem
 
 from ..files import sha256_file
 from ..scenario import Scenario, ScenarioError, closest
 
-__all__ = ["Variable", "FmuInfo", "read_fmu_info", "find_fmu"]
+__all__ = ["FmuInfo", "Variable", "find_fmu", "read_fmu_info"]
 
 
 @dataclass(frozen=True)
@@ -95,16 +97,19 @@ def read_fmu_info(path) -> FmuInfo:
     key = (str(path), st.st_mtime_ns, st.st_size)
     if key in _INFO_CACHE:
         return _INFO_CACHE[key]
+    problem = archive_problem(path)
+    if problem is not None:
+        raise ScenarioError(problem)
     try:
         md = read_model_description(str(path), validate=False)
-    except Exception as exc:
+    except Exception as exc:  # noqa: BLE001 - fmpy raises anything on a bad file
         raise ScenarioError(f"FMU {str(path)!r} has no readable modelDescription.xml: {exc}")
-    if md.fmiVersion != "2.0" or md.coSimulation is None:
-        raise ScenarioError(
-            f"FMU {str(path)!r} is FMI {md.fmiVersion} "
-            f"{'co-simulation' if md.coSimulation else 'model exchange only'}; "
-            "expected FMI 2.0 co-simulation"
-        )
+    if md.coSimulation is None:
+        raise ScenarioError(f"FMU {str(path)!r} is model exchange only; this master runs "
+                            "FMI 2.0 co-simulation FMUs: export it for co-simulation")
+    problem = model_identifier_problem(md.coSimulation.modelIdentifier)
+    if problem is not None:
+        raise ScenarioError(f"FMU {str(path)!r}: {problem}")
     variables = {}
     for v in md.modelVariables:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)

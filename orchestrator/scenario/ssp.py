@@ -17,13 +17,15 @@ import zipfile
 from fractions import Fraction
 from pathlib import Path
 
-from ..files import atomic_write
+from fmutools.archive import ArchiveError, inside
 from fmutools.fmucache import CacheError, extract_cached
+
+from ..files import atomic_write
 from ..timebase import make_timebase, to_fraction
 from .model import Scenario, ScenarioError
 from .toml import scenario_from_dict
 
-__all__ = ["write_ssp", "read_ssp", "JacobiExportWarning"]
+__all__ = ["JacobiExportWarning", "read_ssp", "write_ssp"]
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -243,6 +245,14 @@ def _extract(path: Path) -> Path:
         raise ScenarioError(str(exc)) from None
 
 
+def _inside(folder: Path, ref: str, what: str) -> Path:
+    """The file ``ref`` names inside the archive's ``folder``, or one ScenarioError."""
+    try:
+        return inside(folder, ref, what)
+    except ArchiveError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
 def read_ssp(path) -> Scenario:
     """Read an SSP archive (or an extracted folder) back into a Scenario.
 
@@ -292,7 +302,10 @@ def read_ssp(path) -> Scenario:
         name, source = comp.get("name"), comp.get("source")
         if not name or not source:
             raise ScenarioError(f"{where}: a Component lacks 'name' or 'source'")
-        fmu_path = (ssd_path.parent / source).resolve()
+        if name in fmus:
+            raise ScenarioError(f"{where} has two components named {name!r}; give each "
+                                "component its own name")
+        fmu_path = _inside(folder, source, f"{where}: source of component {name!r}").resolve()
         spec = {"fmu": str(fmu_path)}
         hint = None
         for ann in comp.findall("ssd:Annotations/*", NS):
@@ -310,7 +323,8 @@ def read_ssp(path) -> Scenario:
         params = {}
         for binding in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
             if binding.get("source"):
-                ssv = ssd_path.parent / binding.get("source")
+                ssv = _inside(folder, binding.get("source"),
+                              f"{where}: parameter binding source of component {name!r}")
                 if not ssv.is_file():
                     raise ScenarioError(f"{where}: parameter file {binding.get('source')!r} "
                                         f"of component {name!r} is missing")

@@ -4,24 +4,26 @@ The C loader of the Python FMUs (:mod:`fmutools.loader`) and the master's compil
 loop (:mod:`orchestrator.cosim.fastloop`) are both built this way: the cache entry
 ``<name>-<key>.so`` is keyed by a hash of everything the library depends on, compiled
 into a temporary folder and renamed into place (a killed build never leaves half a
-library), and used only if it is a regular file of the current user.  When the cache
-cannot be used, the library is compiled into a temporary folder of this process.
+library), and used only if it is a regular file of the current user that neither its
+group nor others can write (anything else is compiled again and replaced).  When the
+cache cannot be used, the library is compiled into a temporary folder of this process,
+removed when the process exits.
 """
 
 from __future__ import annotations
 
+import atexit
 import functools
 import os
 import shutil
-import stat
 import subprocess
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from fmutools.fmucache import CacheError, cache_root
+from fmutools.fmucache import CacheError, cache_root, is_own
 
-__all__ = ["compiler_version", "compiled_once", "is_own_file"]
+__all__ = ["compiled_once", "compiler_version", "is_own_file"]
 
 _COMPILED: dict[str, Path] = {}
 
@@ -34,12 +36,20 @@ def compiler_version(cc: str) -> str:
 
 
 def is_own_file(path: Path) -> bool:
-    """True if ``path`` is a non-empty regular file (not a link) of the current user."""
+    """True if ``path`` is a non-empty regular file (not a link) of the current user
+    that neither its group nor others can write (:func:`fmutools.fmucache.is_own`)."""
     try:
-        st = os.lstat(path)
+        return is_own(path) and os.lstat(path).st_size > 0
     except OSError:
         return False
-    return stat.S_ISREG(st.st_mode) and st.st_uid == os.getuid() and st.st_size > 0
+
+
+@functools.cache
+def _process_folder() -> Path:
+    """A private temporary folder of this process, removed when the process exits."""
+    folder = Path(tempfile.mkdtemp(prefix="fmutools_compiled_"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return folder
 
 
 def compiled_once(name: str, key: str, compile_to: Callable[[Path], object]) -> Path:
@@ -66,13 +76,14 @@ def compiled_once(name: str, key: str, compile_to: Callable[[Path], object]) -> 
     try:
         root = cache_root()
     except CacheError:
-        root = Path(tempfile.mkdtemp(prefix=f"fmutools_{name}_"))
+        root = _process_folder()
     dest = root / f"{name}-{key}.so"
     if not is_own_file(dest):
         partial = Path(tempfile.mkdtemp(prefix=f".{name}-partial-", dir=root))
         try:
             out = partial / f"{name}.so"
             compile_to(out)
+            os.chmod(out, 0o755)  # whatever the umask: no one else may write it
             os.replace(out, dest)
         finally:
             shutil.rmtree(partial, ignore_errors=True)

@@ -22,6 +22,8 @@ import zipfile
 import zlib
 from pathlib import Path
 
+from fmutools.archive import ArchiveError, SizeLimits, check_directory, copy_member
+
 #: Name of the file, inside each cache entry, that lists the hashes of its files.
 MANIFEST = ".jitterfmu-manifest.json"
 
@@ -82,6 +84,32 @@ def _check_private(folder: Path, what: str) -> None:
         os.chmod(folder, 0o700)
 
 
+def is_own(path, *, directory: bool = False, deny: int = 0o022) -> bool:
+    """True if ``path`` is a real directory or regular file of the current user.
+
+    A symbolic link, a file of another user, or one whose mode has any bit of ``deny``
+    set (by default: writable by the group or by others) is not.
+
+    Parameters
+    ----------
+    path : path-like
+    directory : bool
+        Expect a directory (else a regular file).
+    deny : int
+        Mode bits that must all be clear, e.g. ``0o077`` for a private folder.
+
+    Returns
+    -------
+    bool
+    """
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    kind = stat.S_ISDIR(st.st_mode) if directory else stat.S_ISREG(st.st_mode)
+    return kind and st.st_uid == os.getuid() and not st.st_mode & deny
+
+
 def _file_digests(path: Path) -> tuple[str, int, int]:
     """SHA-256 (hex), size and CRC-32 of one file."""
     h, crc, size = hashlib.sha256(), 0, 0
@@ -109,9 +137,7 @@ def _entry_is_intact(dest: Path, sha256: str, members: dict[str, tuple[int, int]
     size and CRC-32 that the archive itself lists for it.
     """
     try:
-        st = os.lstat(dest)
-        if (stat.S_ISLNK(st.st_mode) or not stat.S_ISDIR(st.st_mode)
-                or st.st_uid != os.getuid() or st.st_mode & 0o077):
+        if not is_own(dest, directory=True, deny=0o077):
             return False
         manifest = json.loads((dest / MANIFEST).read_text())
         if manifest.get("archive_sha256") != sha256:
@@ -142,37 +168,50 @@ def _entry_is_intact(dest: Path, sha256: str, members: dict[str, tuple[int, int]
         return False
 
 
-def _unpack(data: bytes, archive: Path, into: Path, kind: str) -> dict:
-    """Unpack zip ``data`` into ``into``; return ``{member: sha256}``."""
+def _unpack(data: bytes, archive: Path, into: Path, kind: str,
+            limits: SizeLimits | None = None) -> dict:
+    """Unpack zip ``data`` into ``into`` within ``limits``; return ``{member: sha256}``."""
+    where = f"{kind.upper()} file {str(archive)!r}"
     try:
         zf = zipfile.ZipFile(io.BytesIO(data))
     except zipfile.BadZipFile:
-        raise CacheError(f"{kind.upper()} file {str(archive)!r} is not a zip archive") from None
+        raise CacheError(f"{where} is not a zip archive") from None
+    limits = SizeLimits.from_env() if limits is None else limits
     files = {}
     with zf:
+        try:
+            check_directory(zf, where, limits)
+        except ArchiveError as exc:
+            raise CacheError(str(exc)) from None
+        budget = [limits.total]
         for info in zf.infolist():
             name = info.filename
-            parts = name.split("/")
-            if ("\\" in name or ":" in name or name.startswith("/") or ".." in parts
-                    or name == MANIFEST):
-                raise CacheError(f"{kind.upper()} file {str(archive)!r} holds the unsafe path "
-                                 f"{name!r}; expected relative paths with forward slashes")
+            if name == MANIFEST:
+                raise CacheError(f"{where} holds a member named {MANIFEST!r}, which this "
+                                 "cache reserves; rename it")
             if info.is_dir():
                 continue
-            target = into.joinpath(*parts)
+            target = into.joinpath(*name.split("/"))
             target.parent.mkdir(parents=True, exist_ok=True)
+            h = hashlib.sha256()
             try:
-                content = zf.read(info)
+                with open(target, "wb") as out:
+                    def sink(chunk, out=out, h=h):
+                        h.update(chunk)
+                        out.write(chunk)
+                    copy_member(zf, info, sink, where, limits, budget)
+            except ArchiveError as exc:
+                raise CacheError(str(exc)) from None
             except (zipfile.BadZipFile, zlib.error, OSError, RuntimeError, EOFError) as exc:
-                raise CacheError(f"{kind.upper()} file {str(archive)!r} is corrupt: member "
-                                 f"{name!r} cannot be read ({exc})") from None
-            target.write_bytes(content)
-            files[name] = hashlib.sha256(content).hexdigest()
+                raise CacheError(f"{where} is corrupt: member {name!r} cannot be read "
+                                 f"({exc or exc.__class__.__name__})") from None
+            files[name] = h.hexdigest()
     return files
 
 
 def extract_cached(archive, sha256: str | None = None, *, kind: str = "fmu",
-                   required: str = "modelDescription.xml") -> Path:
+                   required: str = "modelDescription.xml",
+                   limits: SizeLimits | None = None) -> Path:
     """Unpack ``archive`` once per content hash into the private cache; return the folder.
 
     Parameters
@@ -186,6 +225,9 @@ def extract_cached(archive, sha256: str | None = None, *, kind: str = "fmu",
         Prefix of the cache entry and word used in messages (``"fmu"``, ``"ssp"``).
     required : str
         Member the archive must hold (e.g. ``modelDescription.xml``).
+    limits : fmutools.archive.SizeLimits, optional
+        Largest uncompressed sizes per member and in all (default
+        :meth:`~fmutools.archive.SizeLimits.from_env`).
 
     Returns
     -------
@@ -196,7 +238,8 @@ def extract_cached(archive, sha256: str | None = None, *, kind: str = "fmu",
     ------
     CacheError
         If the cache is not private, the archive changed while it was read, is not a zip
-        archive, holds an unsafe path or lacks ``required``.
+        archive, holds an unsafe path, unpacks to more than ``limits`` or lacks
+        ``required``.
     """
     archive = Path(archive)
     root = cache_root()
@@ -222,7 +265,7 @@ def extract_cached(archive, sha256: str | None = None, *, kind: str = "fmu",
     _prune(root)
     tmp = Path(tempfile.mkdtemp(prefix=f".{kind}-partial-", dir=root))
     try:
-        files = _unpack(data, archive, tmp, kind)
+        files = _unpack(data, archive, tmp, kind, limits)
         if required not in files:
             raise CacheError(f"{kind.upper()} file {str(archive)!r} has no {required}")
         (tmp / MANIFEST).write_text(json.dumps({"archive_sha256": actual, "files": files},
@@ -260,9 +303,9 @@ def _prune(root: Path) -> None:
                                       ".fastloop-partial-", ".discarded-")):
                 if now - entry.lstat().st_mtime > _PARTIAL_AGE:
                     shutil.rmtree(entry, ignore_errors=True)
-            elif entry.name.startswith(("fmu-", "ssp-")) and entry not in _VERIFIED:
-                if now - (entry / MANIFEST).stat().st_mtime > MAX_AGE:
-                    _discard(entry, root)
+            elif (entry.name.startswith(("fmu-", "ssp-")) and entry not in _VERIFIED
+                  and now - (entry / MANIFEST).stat().st_mtime > MAX_AGE):
+                _discard(entry, root)
         except OSError:
             continue
 

@@ -12,13 +12,19 @@ from __future__ import annotations
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from xml.etree.ElementTree import fromstring
+from xml.etree.ElementTree import ParseError, fromstring
 
 from fmpy.validation import validate_fmu as fmpy_validate
 
 from fmukit.modeldesc import check_model_description
+from fmutools.archive import (
+    ArchiveError,
+    check_directory,
+    model_identifier_problem,
+    read_member,
+)
 
-__all__ = ["FmuCheck", "check_fmu", "validate_fmu"]
+__all__ = ["FmuCheck", "archive_problem", "check_fmu", "validate_fmu"]
 
 
 @dataclass(frozen=True)
@@ -65,26 +71,65 @@ def check_fmu(path: str | Path) -> FmuCheck:
         One sentence per problem, each prefixed with the file name.
     """
     path = Path(path)
-    if not path.is_file():
-        return FmuCheck(errors=(f"FMU {path} does not exist",))
-    try:
-        with zipfile.ZipFile(path) as zf:
-            names = set(zf.namelist())
-            xml = zf.read("modelDescription.xml") if "modelDescription.xml" in names else None
-    except zipfile.BadZipFile:
-        return FmuCheck(errors=(f"FMU {path} is not a zip archive",))
-    if xml is None:
-        return FmuCheck(errors=(f"FMU {path} has no modelDescription.xml",))
+    problem = archive_problem(path)
+    if problem is not None:
+        return FmuCheck(errors=(problem,))
+    with zipfile.ZipFile(path) as zf:
+        names = set(zf.namelist())
+        xml = read_member(zf, "modelDescription.xml", f"FMU {path}")
+    cs = fromstring(xml).find("CoSimulation")
+    problem = None if cs is None else model_identifier_problem(cs.get("modelIdentifier"))
+    if problem is not None:
+        return FmuCheck(errors=(f"{path.name}: {problem}",))
     errors = [f"{path.name}: {p}" for p in fmpy_validate(str(path))]
     if errors:  # the conventions need a readable model description
         return FmuCheck(errors=tuple(errors))
     warnings = [f"{path.name}: {p}" for p in check_model_description(xml)]
-    cs = fromstring(xml).find("CoSimulation")
     if cs is not None:
         binary = f"binaries/linux64/{cs.get('modelIdentifier')}.so"
         if binary not in names:
             warnings.append(f"{path.name}: {binary} is missing; expected the Linux binary")
     return FmuCheck(tuple(errors), tuple(warnings))
+
+
+def archive_problem(path) -> str | None:
+    """Why the file at ``path`` cannot be read as an FMI 2.0 FMU at all, or None.
+
+    It must exist, be a zip archive within the size limits whose member paths stay
+    inside it (:mod:`fmutools.archive`), and hold a ``modelDescription.xml`` of FMI 2.0.
+
+    Parameters
+    ----------
+    path : path-like
+        ``.fmu`` file.
+
+    Returns
+    -------
+    str or None
+        One sentence naming the file, or None.
+    """
+    path = Path(path)
+    where = f"FMU {str(path)!r}"
+    if not path.is_file():
+        return f"{where} does not exist"
+    try:
+        with zipfile.ZipFile(path) as zf:
+            check_directory(zf, where)
+            if "modelDescription.xml" not in zf.namelist():
+                return f"{where} has no modelDescription.xml"
+            xml = read_member(zf, "modelDescription.xml", where)
+    except zipfile.BadZipFile:
+        return f"{where} is not a zip archive"
+    except ArchiveError as exc:
+        return str(exc)
+    try:
+        version = fromstring(xml).get("fmiVersion")
+    except ParseError as exc:
+        return f"{where}: modelDescription.xml is not well-formed XML ({exc})"
+    if version != "2.0":
+        return (f"{where} is FMI {version}, and this master runs FMI 2.0 FMUs only; export "
+                "the model as an FMI 2.0 co-simulation FMU")
+    return None
 
 
 def validate_fmu(path: str | Path, *, strict: bool = True) -> list[str]:

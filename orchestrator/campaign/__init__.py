@@ -113,7 +113,7 @@ from .cases import Campaign, Case, campaign_from_dict, keyed, load_campaign
 from .engine import CampaignResult, run_campaign
 from .linear import LinearRunner, verify_campaign
 from .montecarlo import run_uncertainty
-from .runner import MasterRunner, case_metrics, execute_case
+from .runner import CampaignInterrupted, MasterRunner, case_metrics, execute_case
 from .spec import ANGLE_UNITS, ENGINES, METRIC_KINDS, RSS_EVENT, CampaignError
 from .store import slug
 from .summary import SUMMARY_SCHEMA, summarize, write_summary
@@ -125,6 +125,7 @@ __all__ = [
     "METRIC_KINDS",
     "Campaign",
     "CampaignError",
+    "CampaignInterrupted",
     "CampaignResult",
     "Case",
     "LinearRunner",

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .spec import CampaignError, CampaignSpec, parse_spec, read_spec
+from .store import canonical
 
 
 @dataclass(frozen=True)
@@ -82,6 +83,12 @@ class Campaign:
     uncertainty : dict or None
         The ``[uncertainty]`` table checked: ``samples``, ``seed``, ``confidence`` and
         ``parameters`` (:class:`~orchestrator.analysis.uncertainty.Uncertain`).
+    source : str
+        Where the campaign came from (``"campaign file 'c.toml'"``), for messages.
+    overrides : tuple of (str, str)
+        Every ``instance.variable`` the campaign sets, with the field that sets it;
+        :func:`~orchestrator.campaign.run_campaign` checks them against the FMUs before
+        any case runs.
     """
 
     name: str
@@ -97,6 +104,8 @@ class Campaign:
     verify: int = 2
     wheel_sweeps: tuple = ()
     uncertainty: dict | None = None
+    source: str = "campaign data"
+    overrides: tuple = ()
 
     def requirement(self, instrument: str, axis: str, metric: str, window) -> float:
         """Requirement (in ``unit``) for one summary row, NaN if none applies.
@@ -149,7 +158,7 @@ def expand(spec: CampaignSpec) -> Campaign:
             scenario = _with_overrides(spec.scenario, overrides)
             definition = {"scenario": scenario, "instruments": spec.instruments,
                           "metrics": list(spec.metrics), "skip": spec.skip}
-            key = hashlib.sha256(_canonical(definition).encode()).hexdigest()
+            key = hashlib.sha256(canonical(definition).encode()).hexdigest()
             sweep = ", ".join(f"{p}={v}" for p, v in point)
             label = " | ".join(x for x in (ev.name, cf.name, sweep) if x)
             cases.append(Case(key, label, ev.name, cf.name, sweep, scenario))
@@ -164,7 +173,7 @@ def expand(spec: CampaignSpec) -> Campaign:
                   for w in spec.wheel_sweeps for cf in spec.configurations)
     return Campaign(spec.name, tuple(cases), spec.instruments, spec.metrics, spec.requirements,
                     spec.unit, spec.skip, spec.base_dir, spec.scenario_dir, spec.engine,
-                    spec.verify, wheel, spec.uncertainty)
+                    spec.verify, wheel, spec.uncertainty, spec.source, spec.overrides)
 
 
 def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:
@@ -241,7 +250,3 @@ def _with_overrides(scenario: dict, overrides: dict) -> dict:
         inst, var = key.split(".", 1)
         out["fmus"][inst].setdefault("parameters", {})[var] = value
     return out
-
-
-def _canonical(obj) -> str:
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)

@@ -3,26 +3,30 @@
 The campaign folder is locked for the run; cases whose folders are verified finished are
 skipped (resume), the others run with at most ``workers`` in flight, and a case whose
 worker died is recorded as failed.  Pool workers exit when the campaign process dies.
+In this process (``workers=0``), SIGTERM or SIGINT stops the campaign: the finished
+cases are kept, the one in flight is dropped, and :class:`CampaignInterrupted` says so.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import shutil
+import signal
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..progress import ProgressBar
 from .cases import Campaign, Case, keyed
-from .runner import MasterRunner, execute_case, one_sentence
+from .runner import CampaignInterrupted, MasterRunner, execute_case, one_sentence
 from .spec import CampaignError
-from .store import case_verified, record_lost, write_json
+from .store import case_doubt, record_lost, write_json
 from .summary import write_summary
 
 _LOCK_FILE = ".jitterfmu.lock"
@@ -42,6 +46,9 @@ class CampaignResult:
         ``summary.parquet``.
     failures : dict of str to str
         Case label to one-sentence error.
+    rerun : dict of str to str
+        Case label to why its folder was not trusted (a copied or linked folder of
+        another case, files that are not the recorded ones); those cases ran again.
     """
 
     out_dir: Path
@@ -51,6 +58,7 @@ class CampaignResult:
     n_failed: int
     summary: Path
     failures: dict
+    rerun: dict = field(default_factory=dict)
 
     def __iter__(self):
         return iter((self.n_failed, self.summary))
@@ -92,20 +100,30 @@ def run_campaign(
     -------
     CampaignResult
         Unpacks as ``n_failed, summary_path``.
+
+    Raises
+    ------
+    CampaignError
+        Before any case runs, when an override or swept parameter names a variable its
+        FMU does not have or cannot set (runners with ``override_problem``).
+    CampaignInterrupted
+        With ``workers=0``, on SIGTERM or SIGINT: the finished cases are kept and the
+        summary of those is written; the message says what was kept and how to resume.
     """
     out = Path(out_dir)
     cases_dir = out / "cases"
+    if runner is None and campaign.engine == "linear":
+        from .linear import LinearRunner
+        runner = LinearRunner(campaign.scenario_dir)
+    runner = runner or MasterRunner(campaign.scenario_dir)
+    if getattr(runner, "engine", "cosim") == "linear":
+        # one compiled loop per configuration, kept in this process
+        workers, scheduler = 0, None
+    _check_overrides(campaign, runner)
     cases_dir.mkdir(parents=True, exist_ok=True)
     with _folder_lock(out):
         for stale in cases_dir.glob(".tmp-*"):  # left by a killed run
             shutil.rmtree(stale, ignore_errors=True)
-        if runner is None and campaign.engine == "linear":
-            from .linear import LinearRunner
-            runner = LinearRunner(campaign.scenario_dir)
-        runner = runner or MasterRunner(campaign.scenario_dir)
-        if getattr(runner, "engine", "cosim") == "linear":
-            # one compiled loop per configuration, kept in this process
-            workers, scheduler = 0, None
         campaign = keyed(campaign, runner)
         write_json(out / "campaign.json", {
             "name": campaign.name, "unit": campaign.unit, "skip": campaign.skip,
@@ -115,7 +133,9 @@ def run_campaign(
             "cases": [{"key": c.key, "label": c.label, "event": c.event,
                        "configuration": c.configuration, "sweep": c.sweep} for c in campaign.cases],
         })
-        todo = [case for case in campaign.cases if not case_verified(cases_dir, case.key)]
+        doubts = {case.key: case_doubt(cases_dir, case) for case in campaign.cases}
+        todo = [case for case in campaign.cases if doubts[case.key] is not None]
+        rerun = {case.label: doubts[case.key] for case in todo if doubts[case.key]}
         skipped = len(campaign.cases) - len(todo)
         bar = ProgressBar(len(campaign.cases), "campaign", "case", enabled=progress)
         for _ in range(skipped):
@@ -131,19 +151,66 @@ def run_campaign(
 
         args = (runner, cases_dir, campaign.instruments, campaign.metrics, campaign.skip)
         workers = (os.cpu_count() or 1) if workers is None else int(workers)
+        finished = 0
         try:
             if scheduler is not None:
                 _run_dask(todo, args, scheduler, on_done)
             elif workers <= 0:
-                for case in todo:
-                    on_done(case, execute_case(case, *args))
+                with _stop_on_signals():
+                    for case in todo:
+                        on_done(case, execute_case(case, *args))
+                        finished += 1
             else:
                 _run_local(todo, args, workers, on_done)
+        except (CampaignInterrupted, KeyboardInterrupt) as exc:
+            bar.close()
+            signum = getattr(exc, "signum", signal.SIGINT)
+            write_summary(campaign, out)
+            kept = skipped + finished - len(failures)
+            raise CampaignInterrupted(signum, (
+                f"campaign {campaign.name!r} stopped by {signal.Signals(signum).name}: kept "
+                f"{kept} finished case(s) in {str(cases_dir)!r}, {len(todo) - finished} not "
+                "run; run the same command again to resume")) from None
         finally:
             bar.close()
         summary_path = write_summary(campaign, out)
         return CampaignResult(out, len(campaign.cases), len(todo), skipped, len(failures),
-                              summary_path, failures)
+                              summary_path, failures, rerun)
+
+
+def _check_overrides(campaign: Campaign, runner) -> None:
+    """Every variable the campaign sets must be settable in its FMU (before any case)."""
+    problem = getattr(runner, "override_problem", None)
+    if problem is None or not campaign.cases:
+        return
+    base = campaign.cases[0].scenario     # cases differ in parameter values only
+    for where, ref in campaign.overrides:
+        why = problem(base, ref)
+        if why:
+            raise CampaignError(f"{campaign.source}: {where}: {why}")
+
+
+@contextlib.contextmanager
+def _stop_on_signals():
+    """SIGTERM and SIGINT raise :class:`CampaignInterrupted` (main thread only).
+
+    The master installs its own handlers for the length of a run (it ends the run
+    between steps); this handler covers the campaign's own code between runs and
+    runners without such a guard.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handle(signum, frame):
+        raise CampaignInterrupted(signum)
+
+    previous = {sig: signal.signal(sig, handle) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _run_local(todo, args, workers, on_done):
@@ -254,11 +321,30 @@ def _die_with_parent(parent_pid: int, period: float = 1.0) -> None:
     def watch():
         while True:
             time.sleep(period)
-            try:
-                os.kill(parent_pid, 0)
-            except ProcessLookupError:
+            if not _alive(parent_pid):
                 os._exit(1)
-            except PermissionError:
-                pass
 
     threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` still runs: a zombie (dead, not yet reaped) does not.
+
+    ``os.kill(pid, 0)`` succeeds on a zombie, so on Linux the state letter of
+    ``/proc/PID/stat`` decides (``Z`` zombie, ``X`` dead); elsewhere the signal check.
+    """
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:   # another user's process: it exists
+        pass
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat = f.read()
+    except FileNotFoundError:
+        return not os.path.isdir("/proc/self")    # gone, where /proc exists
+    except OSError:
+        return True
+    # "pid (command) S ...": the command may hold spaces and parentheses
+    return stat.rpartition(b")")[2].split()[:1] not in ([b"Z"], [b"X"])

@@ -74,6 +74,10 @@ class LinearRunner:
         """The FMU digest of the master runner, marked as the linear engine's."""
         return "engine=linear;" + self._master.fingerprint(scenario)
 
+    def override_problem(self, scenario: dict, ref: str) -> str | None:
+        """As :meth:`MasterRunner.override_problem`, on the Python FMUs it reads."""
+        return self._master.override_problem(scenario, ref)
+
     # ------------------------------------------------------------------ compiled loops
     def _config_key(self, scenario: dict, sources) -> str:
         data = json.loads(json.dumps(scenario, default=str))

@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import signal
 import time
 import traceback
 from collections.abc import Callable, Mapping
@@ -21,10 +22,10 @@ import numpy as np
 import pyarrow as pa
 
 from .. import metrics as M
-from ..cosim import find_fmu
+from ..cosim import find_fmu, read_fmu_info
 from ..results import RunResult, read_table
 from ..run import run_scenario
-from ..scenario import scenario_from_dict
+from ..scenario import ScenarioError, closest, scenario_from_dict
 from .cases import Case
 from .store import (
     CASE_FILES,
@@ -33,6 +34,7 @@ from .store import (
     RESULTS_FILE,
     STATUS_FILE,
     file_record,
+    not_a_folder,
     temporary_folder,
     write_json,
     write_table,
@@ -92,6 +94,44 @@ class MasterRunner:
         if identity not in self._fingerprints:
             self._fingerprints[identity] = _fmu_digest(files)
         return self._fingerprints[identity]
+
+    def override_problem(self, scenario: dict, ref: str) -> str | None:
+        """Why a case cannot set ``ref`` (``instance.variable``); None if it can.
+
+        The variable must be a parameter or an input of the instance's FMU (as the
+        master checks each run), so a misspelt override fails before any case runs
+        rather than in every one.  An FMU that cannot be found or read is left to the
+        cases, which say so.
+
+        Parameters
+        ----------
+        scenario : dict
+            A case's scenario data (the TOML layout).
+        ref : str
+            ``"instance.variable"``.
+
+        Returns
+        -------
+        str or None
+            One sentence, or None.
+        """
+        sc = self._scenario(scenario)
+        inst, var = ref.split(".", 1)
+        fmu = next((i.fmu for i in sc.instances if i.name == inst), None)
+        if fmu is None:
+            return None
+        try:
+            info = read_fmu_info(find_fmu(fmu, sc, self.fmu_dir))
+        except (ScenarioError, ValueError, OSError):
+            return None
+        v = info.variables.get(var)
+        if v is None:
+            return (f"FMU {info.path.name} has no variable {var!r}"
+                    f"{closest(var, info.variables)}")
+        if v.causality not in ("parameter", "input") or v.variability == "constant":
+            return (f"{ref} is a {v.variability} {v.causality}; only parameters and inputs "
+                    "can be set")
+        return None
 
     def __call__(self, scenario: dict, out_dir) -> RunResult:
         """Run a case's scenario into ``out_dir``.
@@ -186,11 +226,29 @@ def _metrics_table(table: Mapping, instruments: Mapping, metrics, skip: float) -
     return pa.Table.from_pylist(rows, schema=METRIC_SCHEMA)
 
 
+class CampaignInterrupted(BaseException):
+    """SIGTERM or SIGINT stopped a campaign running in this process.
+
+    A :class:`BaseException`, like :class:`KeyboardInterrupt`, so that no ``except
+    Exception`` records the case in flight as failed and goes on with the next one.
+
+    Attributes
+    ----------
+    signum : int
+        The signal.
+    """
+
+    def __init__(self, signum: int, message: str = ""):
+        super().__init__(message or f"interrupted by {signal.Signals(signum).name}")
+        self.signum = signum
+
+
 def execute_case(case: Case, runner: Callable, cases_dir, instruments, metrics, skip) -> dict:
     """Run one case and publish its folder atomically; never raises for case errors.
 
     The runner works in ``cases_dir/.tmp-KEY-RANDOM``; the folder is renamed to
-    ``cases_dir/KEY`` when results, metrics and ``case.json`` are written.
+    ``cases_dir/KEY`` when results, metrics and ``case.json`` are written.  A plain
+    file at ``cases_dir/KEY`` fails the case, in one sentence, without running it.
 
     Parameters
     ----------
@@ -211,23 +269,42 @@ def execute_case(case: Case, runner: Callable, cases_dir, instruments, metrics, 
     -------
     status : dict
         ``key, status ("ok" | "failed"), error, seconds``.
+
+    Raises
+    ------
+    CampaignInterrupted
+        When the run was interrupted by SIGTERM (the master's own signal guard ends
+        the run); the case's temporary folder is removed and nothing is published.
     """
     cases_dir = Path(cases_dir)
+    blocked = not_a_folder(cases_dir, case.key)
+    if blocked:
+        return {"key": case.key, "status": "failed", "error": blocked, "seconds": 0.0}
     tmp = temporary_folder(cases_dir, case.key)
     t0 = time.perf_counter()
     info = {"key": case.key, "label": case.label, "event": case.event,
             "configuration": case.configuration, "sweep": case.sweep, "scenario": case.scenario}
     try:
-        table = _run(runner, case.scenario, tmp)
-        write_table(_metrics_table(table, instruments, metrics, skip), tmp / METRICS_FILE)
-        info.update(status="ok", error="", files={n: file_record(tmp / n) for n in CASE_FILES})
-    except Exception as exc:  # a failing case is recorded and does not stop the others
-        info.update(status="failed", error=one_sentence(exc),
-                    traceback=traceback.format_exc(limit=8))
-    info["seconds"] = round(time.perf_counter() - t0, 6)
-    write_json(tmp / STATUS_FILE, info)
+        try:
+            table = _run(runner, case.scenario, tmp)
+            write_table(_metrics_table(table, instruments, metrics, skip), tmp / METRICS_FILE)
+            info.update(status="ok", error="",
+                        files={n: file_record(tmp / n) for n in CASE_FILES})
+        except Exception as exc:  # a failing case is recorded and does not stop the others
+            result = getattr(exc, "result", None)
+            if getattr(result, "metadata", {}).get("status") == "interrupted":
+                raise CampaignInterrupted(signal.SIGTERM) from exc
+            info.update(status="failed", error=one_sentence(exc),
+                        traceback=traceback.format_exc(limit=8))
+        info["seconds"] = round(time.perf_counter() - t0, 6)
+        write_json(tmp / STATUS_FILE, info)
+    except BaseException:     # interrupted: nothing of this case is published
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     final = cases_dir / case.key
-    if final.exists():  # an earlier failed attempt
+    if final.is_symlink():    # a link is removed, never what it points to
+        final.unlink()
+    elif final.exists():      # an earlier failed attempt, or an untrusted folder
         shutil.rmtree(final, ignore_errors=True)
     os.replace(tmp, final)
     return {k: info[k] for k in ("key", "status", "error", "seconds")}

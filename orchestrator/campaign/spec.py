@@ -91,8 +91,11 @@ class CampaignSpec:
     events, configurations : tuple of Variant
     sweeps : tuple of tuple of (str, value)
         Per sweep, its ``(parameter, value)`` points.
-    instruments, metrics, requirements, unit, skip, base_dir, scenario_dir
+    instruments, metrics, requirements, unit, skip, base_dir, scenario_dir, source
         As in :class:`~orchestrator.campaign.Campaign`.
+    overrides : tuple of (str, str)
+        Every ``instance.variable`` the campaign sets, with the field that sets it
+        (``"sweep 1 parameter 'sc.mass'"``), for a check against the FMUs.
     """
 
     name: str
@@ -111,6 +114,8 @@ class CampaignSpec:
     verify: int = 2
     wheel_sweeps: tuple = ()
     uncertainty: dict | None = None
+    source: str = "campaign data"
+    overrides: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -140,7 +145,7 @@ class WheelSweepSpec:
     open: tuple = ()
 
 
-def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
+def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> CampaignSpec:
     """Check campaign data (the TOML layout) table by table.
 
     Parameters
@@ -151,6 +156,8 @@ def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
         scenario TOML or an inline table (the scenario layout).
     base_dir : path-like, optional
         Folder for relative paths (default: current folder).
+    source : str
+        What the data came from (``"campaign file 'c.toml'"``), for later messages.
 
     Returns
     -------
@@ -175,6 +182,7 @@ def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
     skip = float(head.get("skip", 0.0))
     if not skip >= 0:
         raise CampaignError(f"[campaign] skip is {skip!r} s; expected >= 0")
+    record = _record_length(scenario["experiment"], skip)
 
     engine = str(head.get("engine", "cosim"))
     if engine not in ENGINES:
@@ -192,14 +200,25 @@ def parse_spec(data: Mapping, base_dir=None) -> CampaignSpec:
         raise CampaignError(f"event name {RSS_EVENT!r} is reserved for the RSS total")
     sweeps = _sweeps(data.get("sweeps", []))
     instruments, shorthand = _instruments(data.get("instruments"))
-    metrics = _metrics(data.get("metrics", [{"kind": "peak_to_peak", "windows": [1.0]}]))
+    metrics = _metrics(data.get("metrics", [{"kind": "peak_to_peak", "windows": [1.0]}]),
+                       record, skip)
     requirements = _requirements(data.get("requirements", []), shorthand, instruments, metrics)
     events, configurations = _variants(events, configurations, sweeps, scenario["fmus"])
     wheel = _wheel_sweeps(data.get("wheel_sweeps", []), scenario["fmus"])
+    if not configurations or not (events or wheel):
+        empty = "configurations" if not configurations else "events"
+        raise CampaignError(f"[[{empty}]] is empty, so the campaign would run nothing; give "
+                            f"at least one entry, or leave [[{empty}]] out for one baseline")
     unc = _uncertainty(data.get("uncertainty"), scenario["fmus"])
+    overrides = tuple(
+        [(f"event {v.name!r} override {k!r}", k) for v in events for k in v.overrides]
+        + [(f"configuration {v.name!r} override {k!r}", k)
+           for v in configurations for k in v.overrides]
+        + [(f"sweep {i + 1} parameter {sweep[0][0]!r}", sweep[0][0])
+           for i, sweep in enumerate(sweeps)])
     return CampaignSpec(name, scenario, events, configurations, sweeps, instruments,
                         tuple(metrics), requirements, unit, skip, base_dir, scenario_dir,
-                        engine, verify, wheel, unc)
+                        engine, verify, wheel, unc, source, overrides)
 
 
 def read_spec(path) -> CampaignSpec:
@@ -211,7 +230,11 @@ def read_spec(path) -> CampaignSpec:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise CampaignError(f"campaign file {str(path)!r} is not valid TOML: {exc}") from None
-    return parse_spec(data, path.parent)
+    source = f"campaign file {str(path)!r}"
+    try:
+        return parse_spec(data, path.parent, source)
+    except CampaignError as exc:
+        raise CampaignError(f"{source}: {exc}") from None
 
 
 # ----------------------------------------------------------------------------- tables
@@ -281,8 +304,27 @@ def _instruments(items) -> tuple[dict, list]:
     return instruments, shorthand
 
 
-def _metrics(items) -> list:
-    """``[[metrics]]``: ``(kind, window)`` pairs, one per window (``None`` for ``rms``)."""
+def _record_length(experiment: dict, skip: float) -> float | None:
+    """Seconds of record the metrics see (run length less ``skip``); None if unknown.
+
+    The run's times are checked with the scenario; only numbers are used here.
+    """
+    start, stop = experiment.get("start", 0.0), experiment.get("stop")
+    if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+               for x in (start, stop)) or stop <= start:
+        return None
+    if skip >= stop - start:
+        raise CampaignError(f"[campaign] skip is {skip!r} s, which leaves no record of the "
+                            f"{stop - start!r} s run; expected skip < stop - start")
+    return stop - start - skip
+
+
+def _metrics(items, record: float | None, skip: float) -> list:
+    """``[[metrics]]``: ``(kind, window)`` pairs, one per window (``None`` for ``rms``).
+
+    A window (or lag) must be a positive time no longer than the record the metrics see
+    (``record`` s after the ``skip``); a longer one would measure the whole record.
+    """
     _table_list(items, "metrics", _ITEM_KEYS["metrics"])
     metrics = []
     for i, m in enumerate(items):
@@ -295,11 +337,19 @@ def _metrics(items) -> list:
             metrics.append((kind, None))
             continue
         windows = m.get("windows", [m["window"]] if "window" in m else [])
+        if not isinstance(windows, list):
+            raise CampaignError(f"metric {i + 1} ({kind}) windows is {windows!r}; expected a "
+                                "list of times (s), e.g. [1.0]")
         if not windows:
             raise CampaignError(f"metric {i + 1} ({kind}) needs 'windows' (s)")
         for w in windows:
-            if not (isinstance(w, (int, float)) and w > 0):
-                raise CampaignError(f"metric {i + 1} ({kind}) window {w!r} is not a positive time")
+            if isinstance(w, bool) or not (isinstance(w, (int, float)) and w > 0):
+                raise CampaignError(f"metric {i + 1} ({kind}) window {w!r} is not a positive "
+                                    "time (s)")
+            if record is not None and w > record * (1 + 1e-9):
+                raise CampaignError(f"metric {i + 1} ({kind}) window {w!r} s is longer than "
+                                    f"the record ({record:g} s after the {skip:g} s skip); "
+                                    "shorten the window or lengthen [campaign] stop")
             metrics.append((kind, float(w)))
     return metrics
 

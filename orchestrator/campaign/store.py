@@ -82,14 +82,34 @@ def file_record(path: Path) -> dict:
     return {"size": path.stat().st_size, "sha256": sha256_file(path)}
 
 
-def case_status(cases_dir: Path, key: str) -> dict | None:
-    """The ``case.json`` of a case, None if it is missing or unreadable.
+def not_a_folder(cases_dir: Path, key: str) -> str | None:
+    """One sentence when ``cases_dir/KEY`` exists but is not a folder, else None.
 
     Parameters
     ----------
     cases_dir, key : Path, str
         The campaign's ``cases`` folder and the case's key.
     """
+    path = cases_dir / key
+    if path.is_symlink() or not path.exists() or path.is_dir():
+        return None
+    return (f"{str(path)!r} is a file, not a case folder; move it away and run the "
+            "campaign again to run this case")
+
+
+def case_status(cases_dir: Path, key: str) -> dict | None:
+    """The ``case.json`` of a case, None if it is missing or unreadable.
+
+    A plain file where the case folder belongs reads as a failed case saying so.
+
+    Parameters
+    ----------
+    cases_dir, key : Path, str
+        The campaign's ``cases`` folder and the case's key.
+    """
+    blocked = not_a_folder(cases_dir, key)
+    if blocked:
+        return {"key": key, "status": "failed", "error": blocked, "seconds": None}
     p = cases_dir / key / STATUS_FILE
     if not p.is_file():
         return None
@@ -99,29 +119,62 @@ def case_status(cases_dir: Path, key: str) -> dict | None:
         return None
 
 
-def case_verified(cases_dir: Path, key: str) -> bool:
-    """A finished case whose files are the ones its ``case.json`` recorded.
+def case_doubt(cases_dir: Path, case) -> str | None:
+    """Why the folder of a case is not that case finished; None when it is.
 
-    Status ``ok`` and, for every file of :data:`CASE_FILES`, the recorded size and
-    SHA-256; a truncated, replaced or missing file (or a ``case.json`` without the
-    record) makes the case run again.
+    A finished case is a real folder (not a symbolic link) named by the case's key whose
+    ``case.json`` says ``ok``, holds that key and the case's own scenario, and records
+    the size and SHA-256 of every file of :data:`CASE_FILES`, each a regular file with
+    those bytes.  A copied or linked folder of another case, or a truncated, replaced
+    or missing file, makes the case run again.
 
     Parameters
     ----------
-    cases_dir, key : Path, str
-        The campaign's ``cases`` folder and the case's key.
+    cases_dir : Path
+        The campaign's ``cases`` folder.
+    case : Case
+        The case, with its final key.
+
+    Returns
+    -------
+    str or None
+        ``""`` when the case has not finished (no folder, or it failed): it simply runs;
+        one sentence when a folder claims to be the case but is not trusted; None when
+        the case is finished.
     """
-    st = case_status(cases_dir, key)
-    if st is None or st.get("status") != "ok" or not isinstance(st.get("files"), dict):
-        return False
-    folder = cases_dir / key
+    folder = cases_dir / case.key
+    if folder.is_symlink():
+        return (f"its folder {str(folder)!r} is a symbolic link to "
+                f"{os.readlink(folder)!r}, not a folder of this campaign")
+    if not folder.is_dir():
+        return ""
+    st = case_status(cases_dir, case.key)
+    if st is None:
+        return f"its folder {str(folder)!r} has no readable {STATUS_FILE}"
+    if st.get("status") != "ok":
+        return ""
+    if st.get("key") != case.key:
+        return (f"its folder {case.key[:12]}... holds the {STATUS_FILE} of case "
+                f"{str(st.get('key'))[:12]}... ({st.get('label')!r}), a copied folder")
+    if canonical(st.get("scenario")) != canonical(case.scenario):
+        return (f"the {STATUS_FILE} in its folder {case.key[:12]}... holds another "
+                "scenario than this case's")
+    if not isinstance(st.get("files"), dict):
+        return f"the {STATUS_FILE} in its folder {case.key[:12]}... records no file hashes"
     for name in CASE_FILES:
         rec, path = st["files"].get(name), folder / name
-        if not isinstance(rec, dict) or not path.is_file():
-            return False
-        if path.stat().st_size != rec.get("size") or file_record(path) != rec:
-            return False
-    return True
+        if path.is_symlink() or not path.is_file():
+            return f"{name} in its folder {case.key[:12]}... is missing or a link"
+        if not isinstance(rec, dict) or path.stat().st_size != rec.get("size") \
+                or file_record(path) != rec:
+            return (f"{name} in its folder {case.key[:12]}... is not the file its "
+                    f"{STATUS_FILE} recorded (size or SHA-256 differ)")
+    return None
+
+
+def canonical(data) -> str:
+    """Compact JSON of ``data`` with sorted keys: what a case key hashes."""
+    return json.dumps(data, sort_keys=True, separators=(",", ":"), default=str)
 
 
 def record_lost(cases_dir: Path, case, error: str) -> None:

@@ -55,6 +55,7 @@ def run(args) -> int:
     import dataclasses
 
     from ..campaign import (
+        CampaignInterrupted,
         LinearRunner,
         MasterRunner,
         load_campaign,
@@ -81,8 +82,14 @@ def run(args) -> int:
         runner = MasterRunner(camp.scenario_dir, fmu_dir=args.fmu_dir, fmu_kind=args.fmu_kind)
     camp = dataclasses.replace(camp, engine=engine)
     out = args.out or Path("out") / slug(camp.name)
-    res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
-                       progress=False if args.quiet else None)
+    try:
+        res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
+                           progress=False if args.quiet else None)
+    except CampaignInterrupted as exc:
+        print(f"jitterfmu: {exc}", file=sys.stderr)
+        return 128 + exc.signum
+    for label, why in res.rerun.items():
+        print(f"  case {label!r} not trusted ({why}); running it again", file=sys.stderr)
     print(f"{res.n_cases} cases: {res.n_run} run, {res.n_skipped} already finished, "
           f"{res.n_failed} failed ({engine} engine); summary in {out / 'summary.csv'}")
     for label, err in res.failures.items():

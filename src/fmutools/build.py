@@ -16,10 +16,12 @@ from __future__ import annotations
 import contextlib
 import importlib
 import importlib.util
+import os
 import re
 import shutil
 import sys
 import tempfile
+import uuid
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -30,7 +32,8 @@ from fmukit import slave as fmukit_slave
 from fmukit.modeldesc import CAPABILITIES
 from fmutools.loader import REAL_BINARY_SUFFIX, cached_loader
 
-__all__ = ["FmuSpec", "BuildError", "BuildReport", "build_fmu", "REAL_BINARY_SUFFIX"]
+__all__ = ["FmuSpec", "BuildError", "BuildReport", "build_fmu", "REAL_BINARY_SUFFIX",
+           "replaced_when_done"]
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _CLASS_PATH = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
@@ -283,12 +286,39 @@ def _installed_builder():
         sys.modules.update(saved)
 
 
+@contextlib.contextmanager
+def replaced_when_done(dest: Path):
+    """A temporary file beside ``dest``, renamed onto it when the block succeeds.
+
+    The name is unique to this process and call (``.NAME.PID-RANDOM.part``), so two
+    builds writing the same file at once each write their own and the last rename
+    wins with a whole file; a failed block leaves ``dest`` as it was and no partial
+    file behind.
+
+    Parameters
+    ----------
+    dest : Path
+        The file to write.
+
+    Yields
+    ------
+    Path
+        Where to write it (not yet created).
+    """
+    dest = Path(dest)
+    tmp = dest.with_name(f".{dest.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}.part")
+    try:
+        yield tmp
+        os.replace(tmp, dest)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def _rewrite_archive(src: Path, dest: Path, model_identifier: str, loader: Path | None) -> None:
     """Copy ``src`` to ``dest``, swapping the Linux binary for the loader."""
     linux_bin = f"binaries/linux64/{model_identifier}.so"
-    tmp_dest = dest.with_suffix(".fmu.part")
-    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(tmp_dest, "w",
-                                                      zipfile.ZIP_DEFLATED) as zout:
+    with replaced_when_done(dest) as tmp_dest, zipfile.ZipFile(src) as zin, \
+            zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as zout:
         names = zin.namelist()
         if loader is not None and linux_bin not in names:
             raise BuildError(f"FMU {model_identifier!r} has no {linux_bin}; pythonfmu ships no "
@@ -301,4 +331,3 @@ def _rewrite_archive(src: Path, dest: Path, model_identifier: str, loader: Path 
             zout.writestr(info.filename, data)
         if loader is not None:
             zout.write(loader, linux_bin)
-    tmp_dest.replace(dest)

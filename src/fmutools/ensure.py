@@ -25,7 +25,7 @@ except ImportError:  # pragma: no cover - not POSIX: builds are not serialised
     fcntl = None
 
 from fmutools import FMU_KINDS, PYTHON_SUBDIR
-from fmutools.build import FmuSpec, build_fmu
+from fmutools.build import FmuSpec, build_fmu, replaced_when_done
 from fmutools.registry import SOURCE_PACKAGES, collect_specs, sources_hash
 from nativefmu.build import build_native
 from nativefmu.data import NativeUnsupportedError
@@ -102,7 +102,8 @@ def record_built(folder, names: Iterable[str], kind: str) -> None:
         Which build they are.
     """
     current = sources_hash(NATIVE_PACKAGES if kind == "native" else SOURCE_PACKAGES)
-    _write_stamps(Path(folder), {**_stamps(Path(folder)), **{n: current for n in names}})
+    with _locked(Path(folder)):   # two builds into one folder keep each other's stamps
+        _write_stamps(Path(folder), {**_stamps(Path(folder)), **{n: current for n in names}})
 
 
 def _stamps(folder: Path) -> dict:
@@ -112,10 +113,8 @@ def _stamps(folder: Path) -> dict:
 
 
 def _write_stamps(folder: Path, stamps: dict) -> None:
-    stamp_file = folder / ".sources"
-    tmp = stamp_file.with_suffix(".tmp")
-    tmp.write_text(json.dumps(stamps, indent=1))
-    tmp.replace(stamp_file)
+    with replaced_when_done(folder / ".sources") as tmp:
+        tmp.write_text(json.dumps(stamps, indent=1))
 
 
 @contextmanager

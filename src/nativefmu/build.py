@@ -28,7 +28,7 @@ from xml.etree import ElementTree as ET
 
 import fmpy
 
-from fmutools.build import FmuSpec, build_fmu
+from fmutools.build import FmuSpec, build_fmu, replaced_when_done
 from fmutools.registry import collect_specs
 from fmutools.validate import validate_fmu
 from nativefmu.data import KERNELS, kernel_of, model_data
@@ -260,8 +260,8 @@ def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path |
             binaries[f"binaries/win64/{model_id}.dll"] = compile_sources(
                 src, Path(tmp) / f"{model_id}.dll", compiler=mingw, windows=True)
         xml = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
-        part = target.with_name(target.name + ".part")
-        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+        with replaced_when_done(target) as part, \
+                zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("modelDescription.xml", xml)
             for name in sorted(p.name for p in src.iterdir()):
                 z.write(src / name, f"sources/{name}")
@@ -269,7 +269,6 @@ def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path |
                 z.write(path, arcname)
             for name, content in model_data(spec, vrs).items():
                 z.writestr(f"resources/{name}", content)
-        part.replace(target)
     return target
 
 

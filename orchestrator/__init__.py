@@ -38,8 +38,10 @@ here too; it is imported on first use, since the metrics it computes load scipy.
 from __future__ import annotations
 
 from .cosim import (
+    DivergenceError,
     EarlyEndWarning,
     JacobiLoopWarning,
+    SaturationWarning,
     Plan,
     Simulation,
     SimulationError,
@@ -69,6 +71,8 @@ __all__ = [
     "TimebaseWarning",
     "JacobiLoopWarning",
     "EarlyEndWarning",
+    "DivergenceError",
+    "SaturationWarning",
     "load_campaign",
     "run_campaign",
     "MasterRunner",

@@ -11,6 +11,7 @@ results and ``run.json`` atomically at the end.  The engine itself is
 from __future__ import annotations
 
 import fcntl
+import json
 import multiprocessing
 import os
 import shutil
@@ -23,13 +24,21 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .cosim import EarlyEndWarning, Simulation, SimulationError, prepare
+from .cosim import (
+    DivergenceError,
+    EarlyEndWarning,
+    SaturationWarning,
+    Simulation,
+    SimulationError,
+    prepare,
+)
 from .files import atomic_write
 from .progress import ProgressBar
 from .results import RunResult, package_versions, write_metadata, write_table
 from .scenario import load_scenario
 
-__all__ = ["run_scenario", "OutputError", "PARTIAL_DIR", "FLUSH_SECONDS"]
+__all__ = ["run_scenario", "OutputError", "RecordTooLargeError", "check_record_size",
+           "PARTIAL_DIR", "PREVIOUS_DIR", "FLUSH_SECONDS"]
 
 
 #: Folder, inside ``out_dir``, that holds the rows flushed during a run.
@@ -38,8 +47,91 @@ PARTIAL_DIR = "results.partial"
 FLUSH_SECONDS = 5.0
 
 
+#: Folder, inside ``out_dir``, that keeps the complete result a later run found there
+#: until that run completes too.
+PREVIOUS_DIR = "previous"
+#: Statuses of a run that completed (its results replace the previous ones).
+FINISHED = ("ok", "terminated")
+RESULT_FILES = ("results.parquet", "results.csv")
+
+
 class OutputError(OSError):
-    """The output folder of a run cannot be used (not writable, or busy)."""
+    """The output folder of a run cannot be used (not writable, busy, or holding rows
+    of an unfinished run)."""
+
+
+class RecordTooLargeError(MemoryError):
+    """The record of a run would not fit in the memory available."""
+
+
+def _partial_rows(folder: Path) -> int:
+    """Rows in the complete Parquet parts of ``folder`` (0 if none)."""
+    rows = 0
+    for part in sorted(folder.glob("part-*.parquet")) if folder.is_dir() else ():
+        try:
+            rows += pq.ParquetFile(part).metadata.num_rows
+        except Exception:  # a part cut by the kill: not rows anyone can read
+            continue
+    return rows
+
+
+def _finished_result(folder: Path) -> list:
+    """Names of a complete result in ``folder`` (``run.json`` says it finished)."""
+    try:
+        meta = json.loads((folder / "run.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []
+    if not isinstance(meta, dict) or meta.get("status") not in FINISHED:
+        return []
+    names = [n for n in RESULT_FILES if (folder / n).is_file()]
+    return [*names, "run.json"] if names else []
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (Linux ``MemAvailable``), or None."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_record_size(plan, available=None) -> int:
+    """Bytes a run's record needs; RecordTooLargeError if it cannot fit in memory.
+
+    The record (rows times recorded variables, 8 bytes each) is held twice at the end
+    of a run: as recorded and as the table written.
+
+    Parameters
+    ----------
+    plan : Plan
+    available : int, optional
+        Bytes available (default: what the system reports).
+
+    Returns
+    -------
+    int
+        Bytes needed.
+    """
+    tb = plan.timebase
+    rows = tb.n_ticks // tb.output_ticks + 1
+    cols = len(plan.scenario.record) + 1
+    need = 2 * 8 * rows * cols
+    available = _available_memory() if available is None else available
+    if available is not None and need > available:
+        interval = float(tb.base * tb.output_ticks)
+        raise RecordTooLargeError(
+            f"the record of this run needs {need / 2**30:.1f} GiB ({rows:,} rows of "
+            f"{cols} columns, held twice) and {available / 2**30:.1f} GiB of memory is "
+            f"available; raise experiment.output_interval (now {interval!r} s), shorten "
+            "the stop time, or record fewer variables")
+    return need
 
 
 class _Interrupted(Exception):
@@ -55,9 +147,10 @@ class _OutputFolder:
     flushed to ``results.partial/part-NNNNNN.parquet`` (each file complete, so a killed
     run leaves readable rows), and the final results replace the old ones atomically."""
 
-    def __init__(self, path: Path, csv: bool):
+    def __init__(self, path: Path, csv: bool, overwrite: bool = False):
         self.path = path
         self.csv = csv
+        self.finished = False
         self.partial = path / PARTIAL_DIR
         self.flushed = 0
         self.parts = 0
@@ -75,7 +168,28 @@ class _OutputFolder:
             self._lock.close()
             raise OutputError(f"output folder {str(path)!r} is in use by another run or "
                               "campaign; wait for it or choose another --out") from None
-        shutil.rmtree(self.partial, ignore_errors=True)  # rows of an earlier killed run
+        try:
+            self._keep_earlier_results(overwrite)
+        except BaseException:
+            self.close()
+            raise
+
+    def _keep_earlier_results(self, overwrite: bool) -> None:
+        """Refuse to drop a killed run's rows; move a complete result to ``previous/``."""
+        rows = _partial_rows(self.partial)
+        if rows and not overwrite:
+            raise OutputError(
+                f"output folder {str(self.path)!r} holds {rows:,} rows of a run that did not "
+                f"finish ({PARTIAL_DIR}/, readable with orchestrator.read_table); move them "
+                "away, choose another --out, or pass --overwrite to discard them")
+        shutil.rmtree(self.partial, ignore_errors=True)
+        old = _finished_result(self.path)
+        if old:
+            previous = self.path / PREVIOUS_DIR
+            shutil.rmtree(previous, ignore_errors=True)
+            previous.mkdir()
+            for name in old:
+                os.replace(self.path / name, previous / name)
 
     def start(self, meta: dict) -> None:
         """Write ``run.json`` with status ``running`` (proves the folder is writable)."""
@@ -106,11 +220,27 @@ class _OutputFolder:
         self.flushed = rows
 
     def finish(self, table: dict, meta: dict) -> None:
-        """Replace the results and ``run.json`` atomically, then drop the partial rows."""
-        write_table(table, self.path / ("results.csv" if self.csv else "results.parquet"),
-                    csv=self.csv)
+        """Replace the results and ``run.json`` atomically, then drop the partial rows.
+
+        A run that did not complete keeps the complete result found before it in
+        ``previous/`` (and says so in ``run.json``); a complete run supersedes it.
+        """
+        complete = meta.get("status") in FINISHED
+        if not complete and (self.path / PREVIOUS_DIR / "run.json").is_file():
+            meta["previous_result"] = PREVIOUS_DIR
+        for name in RESULT_FILES:  # the other format of an earlier run
+            if name != self.results_name and (self.path / name).exists():
+                os.unlink(self.path / name)
+        write_table(table, self.path / self.results_name, csv=self.csv)
         write_metadata(meta, self.path / "run.json")
         shutil.rmtree(self.partial, ignore_errors=True)
+        self.finished = True
+        if complete:   # the new complete result supersedes any kept one
+            shutil.rmtree(self.path / PREVIOUS_DIR, ignore_errors=True)
+
+    @property
+    def results_name(self) -> str:
+        return "results.csv" if self.csv else "results.parquet"
 
     def close(self) -> None:
         self._lock.close()  # releases the lock
@@ -150,7 +280,7 @@ class _SignalGuard:
 
 
 def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algorithm=None,
-                 quiet=True, csv=False, fmu_dir=None, fmu_kind=None):
+                 quiet=True, csv=False, fmu_dir=None, fmu_kind=None, overwrite=False):
     """Run a scenario and return (and optionally write) its recorded results.
 
     Parameters
@@ -163,8 +293,8 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
         ``running`` from before the first step, and the rows recorded so far are
         flushed every :data:`FLUSH_SECONDS` to ``results.partial/`` (complete Parquet
         files: a killed run keeps them).  The final results and ``run.json`` (status
-        ``ok``, ``error``, ``terminated`` or ``interrupted``) replace the earlier ones
-        at the end, atomically.
+        ``ok``, ``error``, ``diverged``, ``terminated`` or ``interrupted``) replace the
+        earlier ones at the end, atomically.
     stop_time : float, optional
         Overrides ``experiment.stop`` (s).
     overrides : dict or iterable of str, optional
@@ -179,6 +309,11 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
         Extra folder searched first for FMU names.
     fmu_kind : {"native", "python"}, optional
         Overrides ``experiment.fmu_kind``: which build of the suite's FMUs to run.
+    overwrite : bool
+        Discard the rows a killed run left in ``out_dir/results.partial/`` (without it
+        such a folder is refused).  A complete earlier result is never lost: it moves
+        to ``out_dir/previous/`` for the run and is dropped only when the new run
+        completes.
 
     Returns
     -------
@@ -192,16 +327,25 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
         and a SimulationError, SIGINT the same with KeyboardInterrupt, both after
         writing the rows so far.
 
+        A value that leaves the range its FMU declares (or grows beyond
+        :data:`orchestrator.cosim.bus.RUNAWAY`) ends the run with status ``diverged``
+        and a DivergenceError.  Saturation flags (``sat_*`` outputs) set during the run
+        are summarised in ``metadata["saturation"]`` and a :class:`SaturationWarning`.
+
     Raises
     ------
     OutputError
-        Before anything runs, if `out_dir` is not writable or in use by another run.
+        Before anything runs, if `out_dir` is not writable, in use by another run, or
+        holds the rows of an unfinished run (see `overwrite`).
+    RecordTooLargeError
+        Before anything runs, if the record cannot fit in the memory available.
     """
     wall0 = _time.perf_counter()
     sc = load_scenario(scenario)
     sc = sc.with_overrides(overrides).with_experiment(stop=stop_time, algorithm=algorithm,
                                                       fmu_kind=fmu_kind)
     plan = prepare(sc, fmu_dir)
+    check_record_size(plan)
     meta = {
         "scenario": sc.source,
         "scenario_sha256": sc.digest(),
@@ -218,20 +362,46 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
         "unconnected_inputs": list(plan.unconnected),
         "versions": package_versions(),
     }
-    folder = _OutputFolder(Path(out_dir), csv) if out_dir is not None else None
+    folder = _OutputFolder(Path(out_dir), csv, overwrite) if out_dir is not None else None
     try:
         if folder is not None:
             folder.start(meta)
         return _run_plan(plan, meta, folder, quiet, wall0)
+    except BaseException as exc:
+        # whatever ends the process here, run.json must not say "running" behind it
+        if folder is not None and not folder.finished:
+            meta.update(status="error", error=str(exc) or type(exc).__name__,
+                        wall_time_s=_time.perf_counter() - wall0)
+            try:
+                folder.finish({"time": []}, meta)
+            except OSError:
+                pass
+        raise
     finally:
         if folder is not None:
             folder.close()
 
 
+def _report_saturation(sim, meta) -> None:
+    """``meta["saturation"]`` and one SaturationWarning naming what saturated, how long."""
+    spans = sim.saturation()
+    if not spans:
+        return
+    tb = sim.plan.timebase
+    length = float(tb.base * max(sim.tick, 1))
+    meta["saturation"] = [{"instance": i, "flag": f, "seconds": sec, "first": first,
+                           "fraction": sec / length} for i, f, sec, first in spans]
+    parts = [f"{i}.{f} {sec:.4g} s ({100 * sec / length:.0f} % of the run, from "
+             f"t = {first:.6g} s)" for i, f, sec, first in spans]
+    warnings.warn("saturated during the run: " + "; ".join(parts) + ": a loop at a rail or "
+                  "limit is not the linear loop it was designed as", SaturationWarning,
+                  stacklevel=3)
+
+
 def _run_plan(plan, meta, folder, quiet, wall0):
     """Initialise, step, write; the body of :func:`run_scenario`."""
     sc = plan.scenario
-    sim = Simulation(plan)
+    sim = Simulation(plan)  # allocates the record (its size was checked)
     progress = ProgressBar(1.0, f"jitterfmu run {Path(sc.source).name}",
                            enabled=False if quiet else None, delay=3.0)
     guard = _SignalGuard()
@@ -249,6 +419,8 @@ def _run_plan(plan, meta, folder, quiet, wall0):
         sim.run(on_progress)
     except SimulationError as exc:
         error = exc
+        if isinstance(exc, DivergenceError):
+            meta["diverged"] = {"instance": exc.instance, "time": exc.time}
     except _Interrupted as exc:
         interrupted = exc.signum
         name = signal.Signals(exc.signum).name
@@ -263,7 +435,9 @@ def _run_plan(plan, meta, folder, quiet, wall0):
         progress.close()
         sim.close()
     table = sim.table()
-    status = ("interrupted" if interrupted is not None else "error" if error is not None
+    status = ("interrupted" if interrupted is not None
+              else "diverged" if isinstance(error, DivergenceError)
+              else "error" if error is not None
               else "terminated" if sim.terminated else "ok")
     meta.update(
         status=status,
@@ -271,9 +445,11 @@ def _run_plan(plan, meta, folder, quiet, wall0):
         rows=len(table["time"]),
         wall_time_s=_time.perf_counter() - wall0,
     )
+    _report_saturation(sim, meta)
     if error is None and sim.terminated:
         inst, t_end, message = sim.terminated
-        meta["terminated"] = {"instance": inst, "time": t_end, "message": message}
+        meta["terminated"] = {"instance": inst, "time": t_end, "message": message,
+                              "last_successful_time": sim.last_successful_time}
         warnings.warn(f"instance {inst!r} ended the run at t = {t_end!r} s (fmi2Terminated)"
                       + (f": {' '.join(message.split())}" if message else "")
                       + f"; {meta['rows']} rows recorded", EarlyEndWarning, stacklevel=3)
@@ -283,6 +459,9 @@ def _run_plan(plan, meta, folder, quiet, wall0):
         meta["wall_time_s"] = _time.perf_counter() - wall0
         folder.finish(table, meta)
     result = RunResult(table, meta, path)
+    if error is not None and meta.get("previous_result"):
+        error.args = (f"{error}; the complete result found in the folder is kept in "
+                      f"{path / PREVIOUS_DIR}",)
     if interrupted == signal.SIGINT:
         raise KeyboardInterrupt(str(error))
     if error is not None:

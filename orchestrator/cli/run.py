@@ -25,6 +25,8 @@ def add_arguments(parser) -> None:
                         dest="fmu_kind", default=None,
                         help="run the Python build of the suite's FMUs (FMU_DIR/python/) "
                              "instead of the native ones")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="discard the rows an unfinished (killed) run left in --out")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -42,7 +44,7 @@ def run(args) -> int:
             result = run_scenario(args.scenario, out, stop_time=args.stop_time,
                                   overrides=overrides, algorithm=args.algorithm,
                                   quiet=args.quiet, csv=args.csv, fmu_dir=args.fmu_dir,
-                                  fmu_kind=args.fmu_kind)
+                                  fmu_kind=args.fmu_kind, overwrite=args.overwrite)
         except SimulationError as exc:
             _warn(caught)
             rows = len(exc.result.table["time"]) if exc.result else 0

@@ -39,8 +39,10 @@ each tick) and :mod:`.simulation` (initialise, run, record).
 """
 
 from .errors import (
+    DivergenceError,
     EarlyEndWarning,
     JacobiLoopWarning,
+    SaturationWarning,
     SimulationError,
     TimebaseWarning,
     UnconnectedInputWarning,
@@ -57,6 +59,8 @@ __all__ = [
     "TimebaseWarning",
     "JacobiLoopWarning",
     "EarlyEndWarning",
+    "DivergenceError",
+    "SaturationWarning",
     "FmuInfo",
     "Variable",
     "Plan",

@@ -25,7 +25,11 @@ import numpy as np
 
 from .plan import Plan
 
-__all__ = ["Bus"]
+__all__ = ["Bus", "RUNAWAY"]
+
+#: Magnitude (SI units) beyond which any exchanged value means a run has diverged, for
+#: outputs whose FMU declares no range: no physical quantity of a structure reaches it.
+RUNAWAY = 1e100
 
 
 class Bus:
@@ -50,6 +54,12 @@ class Bus:
         Per instance and FMI type: ``[(Variable, index into values, gain, offset)]``.
     record_idx : ndarray of int
         Index into ``values`` of each recorded variable, in the scenario's order.
+    lo, hi : ndarray, shape (2 n,)
+        Range of each value in :attr:`watched`: the FMU's declared ``min`` and ``max``,
+        and :data:`RUNAWAY` in magnitude where it declares none.
+    flags : list of (str, str)
+        Saturation flags: discrete outputs named ``sat_*`` (1 while a rail or limit is
+        active), at ``values[flag_idx]`` (the latest view).
     """
 
     def __init__(self, plan: Plan):
@@ -112,6 +122,29 @@ class Bus:
             rec_idx.append(i)
         self.record_idx = np.array(rec_idx, dtype=np.intp)
         self._slots_cache = {}
+        self._bounds(plan)
+
+    def _bounds(self, plan: Plan) -> None:
+        """:attr:`lo`, :attr:`hi` and :attr:`flag_idx` from the FMUs' declarations."""
+        n = self.n
+        lo = np.full(2 * n, -RUNAWAY)
+        hi = np.full(2 * n, RUNAWAY)
+        lo[n:], hi[n:] = -np.inf, np.inf   # pre-step slots of instances read after stepping
+        flags = []
+        for (inst, var), i in self.slot.items():
+            v = plan.fmus[inst].variables[var]
+            regions = (0, n) if inst in self.ft_sources else (0,)
+            for r in regions:
+                lo[r + i] = max(v.min, -RUNAWAY)
+                hi[r + i] = min(v.max, RUNAWAY)
+            if v.name.startswith("sat_") and v.variability == "discrete":
+                flags.append(((inst, var), n + i))
+        self.lo, self.hi = lo, hi
+        self.flags = [key for key, _ in flags]
+        self.flag_idx = np.array([i for _, i in flags], dtype=np.intp)
+        #: per flag, the ticks it was set after the tick's steps, and the first such tick
+        self.flag_ticks = np.zeros(max(len(flags), 1), dtype=np.int64)
+        self.flag_first = np.full(max(len(flags), 1), -1, dtype=np.int64)
 
     @property
     def snapshot(self) -> np.ndarray:

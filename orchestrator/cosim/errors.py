@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["SimulationError", "EarlyEndWarning", "TimebaseWarning", "JacobiLoopWarning",
+__all__ = ["SimulationError", "DivergenceError", "EarlyEndWarning", "SaturationWarning", "TimebaseWarning", "JacobiLoopWarning",
            "UnconnectedInputWarning"]
 
 #: FMI 2.0 status names by value.
@@ -28,6 +28,14 @@ class SimulationError(RuntimeError):
         self.result = None
 
 
+class DivergenceError(SimulationError):
+    """An exchanged value left the range its FMU declares (or grew without bound).
+
+    The run ends there with status ``diverged``: an unstable loop or model, not a
+    result.
+    """
+
+
 class TerminationRequested(Exception):
     """An FMU's fmi2DoStep returned Discard with fmi2Terminated true (a normal end)."""
 
@@ -40,6 +48,10 @@ class TerminationRequested(Exception):
 
 class EarlyEndWarning(UserWarning):
     """An FMU ended the run before the stop time by asking to terminate (not an error)."""
+
+
+class SaturationWarning(UserWarning):
+    """Instances that ran at a rail or limit (``sat_*`` flags) for part of the run."""
 
 
 class TimebaseWarning(UserWarning):

@@ -4,9 +4,11 @@
  * "parts": one raw FMI call each (get/set a block of variables, or doStep) plus the
  * bus arithmetic around it.  fastloop_run executes ticks k0..k1 exactly as the Python
  * loop of Simulation.run does: snapshot, phase one, record a row, phase two, check that
- * every produced value is finite.  The arithmetic is numpy's: gain and offset as two
+ * every produced value is finite and inside its declared range, count the ticks each
+ * saturation flag is set.  The arithmetic is numpy's: gain and offset as two
  * roundings (compile with -ffp-contract=off), Integer by rint (round half to even),
- * Boolean by != 0.  Any FMI status above Warning, or a non-finite value, stops the run
+ * Boolean by != 0.  Any FMI status above Warning, a non-finite value or one out of its
+ * range stops the run
  * and is reported back so that Python raises the error it raises today.
  */
 #include <math.h>
@@ -15,7 +17,7 @@
 #include <string.h>
 
 enum { READ_REAL = 0, READ_INT = 1, SET_REAL = 2, SET_INT = 3, SET_BOOL = 4, DO_STEP = 5 };
-enum { RUN_OK = 0, RUN_FMI_STATUS = 1, RUN_NOT_FINITE = 2 };
+enum { RUN_OK = 0, RUN_FMI_STATUS = 1, RUN_NOT_FINITE = 2, RUN_OUT_OF_RANGE = 3 };
 
 typedef int (*get_real_fn)(void *, const uint32_t *, size_t, double *);
 typedef int (*get_int_fn)(void *, const uint32_t *, size_t, int32_t *);
@@ -52,6 +54,12 @@ typedef struct {
     double *rec;                 /* recorded rows, n_rec per row */
     const int64_t *rec_idx;
     int64_t n_rec;
+    const double *lo;            /* range of values[n..3n), 2 n each */
+    const double *hi;
+    const int64_t *flag_idx;     /* saturation flags: index into values */
+    int64_t n_flag;
+    int64_t *flag_ticks;         /* ticks each flag was set, after the tick's steps */
+    int64_t *flag_first;         /* first such tick, -1 before */
 } loop_t;
 
 typedef struct {
@@ -137,6 +145,15 @@ int fastloop_run(const loop_t *L, int64_t k0, int64_t k1, const double *t, resul
             sum += values[i];
         if (!isfinite(sum))
             return RUN_NOT_FINITE;
+        for (i = n; i < 3 * n; i++)
+            if (values[i] < L->lo[i - n] || values[i] > L->hi[i - n])
+                return RUN_OUT_OF_RANGE;
+        for (i = 0; i < L->n_flag; i++)
+            if (values[L->flag_idx[i]] != 0.0) {
+                L->flag_ticks[i]++;
+                if (L->flag_first[i] < 0)
+                    L->flag_first[i] = k;
+            }
     }
     return RUN_OK;
 }

@@ -26,7 +26,7 @@ import numpy as np
 
 from fmutools.compiled import compiled_once, compiler_version
 
-__all__ = ["RUN_FMI_STATUS", "RUN_NOT_FINITE", "RUN_OK", "FastLoop", "compiled_library",
+__all__ = ["RUN_FMI_STATUS", "RUN_NOT_FINITE", "RUN_OK", "RUN_OUT_OF_RANGE", "FastLoop", "compiled_library",
            "fast_loop"]
 
 SOURCE = Path(__file__).with_name("fastloop.c")
@@ -36,7 +36,7 @@ CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math", "-fPIC", "-s
           "-Wall")
 LIBS = ("-lm",)
 
-RUN_OK, RUN_FMI_STATUS, RUN_NOT_FINITE = 0, 1, 2
+RUN_OK, RUN_FMI_STATUS, RUN_NOT_FINITE, RUN_OUT_OF_RANGE = 0, 1, 2, 3
 READ_REAL, READ_INT, SET_REAL, SET_INT, SET_BOOL, DO_STEP = range(6)
 
 _i64p = ctypes.POINTER(ctypes.c_int64)
@@ -57,7 +57,9 @@ class _Loop(ctypes.Structure):
                 ("snap_idx", ctypes.c_void_p), ("prog_of_tick", ctypes.c_void_p),
                 ("hyperperiod", ctypes.c_int64), ("output_ticks", ctypes.c_int64),
                 ("rec", ctypes.c_void_p), ("rec_idx", ctypes.c_void_p),
-                ("n_rec", ctypes.c_int64)]
+                ("n_rec", ctypes.c_int64), ("lo", ctypes.c_void_p), ("hi", ctypes.c_void_p),
+                ("flag_idx", ctypes.c_void_p), ("n_flag", ctypes.c_int64),
+                ("flag_ticks", ctypes.c_void_p), ("flag_first", ctypes.c_void_p)]
 
 
 class _Result(ctypes.Structure):
@@ -201,7 +203,10 @@ class FastLoop:
             snap_idx=arr(snap or [0], np.int64), prog_of_tick=arr(prog_of_tick, np.int64),
             hyperperiod=len(prog_of_tick), output_ticks=timebase.output_ticks,
             rec=rec.ctypes.data, rec_idx=arr(bus.record_idx, np.int64),
-            n_rec=len(bus.record_idx))
+            n_rec=len(bus.record_idx), lo=arr(bus.lo, np.float64), hi=arr(bus.hi, np.float64),
+            flag_idx=arr(bus.flag_idx if len(bus.flag_idx) else [0], np.int64),
+            n_flag=len(bus.flag_idx), flag_ticks=bus.flag_ticks.ctypes.data,
+            flag_first=bus.flag_first.ctypes.data)
         keep.append(values)
         self.result = _Result()
 

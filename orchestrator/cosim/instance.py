@@ -4,9 +4,16 @@ from __future__ import annotations
 
 import ctypes
 import itertools
+import math
 
 import fmpy.fmi2 as f2
-from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+    fmi2LastSuccessfulTime,
+    fmi2Terminated,
+)
 from fmpy.logging import addLoggerProxy
 
 from fmutools.fmucache import extract_cached
@@ -73,7 +80,15 @@ class FmuInstance:
         self._cb = cb
         self.instantiated = False
         self.fatal = False
-        self.fmu.instantiate(callbacks=cb, loggingOn=True)
+        try:
+            self.fmu.instantiate(callbacks=cb, loggingOn=True)
+        except Exception as exc:  # fmpy's sentence names no cause
+            said = " ".join(self.last_message().split())
+            if not said:
+                raise
+            hint = ("; the model description and the binary come from different builds: "
+                    "rebuild the FMU or use the one they came in") if "GUID" in said else ""
+            raise RuntimeError(f"{exc}: the FMU says {said!r}{hint}") from exc
         self.instantiated = True
         self.comp = self.fmu.component
         fn = self.fmu._functions
@@ -85,6 +100,16 @@ class FmuInstance:
         self.setBoolean = fn["fmi2SetBoolean"]
         self.doStep = fn["fmi2DoStep"]
         self._getBooleanStatus = fn["fmi2GetBooleanStatus"]
+        self._getRealStatus = fn["fmi2GetRealStatus"]
+
+    def last_successful_time(self) -> float | None:
+        """``fmi2GetRealStatus(fmi2LastSuccessfulTime)`` (s), or None if not answered."""
+        value = ctypes.c_double(0.0)
+        try:
+            st = self._getRealStatus(self.comp, fmi2LastSuccessfulTime, ctypes.byref(value))
+        except Exception:
+            return None
+        return float(value.value) if st == 0 and math.isfinite(value.value) else None
 
     def asks_to_terminate(self) -> bool:
         """True if ``fmi2GetBooleanStatus(fmi2Terminated)`` answers fmi2OK and true.

@@ -139,6 +139,23 @@ def _warn_slow_timebase(scenario: Scenario, fmus: dict, tb: Timebase) -> None:
                 f"({hint!r} s): {n} steps; check the period"), stacklevel=3)
 
 
+def _refuse_empty_rates(scenario: Scenario) -> None:
+    """A period or output interval longer than the run: nothing would step or record."""
+    exp = scenario.experiment
+    length = float(exp.stop) - float(exp.start)
+    for inst in scenario.instances:
+        if float(inst.period) > length:
+            raise ScenarioError(
+                f"instance {inst.name!r} has period {float(inst.period)!r} s, longer than the "
+                f"run ({length!r} s): it would never step; give it a period of at most the "
+                "run's length")
+    if exp.output_interval is not None and float(exp.output_interval) > length:
+        raise ScenarioError(
+            f"experiment.output_interval {float(exp.output_interval)!r} s is longer than the "
+            f"run ({length!r} s): it would record one row; choose an interval of at most "
+            "the run's length")
+
+
 def prepare(scenario: Scenario, fmu_dir=None) -> Plan:
     """Check a scenario against its FMUs' model descriptions; instantiate nothing.
 
@@ -197,6 +214,7 @@ def prepare(scenario: Scenario, fmu_dir=None) -> Plan:
             raise ScenarioError(f"recorded variable {ref} is a {v.type}; only numbers and "
                                 "booleans can be recorded")
     exp = scenario.experiment
+    _refuse_empty_rates(scenario)
     tb = make_timebase({i.name: i.period for i in scenario.instances}, exp.output_interval,
                        exp.stop, exp.start)
     _warn_slow_timebase(scenario, fmus, tb)

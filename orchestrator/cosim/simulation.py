@@ -8,9 +8,9 @@ import os
 
 import numpy as np
 
-from .bus import Bus
-from .errors import STATUS, SimulationError, TerminationRequested
-from .fastloop import RUN_FMI_STATUS, RUN_NOT_FINITE, RUN_OK, fast_loop
+from .bus import RUNAWAY, Bus
+from .errors import STATUS, DivergenceError, SimulationError, TerminationRequested
+from .fastloop import RUN_FMI_STATUS, RUN_NOT_FINITE, RUN_OK, RUN_OUT_OF_RANGE, fast_loop
 from .graph import AlgebraicLoopError, init_order
 from .instance import FmuInstance, extracted
 from .plan import Plan
@@ -57,6 +57,8 @@ class Simulation:
         self.tick = 0
         #: ``(instance, time, message)`` when an FMU ended the run early (fmi2Terminated)
         self.terminated = None
+        #: the terminating FMU's fmi2LastSuccessfulTime when a row was recorded there (s)
+        self.last_successful_time = None
         self.bus = Bus(plan)
         tb = plan.timebase
         self.n_rows = tb.n_ticks // tb.output_ticks + 1
@@ -135,6 +137,7 @@ class Simulation:
         for name in order:
             bus.writers[name]()
         self._check_finite(t0, order, "initialisation")
+        self._check_range(t0, order, "initialisation")
 
     def _read_all(self, order):
         for name in order:
@@ -160,6 +163,52 @@ class Simulation:
                         raise SimulationError(
                             f"instance {inst!r} produced {x!r} for {var} in {during} at "
                             f"t = {t!r} s (the FMI call itself returned OK)", inst, t)
+
+    def _in_range(self) -> bool:
+        w = self.bus.watched
+        return not ((w < self.bus.lo).any() or (w > self.bus.hi).any())
+
+    def _check_range(self, t, names, during="its step"):
+        """Raise DivergenceError naming the first instance, in ``names`` order, with a
+        value outside the range its FMU declares (or beyond :data:`RUNAWAY`)."""
+        if self._in_range():
+            return
+        bus = self.bus
+        n = bus.n
+        for name in names:
+            for (inst, var), i in bus.slots_of(name):
+                for region in (0, n):
+                    x = float(bus.values[n + region + i])
+                    lo, hi = float(bus.lo[region + i]), float(bus.hi[region + i])
+                    if lo <= x <= hi:
+                        continue
+                    v = self.plan.fmus[inst].variables[var]
+                    unit = f" {v.unit}" if v.unit and v.unit != "1" else ""
+                    if max(abs(lo), abs(hi)) >= RUNAWAY and abs(x) > RUNAWAY:
+                        what = f"beyond {RUNAWAY:g} in magnitude"
+                    else:
+                        what = f"outside its declared range [{lo!r}, {hi!r}]{unit}"
+                    raise DivergenceError(
+                        f"instance {inst!r} produced {var} = {x!r}{unit}, {what}, in "
+                        f"{during} at t = {t!r} s: the run diverged (an unstable loop or "
+                        "model, e.g. too high a gain or negative damping); the rows up to "
+                        "here are kept", inst, t)
+
+    def saturation(self) -> list:
+        """Saturation flags set during the run: ``[(instance, flag, seconds, first)]``.
+
+        ``seconds`` is the time the flag (an FMU's discrete output ``sat_*``) was set
+        after each tick's steps, counted on the base tick; ``first`` is the time of the
+        first such tick (s).
+        """
+        tb = self.plan.timebase
+        out = []
+        for j, (inst, var) in enumerate(self.bus.flags):
+            ticks = int(self.bus.flag_ticks[j])
+            if ticks:
+                out.append((inst, var, float(ticks * tb.base),
+                            float(tb.time(int(self.bus.flag_first[j])))))
+        return out
 
     def _now(self):
         return self.plan.timebase.time(self.tick)
@@ -200,6 +249,9 @@ class Simulation:
         actions = self._actions()
         n_ticks = tb.n_ticks
         isfinite = math.isfinite
+        lo, hi = bus.lo, bus.hi
+        flag_idx, flag_ticks, flag_first = bus.flag_idx, bus.flag_ticks, bus.flag_first
+        n_flag = len(flag_idx)
         order = [m for g in plan.groups for m in g]
         fast = None
         if self.fast and os.environ.get("JITTERFMU_FAST_LOOP", "1") != "0":
@@ -231,6 +283,13 @@ class Simulation:
                 call(t)
             if not isfinite(float(watched.sum())):
                 self._check_finite(t, order)
+            if (watched < lo).any() or (watched > hi).any():
+                self._check_range(t, order)
+            if n_flag:
+                on = values[flag_idx] != 0
+                if on.any():
+                    flag_ticks[:n_flag] += on
+                    flag_first[:n_flag][(flag_first[:n_flag] < 0) & on] = k
             if progress is not None and not k & 2047:
                 progress(k / n_ticks)
             return True
@@ -265,6 +324,8 @@ class Simulation:
                         self._fast_failure(fast, t)
                     elif code == RUN_NOT_FINITE:
                         self._check_finite(t, order)
+                    elif code == RUN_OUT_OF_RANGE:
+                        self._check_range(t, order)
                     else:
                         k = k1
                     self.tick = k
@@ -277,8 +338,33 @@ class Simulation:
             raise SimulationError(str(exc), None, (a + k * b) / d) from exc
         except TerminationRequested as req:
             self.terminated = (req.instance, req.time, req.message)
+            self._record_last_successful(req.instance)
         if progress is not None:
             progress(1.0)
+
+    def _record_last_successful(self, name):
+        """Record the row at the terminating FMU's ``fmi2LastSuccessfulTime``.
+
+        An FMU that ends the run (Discard with fmi2Terminated) may have advanced inside
+        the declined step, as the Reference FMU Stair does to the event that ends it;
+        FMI hosts record its outputs there, and so does the master (the other instances
+        keep their latest values).  Nothing is added when that time is not past the
+        last recorded row.
+        """
+        s = self.slaves[name]
+        t_last = s.last_successful_time()
+        last_row = self.times[self.rows - 1] if self.rows else -math.inf
+        tol = 1e-9 * float(self.plan.timebase.base)
+        if t_last is None or not last_row + tol < t_last or self.rows >= self.n_rows:
+            return
+        try:
+            self.bus.readers[name]()
+        except SimulationError:
+            return  # outputs not readable after the declined step: no row
+        self.last_successful_time = t_last
+        self.times[self.rows] = t_last
+        self.rec[self.rows] = self.bus.latest[self.bus.record_idx % self.bus.n]
+        self.rows += 1
 
     def _fast_failure(self, fast, t):
         """Raise what the Python loop raises for the compiled loop's failed FMI call."""

@@ -9,6 +9,7 @@ holds the project's own checks on a finished FMU (used by ``jitterfmu validate``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from xml.etree.ElementTree import Element, SubElement, fromstring
@@ -130,6 +131,7 @@ def complete_model_description(root: Element, slave) -> Element:
         If an output depends on a name that is not an input of the slave.
     """
     specs = slave.variable_specs
+    ranges = getattr(slave, "variable_ranges", {})
     variables = root.find("ModelVariables")
     elements = list(variables)
     if len(elements) != len(specs):
@@ -153,6 +155,9 @@ def complete_model_description(root: Element, slave) -> Element:
                 real.set("start", repr(slave.get_real([spec.value_reference])[0]))
             if spec.unit not in used_units:
                 used_units.append(spec.unit)
+            for attr, bound in zip(("min", "max"), ranges.get(spec.name, ())):
+                if math.isfinite(bound):
+                    real.set(attr, repr(bound))
 
     # Capability flags.
     cs = root.find("CoSimulation")

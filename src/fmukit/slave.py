@@ -156,6 +156,8 @@ class FmuSlave(Fmi2Slave):
         self._specs: dict[int, VariableSpec] = {}
         self._by_name: dict[str, VariableSpec] = {}
         self._index_cache: dict[tuple[int, ...], np.ndarray] = {}
+        #: declared ``(min, max)`` of Real variables, by name (see :meth:`declare_range`)
+        self.variable_ranges: dict[str, tuple[float, float]] = {}
 
     # ------------------------------------------------------------------ resources
     @property
@@ -185,6 +187,28 @@ class FmuSlave(Fmi2Slave):
     def variable_specs(self) -> list[VariableSpec]:
         """All declared variables in value-reference order."""
         return [self._specs[vr] for vr in sorted(self._specs)]
+
+    def declare_range(self, name: str, lo: float, hi: float) -> None:
+        """Declare the physical range of a Real variable (FMI ``min`` and ``max``).
+
+        A value outside it means the model has left its validity (a diverging loop, a
+        strain no material survives); a master may stop the run there.
+
+        Parameters
+        ----------
+        name : str
+            A declared Real variable.
+        lo, hi : float
+            Bounds in the variable's unit; ``-inf`` or ``inf`` for an open side.
+        """
+        spec = self._by_name.get(name)
+        if spec is None or spec.type != "Real":
+            raise DeclarationError(f"cannot declare a range for {name!r}: it is not a "
+                                   "declared Real variable")
+        if not lo < hi or math.isnan(lo) or math.isnan(hi):
+            raise DeclarationError(f"range of {name!r} is [{lo!r}, {hi!r}]; expected "
+                                   "min < max")
+        self.variable_ranges[name] = (float(lo), float(hi))
 
     def add_input(self, name: str, *, unit: str, start: float = 0.0, description: str = "",
                   variability: str = "continuous") -> None:

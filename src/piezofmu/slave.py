@@ -33,6 +33,7 @@ import math
 from typing import ClassVar
 
 from fmukit.slave import FmuSlave
+from fmukit.units import MAX_STRAIN
 from piezofmu import actuator as ac
 from piezofmu.actuator import DEFAULT_BOUC_WEN, ActuatorState, PiezoActuator, StrainGauge
 from piezofmu.hysteresis import BoucWen
@@ -110,6 +111,7 @@ class PiezoSlave(FmuSlave):
                         description="free stroke d0/V0 v_eff after the stroke limit")
         self.add_output("strain", unit="1", depends_on=["elongation"],
                         description="strain gauge reading elongation / gauge_length + noise")
+        self.declare_range("strain", -MAX_STRAIN, MAX_STRAIN)
         for flag, what in zip(_FLAGS, ("voltage rail", "current (slew) limit", "stroke limit")):
             self.add_output(flag, unit="1", depends_on=[], variability="discrete",
                             description=f"1 when the {what} is active, else 0")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from fmukit.slave import FmuSlave
+from fmukit.units import MAX_ANGLE, MAX_STRAIN
 from structfmu.discrete import ZohStepper
 from structfmu.fem import UNITS
 from structfmu.reduced import ReducedModel
@@ -40,6 +41,10 @@ class StructureSlave(FmuSlave):
             "y", names=list(model.output_names), causality="output",
             unit=[UNITS[k] for k in model.output_kinds], depends_on=deps,
             description="structural output")
+        limits = {"strain": MAX_STRAIN, "angle": MAX_ANGLE}
+        for name, kind in zip(model.output_names, model.output_kinds):
+            if kind in limits:
+                self.declare_range(name, -limits[kind], limits[kind])
 
     def exit_initialization_mode(self):
         self.stepper.update_state_outputs()

@@ -67,16 +67,19 @@ def scenario(fmu, stop=12.0, **params):
 
 def test_fmu_that_asks_to_terminate_ends_the_run_normally(stair, tmp_path):
     with pytest.warns(EarlyEndWarning, match=r"instance 'stair' ended the run at t = 8.8 s "
-                      r"\(fmi2Terminated\): counter reached 10: end of simulation; 45 rows"):
+                      r"\(fmi2Terminated\): counter reached 10: end of simulation; 46 rows"):
         result = run_scenario(scenario(stair), tmp_path / "o")
     table, meta = result
     assert meta["status"] == "terminated" and meta["error"] is None
     assert meta["terminated"]["instance"] == "stair" and meta["terminated"]["time"] == 8.8
-    # rows at 0, 0.2, ..., 8.8; the step 8.8 -> 9.0 is the one the FMU declined
-    assert meta["rows"] == 45 and table["time"][-1] == pytest.approx(8.8)
-    assert list(table["stair.counter"][::5]) == list(range(1, 10))
+    assert meta["terminated"]["last_successful_time"] == pytest.approx(9.0)
+    # rows at 0, 0.2, ..., 8.8, and the row FMPy and fmusim record at
+    # fmi2LastSuccessfulTime: 9.0, where the FMU's counter reached 10 and it stopped
+    assert meta["rows"] == 46 and table["time"][-1] == pytest.approx(9.0)
+    assert table["time"][-2] == pytest.approx(8.8)
+    assert list(table["stair.counter"][::5]) == list(range(1, 11))
     assert json.loads((tmp_path / "o/run.json").read_text())["status"] == "terminated"
-    assert len(read_table(tmp_path / "o/results.parquet")["time"]) == 45
+    assert len(read_table(tmp_path / "o/results.parquet")["time"]) == 46
 
 
 def test_terminated_run_exits_0_from_the_cli(stair, tmp_path, capsys):
@@ -86,7 +89,7 @@ def test_terminated_run_exits_0_from_the_cli(stair, tmp_path, capsys):
     out, err = capsys.readouterr()
     assert code == 0, err
     assert "ended the run at t = 8.8 s (fmi2Terminated)" in err
-    assert "45 rows" in out
+    assert "46 rows" in out
 
 
 def test_discard_without_terminate_is_still_a_failure(stair, tmp_path):

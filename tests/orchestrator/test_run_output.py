@@ -75,6 +75,14 @@ def test_killed_run_keeps_its_flushed_rows_and_never_says_ok(fmu_dir, tmp_path):
     table = read_table(out / PARTIAL_DIR)
     assert len(table["time"]) > 11  # more than the earlier run's rows
     check_rows(table)
+    # the earlier complete run was moved aside, whole, before the killed one started
+    assert json.loads((out / "previous/run.json").read_text())["status"] == "ok"
+    assert len(read_table(out / "previous/results.parquet")["time"]) == 11
+    # the next run into the folder does not delete the kept rows without being told
+    with pytest.raises(OutputError, match=rf"holds {len(table['time']):,} rows of a run that "
+                       "did not finish"):
+        run_scenario(scenario(stop=0.01), out, fmu_dir=fmu_dir)
+    assert len(read_table(out / PARTIAL_DIR)["time"]) == len(table["time"])
 
 
 def test_sigterm_ends_the_run_with_the_rows_so_far(fmu_dir, tmp_path):
@@ -125,7 +133,7 @@ def test_an_unwritable_output_folder_is_found_before_the_first_step(fmu_dir, tmp
         run_scenario(scenario(stop=0.01), blocker / "o", fmu_dir=fmu_dir)
 
 
-def test_a_failed_rerun_replaces_an_earlier_ok(fmu_dir, tmp_path):
+def test_a_failed_rerun_writes_its_rows_and_keeps_the_earlier_ok_aside(fmu_dir, tmp_path):
     out = tmp_path / "o"
     run_scenario(scenario(stop=0.05), out, fmu_dir=fmu_dir)
     bad = scenario(stop=0.05)
@@ -138,4 +146,5 @@ def test_a_failed_rerun_replaces_an_earlier_ok(fmu_dir, tmp_path):
     assert len(read_table(out / "results.parquet")["time"]) == meta["rows"] == 6
     assert not (out / PARTIAL_DIR).exists()
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == [
-        "results.parquet", "run.json"]
+        "previous", "results.parquet", "run.json"]
+    assert len(read_table(out / "previous/results.parquet")["time"]) == 51

@@ -3,7 +3,8 @@
  * counter = floor(t) + 1 at the end of each step.  When it reaches `limit` (vr 2,
  * default 10, i.e. at t = 9 s) fmi2DoStep returns fmi2Discard and
  * fmi2GetBooleanStatus(fmi2Terminated) reports true: the FMU asks the master to end
- * the simulation.  With `terminate` (vr 3) false it returns fmi2Discard without
+ * the simulation, having advanced to the end of that step (fmi2LastSuccessfulTime and
+ * counter there, as the Reference FMU Stair does).  With `terminate` (vr 3) false it returns fmi2Discard without
  * asking to terminate (a step it could not complete).  Written for the tests; no FMI
  * headers are needed.
  */
@@ -199,6 +200,10 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
     next = (int)floor(t + h + 1e-9) + 1;
     if (next >= s->limit) {
         s->terminated = s->terminate;
+        if (s->terminate) {  /* as the Reference FMU: it reached the event that ends it */
+            s->time = t + h;
+            s->counter = next;
+        }
         if (s->cb.logger)
             s->cb.logger(s->cb.componentEnvironment, s->name, fmi2Discard, "logStatusDiscard",
                          s->terminate ? "counter reached %d: end of simulation"

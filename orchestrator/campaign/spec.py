@@ -200,8 +200,9 @@ def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> C
         raise CampaignError(f"event name {RSS_EVENT!r} is reserved for the RSS total")
     sweeps = _sweeps(data.get("sweeps", []))
     instruments, shorthand = _instruments(data.get("instruments"))
+    # the default metric is not checked against the record: nobody asked for its window
     metrics = _metrics(data.get("metrics", [{"kind": "peak_to_peak", "windows": [1.0]}]),
-                       record, skip)
+                       record if "metrics" in data else None, skip)
     requirements = _requirements(data.get("requirements", []), shorthand, instruments, metrics)
     events, configurations = _variants(events, configurations, sweeps, scenario["fmus"])
     wheel = _wheel_sweeps(data.get("wheel_sweeps", []), scenario["fmus"])

@@ -91,8 +91,14 @@ class ReducedModel:
             if a.shape != shape:
                 raise DimensionError(f"reduced model {self.name!r}: {k} has shape {a.shape}; "
                                      f"expected {shape}")
+            if not np.isfinite(a).all():
+                where = np.argwhere(~np.isfinite(a))[0]
+                raise ModelError(f"reduced model {self.name!r}: {k} has a non-finite entry "
+                                 f"({float(a[tuple(where)])!r} at index {tuple(int(i) for i in where)}); "
+                                 "every matrix entry must be a finite number")
             a.setflags(write=False)
             object.__setattr__(self, k, a)
+        self._check_physical(arrays)
         if len(self.output_kinds) != n_out:
             raise DimensionError(f"reduced model {self.name!r}: {len(self.output_kinds)} output "
                                  f"kinds for {n_out} outputs")
@@ -102,6 +108,29 @@ class ReducedModel:
         lp = self.accel_lowpass
         if lp is not None and not isinstance(lp, SensorLowpass):
             object.__setattr__(self, "accel_lowpass", SensorLowpass(*lp))
+
+    def _check_physical(self, arrays: dict) -> None:
+        """Frequencies and damping >= 0, the Ritz block not unstable (entries are finite)."""
+        for k in ("omega", "modal_damping"):
+            neg = np.flatnonzero(arrays[k] < 0)
+            if neg.size:
+                what = "frequency" if k == "omega" else "damping (it would feed energy in)"
+                raise ModelError(f"reduced model {self.name!r}: mode {int(neg[0])} has {k} "
+                                 f"{float(arrays[k][neg[0]])!r}; a negative {what} makes an "
+                                 "unstable structure; give values >= 0")
+        for k in ("K_oo", "D_oo"):
+            a = arrays[k]
+            if a.size == 0:
+                continue
+            sym = (a + a.T) / 2
+            low = float(np.linalg.eigvalsh(sym).min())
+            # eigvalsh of a PSD matrix is good to about eps times its norm
+            tol = 1e3 * np.finfo(float).eps * max(float(np.abs(sym).max()), 1e-300)
+            if low < -tol:
+                what = "stiffness" if k == "K_oo" else "damping"
+                raise ModelError(f"reduced model {self.name!r}: the Ritz-block {what} {k} has "
+                                 f"an eigenvalue {low!r} < 0; a {what} matrix must be "
+                                 "positive semi-definite (an unstable structure otherwise)")
 
     # -- sizes -------------------------------------------------------------------------
     @property
@@ -235,12 +264,15 @@ class ReducedModel:
             raise ModelError(f"{str(path)!r} is not a reduced-model .npz file ({exc})") from None
         if header.get("format") != "jitterfmu-reduced-model":
             raise ModelError(f"{str(path)!r} is not a reduced-model .npz file")
-        return cls(**arrays, input_names=tuple(header["input_names"]),
-                   output_names=tuple(header["output_names"]),
-                   output_kinds=tuple(header["output_kinds"]), name=header["name"],
-                   meta=header.get("meta", {}),
-                   accel_lowpass=(SensorLowpass(*header["accel_lowpass"])
-                                  if header.get("accel_lowpass") else None))
+        try:
+            return cls(**arrays, input_names=tuple(header["input_names"]),
+                       output_names=tuple(header["output_names"]),
+                       output_kinds=tuple(header["output_kinds"]), name=header["name"],
+                       meta=header.get("meta", {}),
+                       accel_lowpass=(SensorLowpass(*header["accel_lowpass"])
+                                      if header.get("accel_lowpass") else None))
+        except (ModelError, DimensionError) as exc:
+            raise type(exc)(f"{str(path)!r}: {exc}") from None
 
 
 def _index(names, name, what, model):

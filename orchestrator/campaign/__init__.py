@@ -62,7 +62,14 @@ A case is keyed by the SHA-256 of its definition (scenario after overrides, inst
 metrics, skip) and of the runner's fingerprint of the FMUs it uses.  A case runs in a
 temporary folder which is renamed to ``cases/KEY`` (``os.replace``) only when complete, so
 a killed campaign loses only the cases in flight; running the campaign again skips every
-case whose folder says "ok" and retries failed ones.
+case whose folder says "ok" and retries failed ones.  A folder is trusted only when it is
+a real folder (not a symbolic link) whose ``case.json`` holds the case's own key and
+scenario and whose files have the recorded sizes and SHA-256; any other (a copy of
+another case's folder, a link, a replaced file) runs again, and ``jitterfmu campaign``
+says so in one line.  A plain file where a case folder belongs fails that case only.
+Every ``instance.variable`` the campaign sets is checked against its FMU before any case
+runs.  With ``workers=0``, SIGTERM or SIGINT stops the campaign after keeping the
+finished cases (:class:`CampaignInterrupted`, exit status 128 + the signal).
 
 Engines
 -------

@@ -75,7 +75,20 @@ class LinearRunner:
         return "engine=linear;" + self._master.fingerprint(scenario)
 
     def override_problem(self, scenario: dict, ref: str) -> str | None:
-        """As :meth:`MasterRunner.override_problem`, on the Python FMUs it reads."""
+        """As :meth:`MasterRunner.override_problem`, on the Python FMUs it reads.
+
+        Parameters
+        ----------
+        scenario : dict
+            A case's scenario data (the TOML layout).
+        ref : str
+            ``"instance.variable"``.
+
+        Returns
+        -------
+        str or None
+            One sentence, or None when the variable can be set.
+        """
         return self._master.override_problem(scenario, ref)
 
     # ------------------------------------------------------------------ compiled loops

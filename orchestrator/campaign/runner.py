@@ -35,6 +35,7 @@ from .store import (
     STATUS_FILE,
     file_record,
     not_a_folder,
+    publish,
     temporary_folder,
     write_json,
     write_table,
@@ -301,12 +302,7 @@ def execute_case(case: Case, runner: Callable, cases_dir, instruments, metrics, 
     except BaseException:     # interrupted: nothing of this case is published
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    final = cases_dir / case.key
-    if final.is_symlink():    # a link is removed, never what it points to
-        final.unlink()
-    elif final.exists():      # an earlier failed attempt, or an untrusted folder
-        shutil.rmtree(final, ignore_errors=True)
-    os.replace(tmp, final)
+    publish(tmp, cases_dir / case.key)
     return {k: info[k] for k in ("key", "status", "error", "seconds")}
 
 

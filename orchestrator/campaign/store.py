@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import uuid
 from pathlib import Path
 
@@ -188,15 +189,38 @@ def record_lost(cases_dir: Path, case, error: str) -> None:
     error : str
         One sentence: why the case was lost.
     """
-    if case_status(cases_dir, case.key) is not None:
-        return
+    folder = cases_dir / case.key
+    st = case_status(cases_dir, case.key)
+    if not_a_folder(cases_dir, case.key) or (
+            st is not None and st.get("key") == case.key and not folder.is_symlink()):
+        return     # the case's own record (or a file that is not ours to replace)
     tmp = temporary_folder(cases_dir, case.key)
     write_json(tmp / STATUS_FILE, {
         "key": case.key, "label": case.label, "event": case.event,
         "configuration": case.configuration, "sweep": case.sweep, "scenario": case.scenario,
         "status": "failed", "error": error, "seconds": None,
     })
-    os.replace(tmp, cases_dir / case.key)
+    publish(tmp, folder)
+
+
+def publish(tmp: Path, folder: Path) -> None:
+    """Rename a case's finished temporary folder to its place ``folder``.
+
+    What was there goes: an earlier attempt's folder, an untrusted copy, or a symbolic
+    link (the link only, never what it points to).
+
+    Parameters
+    ----------
+    tmp : Path
+        From :func:`temporary_folder`, complete.
+    folder : Path
+        ``cases/KEY``.
+    """
+    if folder.is_symlink():
+        folder.unlink()
+    elif folder.exists():
+        shutil.rmtree(folder, ignore_errors=True)
+    os.replace(tmp, folder)
 
 
 def slug(text: str) -> str:

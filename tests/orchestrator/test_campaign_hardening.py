@@ -76,6 +76,33 @@ def test_resume_reruns_a_case_folder_holding_another_cases_files(tmp_path, damag
     assert {p.name: p.read_bytes() for p in (cases / other.key).iterdir()} == other_files
 
 
+@pytest.mark.parametrize("damage", ["copied folder", "symlinked folder"])
+def test_a_lost_case_replaces_another_cases_folder_in_its_place(tmp_path, damage):
+    # a pool worker died running a case whose folder held another case's files: the
+    # summary must not show that other case's jitter under this case's name
+    from orchestrator.campaign.store import record_lost
+
+    camp = campaign_from_dict(campaign_data())
+    out = tmp_path / "out"
+    run_campaign(camp, out, synthetic_runner, workers=0, progress=False)
+    cases = out / "cases"
+    mine, other = camp.cases[0], camp.cases[4]
+    shutil.rmtree(cases / mine.key)
+    if damage == "copied folder":
+        shutil.copytree(cases / other.key, cases / mine.key)
+    else:
+        (cases / mine.key).symlink_to(cases / other.key, target_is_directory=True)
+    record_lost(cases, mine, "a worker process died while this case ran")
+    st = json.loads((cases / mine.key / "case.json").read_text())
+    assert (st["key"], st["status"]) == (mine.key, "failed")
+    assert json.loads((cases / other.key / "case.json").read_text())["status"] == "ok"
+    from orchestrator.campaign import write_summary
+    write_summary(camp, out)
+    rows = pq.read_table(out / "summary.parquet").to_pylist()
+    assert mine.label not in {r["case"] for r in rows}
+    assert other.label in {r["case"] for r in rows}
+
+
 def test_cli_says_in_one_line_that_a_copied_case_runs_again(tmp_path, capsys):
     path = _toml(tmp_path, campaign_data())
     argv = ["campaign", str(path), "--out", str(tmp_path / "o"), "--workers", "0",

@@ -14,8 +14,74 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import multiprocessing
 import pkgutil
 import sys
+import warnings
+
+#: Longest message printed whole; a longer one (say one that echoes a file) is cut.
+MAX_MESSAGE = 2000
+
+# Warnings printed by this process: text -> how many times it was raised.
+_SHOWN: dict[str, int] = {}
+
+
+def clip(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text``, cut in the middle when longer than ``limit`` characters."""
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit // 2]} [... {len(text) - limit} characters cut ...] {text[-limit // 2:]}"
+
+
+def _print_warning(text: str, category, times: int = 1, file=None) -> None:
+    """One line ``jitterfmu: warning: <text> (<category unless a UserWarning>, N times)``."""
+    notes = [] if issubclass(category, UserWarning) else [category.__name__]
+    notes += [f"{times} times"] if times > 1 else []
+    note = f" ({', '.join(notes)})" if notes else ""
+    out = file or sys.stderr
+    out.write(f"jitterfmu: warning: {clip(text)}{note}\n")   # one write: workers share it
+    out.flush()
+
+
+def show_warning(message, category=UserWarning, filename="", lineno=0, file=None,
+                 line=None) -> None:
+    """Print a warning as one line ``jitterfmu: warning: ...``, once per distinct text.
+
+    Installed as :func:`warnings.showwarning` by the command line (and so in its
+    worker processes, which import it): no source line, no file name, no repeats.  In a
+    worker, an UnconnectedInputWarning is not printed: it is about the scenario's
+    wiring, which the campaign command reports once for the whole run.
+    """
+    text = str(message)
+    if text in _SHOWN:
+        _SHOWN[text] += 1
+        return
+    _SHOWN[text] = 1
+    if (getattr(category, "__name__", "") == "UnconnectedInputWarning"
+            and multiprocessing.parent_process() is not None):
+        return
+    _print_warning(text, category, file=file)
+
+
+def report_warnings(caught) -> None:
+    """Print recorded warnings, each distinct text once, with how often it was raised.
+
+    The texts printed are not printed again by :func:`show_warning` in this process.
+
+    Parameters
+    ----------
+    caught : list of warnings.WarningMessage
+        What :func:`warnings.catch_warnings` recorded.
+    """
+    counts: dict[str, list] = {}
+    for w in caught:
+        counts.setdefault(str(w.message), [w.category, 0])[1] += 1
+    for text, (category, n) in counts.items():
+        _SHOWN[text] = _SHOWN.get(text, 0) + n   # not repeated by show_warning
+        _print_warning(text, category, n)
+
+
+warnings.showwarning = show_warning
 
 
 def _subcommand_modules():
@@ -57,10 +123,23 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # one clear sentence, traceback only with --debug
         if args.debug:
             raise
-        msg = str(exc) or exc.__class__.__name__
-        print(f"jitterfmu: error: {msg}", file=sys.stderr)
+        print(f"jitterfmu: error: {clip(_sentence(exc))}", file=sys.stderr)
         print("(run with --debug for the traceback)", file=sys.stderr)
         return 2
+
+
+def _sentence(exc: BaseException) -> str:
+    """The one sentence printed for an error: its message, a file name cut short."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        from fmutools.archive import short_repr
+
+        return f"{exc.strerror}: {short_repr(str(exc.filename))}"
+    if isinstance(exc, MemoryError):
+        return ("out of memory" + (f" ({exc})" if str(exc) else "")
+                + "; make the run or the record smaller")
+    if isinstance(exc, RecursionError):
+        return "the input nests too deeply to be read; flatten it"
+    return str(exc) or exc.__class__.__name__
 
 
 if __name__ == "__main__":  # pragma: no cover

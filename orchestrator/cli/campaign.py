@@ -50,6 +50,30 @@ def _import_runner(spec: str):
     return obj
 
 
+def _report_wiring(scenario: dict, folder: Path, args) -> None:
+    """Print the unconnected inputs of the campaign's scenario once for the whole run.
+
+    Every case has the same wiring; its workers keep the warning to themselves
+    (:func:`orchestrator.cli.show_warning`), so it is printed here, once.
+    """
+    import warnings
+
+    from .. import load_scenario, prepare
+    from ..cosim import UnconnectedInputWarning
+    from . import report_warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            sc = load_scenario(scenario, folder)
+            if args.fmu_kind:
+                sc = sc.with_experiment(fmu_kind=args.fmu_kind)
+            prepare(sc, args.fmu_dir)
+        except Exception:  # noqa: BLE001 - a scenario that fails fails in its cases
+            return
+    report_warnings([w for w in caught if issubclass(w.category, UnconnectedInputWarning)])
+
+
 def run(args) -> int:
     # deferred: the parser imports every subcommand (orchestrator.cli)
     import dataclasses
@@ -81,6 +105,8 @@ def run(args) -> int:
     else:
         runner = MasterRunner(camp.scenario_dir, fmu_dir=args.fmu_dir, fmu_kind=args.fmu_kind)
     camp = dataclasses.replace(camp, engine=engine)
+    if not args.runner and camp.cases:
+        _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args)
     out = args.out or Path("out") / slug(camp.name)
     try:
         res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,

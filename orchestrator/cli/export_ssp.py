@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 import warnings
 
 COMMAND = "export-ssp"
@@ -21,10 +20,11 @@ def run(args) -> int:
     # deferred: the parser imports every subcommand (orchestrator.cli)
     from orchestrator import load_scenario, prepare, write_ssp
 
+    from . import report_warnings
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         path = write_ssp(prepare(load_scenario(args.scenario), args.fmu_dir), args.out)
-    for w in caught:
-        print(f"jitterfmu: warning: {w.message}", file=sys.stderr)
+    report_warnings(caught)
     print(f"wrote {path}")
     return 0

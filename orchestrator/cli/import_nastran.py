@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import warnings
 
 COMMAND = "import-nastran"
@@ -63,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
     from structfmu.reduce import Damping
 
     bands = [_band(b) for b in args.zeta_band]
+    from . import report_warnings
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", nastran.NastranWarning)
         model = nastran.import_nastran(
@@ -73,8 +74,7 @@ def run(args: argparse.Namespace) -> int:
             los=[nastran.parse_los(s) for s in args.los], ritz=args.ritz, shift=args.shift,
             damping=Damping(zeta=args.zeta, zeta_ritz=args.zeta_ritz), zeta_bands=bands,
             dof_map=args.dof_map, k_name=args.k_name, m_name=args.m_name, name=args.name)
-    for w in caught:
-        print(f"jitterfmu: warning: {w.message}", file=sys.stderr)
+    report_warnings(caught)
     path = model.save(args.out)
     f = model.frequencies_hz
     print(f"{path}: {model.n_modes} modes ({f.min():.4g}-{f.max():.4g} Hz) + {model.n_ritz} "

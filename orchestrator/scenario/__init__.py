@@ -52,24 +52,25 @@ from .model import (
     parse_override,
 )
 from .ssp import JacobiExportWarning, read_ssp, write_ssp
-from .toml import read_toml, scenario_from_dict
+from .toml import load_toml_file, read_toml, scenario_from_dict
 
 __all__ = [
-    "ScenarioError",
+    "Action",
+    "Connection",
     "Experiment",
     "Instance",
-    "Connection",
-    "Action",
-    "Scenario",
-    "load_scenario",
-    "scenario_from_dict",
-    "read_toml",
-    "read_ssp",
-    "write_ssp",
     "JacobiExportWarning",
-    "parse_override",
-    "closest",
+    "Scenario",
+    "ScenarioError",
     "check_keys",
+    "closest",
+    "load_scenario",
+    "load_toml_file",
+    "parse_override",
+    "read_ssp",
+    "read_toml",
+    "scenario_from_dict",
+    "write_ssp",
 ]
 
 

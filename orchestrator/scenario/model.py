@@ -18,19 +18,21 @@ from pathlib import Path
 from types import MappingProxyType
 
 from fmutools import FMU_KINDS
+from fmutools.archive import short_repr
 
 from ..timebase import TimebaseError, to_fraction
 
 __all__ = [
-    "ScenarioError",
+    "Action",
+    "Connection",
     "Experiment",
     "Instance",
-    "Connection",
-    "Action",
     "Scenario",
-    "parse_override",
-    "closest",
+    "ScenarioError",
     "check_keys",
+    "closest",
+    "duplicates",
+    "parse_override",
 ]
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
@@ -62,6 +64,27 @@ def closest(name: str, candidates) -> str:
     if not matches:
         return ""
     return " (did you mean " + " or ".join(repr(m) for m in matches) + "?)"
+
+
+def duplicates(items) -> list:
+    """The items that occur more than once, each once, in order of their second
+    occurrence (one pass with a set: linear in ``len(items)``).
+
+    Parameters
+    ----------
+    items : iterable of hashable
+
+    Returns
+    -------
+    list
+    """
+    seen, dup = set(), {}
+    for item in items:
+        if item in seen:
+            dup[item] = None
+        else:
+            seen.add(item)
+    return list(dup)
 
 
 def _freeze(d) -> MappingProxyType:
@@ -190,7 +213,7 @@ class Scenario:
         names = [i.name for i in self.instances]
         raise ScenarioError(f"scenario has no instance {name!r}{closest(name, names)}")
 
-    def with_overrides(self, overrides) -> "Scenario":
+    def with_overrides(self, overrides) -> Scenario:
         """Return a copy with parameter overrides applied.
 
         Parameters
@@ -215,7 +238,7 @@ class Scenario:
         new = tuple(replace(i, parameters=_freeze(params[i.name])) for i in self.instances)
         return replace(self, instances=new)
 
-    def with_experiment(self, **changes) -> "Scenario":
+    def with_experiment(self, **changes) -> Scenario:
         """Return a copy with experiment fields replaced (stop, algorithm, ...)."""
         exp = self.experiment
         for key in ("stop", "output_interval", "start"):
@@ -328,7 +351,8 @@ def _split_ref(ref, what: str) -> tuple:
 
 def _expect_table(value, what: str) -> dict:
     if not isinstance(value, dict):
-        raise ScenarioError(f"{what} must be a table; got {type(value).__name__} {value!r}")
+        raise ScenarioError(f"{what} must be a table; got {type(value).__name__} "
+                            f"{short_repr(value)}")
     return value
 
 

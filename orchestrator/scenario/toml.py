@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from pathlib import Path
+
+from fmutools.archive import short_repr
 
 from .model import (
     _NAME,
@@ -23,9 +26,10 @@ from .model import (
     _time,
     check_keys,
     closest,
+    duplicates,
 )
 
-__all__ = ["scenario_from_dict", "read_toml"]
+__all__ = ["MAX_FILE_MIB", "load_toml_file", "read_toml", "scenario_from_dict"]
 
 
 def _parse_instance(name: str, spec) -> Instance:
@@ -139,7 +143,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Sce
     if not fmus:
         raise ScenarioError(f"{source} defines no FMU instances ([fmus.NAME] tables)")
     instances = tuple(_parse_instance(n, s) for n, s in fmus.items())
-    names = [i.name for i in instances]
+    names = {i.name: None for i in instances}   # a set in declaration order
     conns = data.get("connections", [])
     if not isinstance(conns, list):
         raise ScenarioError("connections must be an array of tables ([[connections]])")
@@ -159,13 +163,79 @@ def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Sce
         if inst not in names:
             raise ScenarioError(f"recorded variable {ref!r} names unknown instance {inst!r}"
                                 f"{closest(inst, names)}")
-    if len(set(variables)) != len(variables):
-        dup = sorted({v for v in variables if variables.count(v) > 1})
-        raise ScenarioError(f"record.variables lists {dup} more than once")
+    dup = duplicates(variables)
+    if dup:
+        shown = ", ".join(short_repr(v) for v in dup[:5])
+        more = f" and {len(dup) - 5} more" if len(dup) > 5 else ""
+        raise ScenarioError(f"record.variables lists {shown}{more} more than once; list "
+                            "each variable once")
     return Scenario(
         experiment, instances, connections, actions, tuple(variables),
         Path(base_dir) if base_dir is not None else None, source,
     )
+
+
+#: Largest scenario or campaign file read (MiB), unless ``$JITTERFMU_MAX_SCENARIO_MIB``
+#: says otherwise: a scenario lists FMUs, connections and actions, not data.
+MAX_FILE_MIB = 16
+MAX_FILE_ENV = "JITTERFMU_MAX_SCENARIO_MIB"
+
+
+def load_toml_file(path, what: str = "scenario file", error: type = ScenarioError) -> dict:
+    """The tables of a TOML file, or one sentence naming the file and what is wrong.
+
+    The file must exist, be at most :data:`MAX_FILE_MIB` MiB (``$JITTERFMU_MAX_SCENARIO_MIB``
+    raises it), be UTF-8 text and valid TOML nested no deeper than Python can read.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.toml`` file.
+    what : str
+        How messages name it (``"scenario file"``, ``"base scenario"``).
+    error : exception class
+        Raised with the sentence (a campaign passes its own).
+
+    Returns
+    -------
+    dict
+    """
+    path = Path(path)
+    shown = short_repr(str(path))
+    try:
+        if path.is_dir():
+            raise error(f"{what} {shown} is a folder; expected a TOML scenario file or an "
+                        "SSP archive")
+        if not path.is_file():
+            raise error(f"{what} {shown} does not exist")
+        size = path.stat().st_size
+        raw = os.environ.get(MAX_FILE_ENV)
+        try:
+            limit = float(raw) if raw else MAX_FILE_MIB
+        except ValueError:
+            raise error(f"{MAX_FILE_ENV} is {short_repr(raw)}; expected a size in MiB") from None
+        if size > limit * (1 << 20):
+            raise error(f"{what} {shown} is {size / (1 << 20):.1f} MiB, above the limit of "
+                        f"{limit:g} MiB for a scenario (it lists FMUs, connections and "
+                        f"actions; data belongs in an FMU's resources); to read it anyway, "
+                        f"set {MAX_FILE_ENV}")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise error(f"{what} {shown} cannot be read: {exc.strerror}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise error(f"{what} {shown} is not text (not UTF-8) from byte {exc.start} on "
+                    f"line {line}; expected a TOML scenario file saved as UTF-8, or an SSP "
+                    "archive") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{what} {shown} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise error(f"{what} {shown} nests arrays or tables deeper than can be read; "
+                    "flatten it") from None
 
 
 def read_toml(path, base_dir=None) -> Scenario:
@@ -183,19 +253,9 @@ def read_toml(path, base_dir=None) -> Scenario:
     Scenario
     """
     path = Path(path)
-    if path.is_dir():
-        raise ScenarioError(f"scenario {str(path)!r} is a folder; expected a TOML scenario "
-                            "file or an SSP archive")
-    if not path.is_file():
-        raise ScenarioError(f"scenario file {str(path)!r} does not exist")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise ScenarioError(f"scenario file {str(path)!r} is not text (not UTF-8); expected "
-                            "a TOML scenario file or an SSP archive") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"scenario file {str(path)!r} is not valid TOML: {exc}") from None
+    data = load_toml_file(path)
     try:
         return scenario_from_dict(data, base_dir or path.parent, str(path))
     except ScenarioError as exc:
-        raise ScenarioError(f"{path}: {exc}") from None
+        name = str(path) if len(str(path)) <= 200 else short_repr(str(path))
+        raise ScenarioError(f"{name}: {exc}") from None

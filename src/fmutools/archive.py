@@ -22,6 +22,7 @@ from __future__ import annotations
 import io
 import os
 import re
+import reprlib
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -35,6 +36,7 @@ __all__ = [
     "member_problem",
     "model_identifier_problem",
     "read_member",
+    "short_repr",
 ]
 
 _C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -145,7 +147,7 @@ def inside(folder, ref: str, what: str) -> Path:
     if target is not None and not target.resolve().is_relative_to(folder.resolve()):
         problem = "a symbolic link out of the archive"
     if problem is not None:
-        raise ArchiveError(f"{what} {_short(ref)} is unsafe ({problem}); expected a path "
+        raise ArchiveError(f"{what} {short_repr(ref)} is unsafe ({problem}); expected a path "
                            "inside the archive, relative with forward slashes")
     return target
 
@@ -157,16 +159,37 @@ def model_identifier_problem(ident) -> str | None:
     library ``binaries/<platform>/<modelIdentifier>.so`` and prefixes its functions.
     """
     if not isinstance(ident, str) or not _C_IDENTIFIER.fullmatch(ident):
-        return (f"modelIdentifier {_short(ident)} is not a C identifier (letters, digits "
+        return (f"modelIdentifier {short_repr(ident)} is not a C identifier (letters, digits "
                 "and _), as FMI 2.0 requires; it names the FMU's shared library, and this "
                 "one would be loaded from outside the FMU")
     return None
 
 
-def _short(value, limit: int = 80) -> str:
-    """``repr(value)``, cut to ``limit`` characters."""
-    text = repr(value)
-    return text if len(text) <= limit else f"{text[:limit - 20]}...' ({len(str(value))} characters)"
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = 80
+_REPR.maxlevel, _REPR.maxlist, _REPR.maxdict, _REPR.maxtuple = 3, 6, 6, 6
+
+
+def short_repr(value) -> str:
+    """``repr(value)`` cut to about 80 characters, for echoing outside data in a message.
+
+    A long string keeps its two ends and says how long it was; a deep or long list or
+    table keeps its first levels and items.  Never raises (a nesting too deep for
+    ``repr`` is cut, not a RecursionError).
+
+    Parameters
+    ----------
+    value : object
+        A name, path or value read from a file or the command line.
+
+    Returns
+    -------
+    str
+    """
+    text = _REPR.repr(value)
+    if isinstance(value, (str, bytes)) and len(value) > _REPR.maxstring:
+        text += f" ({len(value)} characters)"
+    return text
 
 
 def check_directory(zf: zipfile.ZipFile, where: str, limits: SizeLimits | None = None) -> None:
@@ -191,7 +214,7 @@ def check_directory(zf: zipfile.ZipFile, where: str, limits: SizeLimits | None =
     for info in zf.infolist():
         problem = member_problem(info.filename)
         if problem is not None:
-            raise ArchiveError(f"{where} holds the unsafe path {_short(info.filename)} "
+            raise ArchiveError(f"{where} holds the unsafe path {short_repr(info.filename)} "
                                f"({problem}); expected relative paths with forward slashes "
                                "inside the archive")
         _check_size(where, info.filename, info.file_size, limits.member, "member")
@@ -204,11 +227,11 @@ def _check_size(where: str, name: str, size: int, limit: int, kind: str) -> None
         return
     env = MEMBER_ENV if kind == "member" else TOTAL_ENV
     if kind == "member":
-        head = (f"{where} member {_short(name)} unpacks to {_mib(size)}, above the limit "
+        head = (f"{where} member {short_repr(name)} unpacks to {_mib(size)}, above the limit "
                 f"of {_mib(limit)} per member")
     else:
         head = (f"{where} unpacks to more than the limit of {_mib(limit)} per archive "
-                f"(reached at member {_short(name)})")
+                f"(reached at member {short_repr(name)})")
     raise ArchiveError(f"{head}; if you trust the archive, raise the limit with "
                        f"{env}=<MiB>")
 

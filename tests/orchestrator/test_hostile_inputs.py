@@ -31,7 +31,9 @@ from fmutools.fmucache import CacheError, extract_cached
 from fmutools.validate import check_fmu
 from orchestrator.cli import main
 from orchestrator.cosim.fmuinfo import read_fmu_info
-from orchestrator.scenario import ScenarioError, read_ssp
+from orchestrator.scenario import ScenarioError, read_ssp, scenario_from_dict
+from orchestrator.scenario.model import duplicates
+from orchestrator.scenario.toml import MAX_FILE_ENV, MAX_FILE_MIB
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -327,3 +329,236 @@ def test_a_refused_cache_leaves_no_temporary_folder_behind(tmp_path):
     env = {**os.environ, "TMPDIR": str(tmp), "JITTERFMU_CACHE": str(tmp_path / "link")}
     subprocess.run([sys.executable, "-c", code], check=True, env=env, cwd=ROOT)
     assert sorted(p.name for p in tmp.iterdir()) == []
+
+
+# ------------------------------------------------------------------ 13. huge scenarios
+
+class CountedName(str):
+    """A name that counts its equality comparisons and stops a quadratic check early."""
+
+    compared = 0
+    budget = 0
+
+    def __eq__(self, other):
+        type(self).compared += 1
+        if type(self).compared > type(self).budget:
+            raise AssertionError(f"more than {type(self).budget} comparisons: quadratic")
+        return str.__eq__(self, other)
+
+    __hash__ = str.__hash__
+
+
+def test_the_duplicate_check_of_20000_recorded_variables_is_linear():
+    import random
+
+    names = [CountedName(f"a.v{i}") for i in range(20_000)]
+    names += [CountedName("a.v7"), CountedName("a.v19999"), CountedName("a.v7")]
+    random.Random(1).shuffle(names)
+    CountedName.compared, CountedName.budget = 0, 4 * len(names)
+    data = {"experiment": {"stop": 1, "output_interval": 0.1},
+            "fmus": {"a": {"fmu": "x", "period": 0.1}}, "record": {"variables": names}}
+    with pytest.raises(ScenarioError) as err:
+        scenario_from_dict(data)
+    assert CountedName.compared <= CountedName.budget
+    msg = str(err.value)
+    assert "'a.v7'" in msg and "'a.v19999'" in msg and msg.count("'a.v") == 2
+
+
+def test_duplicates_reports_each_repeated_item_once():
+    assert duplicates(["a", "b", "a", "c", "b", "a"]) == ["a", "b"]
+    assert duplicates([f"x{i}" for i in range(20_000)]) == []
+
+
+def test_a_scenario_file_above_the_size_limit_is_refused_in_one_sentence(tmp_path, capsys,
+                                                                         monkeypatch):
+    big = tmp_path / "big.toml"
+    big.write_text("[experiment]\nstop = 1\noutput_interval = 0.1\n"
+                   + "".join(f"# padding line {i}\n" for i in range(20_000)))
+    monkeypatch.setenv(MAX_FILE_ENV, "0.1")
+    assert main(["run", str(big), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "is 0.4 MiB, above the limit of 0.1 MiB for a scenario" in err
+    assert MAX_FILE_ENV in err and len(err.splitlines()) == 2
+    assert MAX_FILE_MIB >= 8    # the default leaves room for any real scenario
+
+
+# ------------------------------------------------------------------ 14. messages
+
+def cli_error(capsys, argv):
+    """Exit code and stderr of the command line, which must be one sentence."""
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return code, err
+
+
+MINIMAL = "[experiment]\nstop = 0.01\noutput_interval = 1e-3\n"
+
+
+def test_fmus_table_entry_that_is_not_a_table_is_named(tmp_path, capsys):
+    bad = tmp_path / "s.toml"
+    bad.write_text(MINIMAL + "[fmus]\nstructure = 5\n")
+    code, err = cli_error(capsys, ["run", str(bad), "--out", str(tmp_path / "o")])
+    assert code == 2 and "s.toml: [fmus.structure] must be a table; got int 5" in err
+
+
+def test_a_non_utf8_scenario_is_named_with_the_line_of_the_bad_byte(tmp_path, capsys):
+    bad = tmp_path / "latin1.toml"
+    bad.write_bytes(MINIMAL.encode() + '[fmus.a]\nfmu = "café"\n'.encode("latin-1"))
+    code, err = cli_error(capsys, ["run", str(bad), "--out", str(tmp_path / "o")])
+    assert code == 2 and "latin1.toml' is not text (not UTF-8) from byte" in err and "on line 5" in err
+
+
+@pytest.mark.parametrize("value", ["[" * 5000 + "]" * 5000, "{a=" * 3000 + "1" + "}" * 3000])
+def test_deep_nesting_is_one_sentence_naming_the_file(tmp_path, capsys, value):
+    deep = tmp_path / "deep.toml"
+    deep.write_text(MINIMAL + f"x = {value}\n")
+    code, err = cli_error(capsys, ["run", str(deep), "--out", str(tmp_path / "o")])
+    assert code == 2
+    assert "deep.toml' nests arrays or tables deeper than can be read" in err
+    assert "recursion" not in err
+
+
+def test_a_100_kb_file_name_is_not_echoed_whole(tmp_path, capsys):
+    name = "a" * 100_000 + ".toml"
+    code, err = cli_error(capsys, ["run", name, "--out", str(tmp_path / "o")])
+    assert code == 2 and len(err) < 600 and "(100005 characters)" in err
+    assert "File name too long" in err or "does not exist" in err
+
+
+def test_a_wrong_guid_names_both_guids_and_what_to_do(tmp_path, capsys, cache, suite_fmus):
+    import re
+
+    src = suite_fmus("excitation")["excitation"]
+    fmu = tmp_path / "guid.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                data = re.sub(rb'guid="[^"]*"', b'guid="{0-wrong}"', data)
+            zout.writestr(item.filename, data)
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(MINIMAL + f'[fmus.e]\nfmu = "{fmu}"\nperiod = 1e-3\n'
+                        '[record]\nvariables = ["e.v1"]\n')
+    code, err = cli_error(capsys, ["run", str(scenario), "--out", str(tmp_path / "o"),
+                                   "--quiet"])
+    assert code == 1
+    assert "GUID {0-wrong} does not match the model's" in err
+    assert "rebuild the FMU" in err
+
+
+FMI3 = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="m" instantiationToken="{1}">
+<CoSimulation modelIdentifier="m"/>
+<ModelVariables>
+<Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
+<Float64 name="y" valueReference="1" causality="output" variability="continuous"/>
+</ModelVariables>
+<ModelStructure><Output valueReference="1"/><InitialUnknown valueReference="1"/>
+</ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def test_an_fmi3_fmu_is_named_as_such_by_run_and_validate(tmp_path, capsys):
+    fmu = tmp_path / "three.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.writestr("modelDescription.xml", FMI3)
+        z.writestr("binaries/x86_64-linux/m.so", b"\x7fELF")
+    with pytest.raises(ScenarioError, match="is FMI 3.0, and this master runs FMI 2.0 FMUs "
+                                            "only"):
+        read_fmu_info(fmu)
+    code, err = cli_error(capsys, ["validate", str(fmu)])
+    assert code == 1
+    code, err = cli_error(capsys, ["run", str(one_instance(tmp_path, fmu)), "--out",
+                                   str(tmp_path / "o")])
+    assert code == 2 and "is FMI 3.0, and this master runs FMI 2.0" in err
+
+
+def test_validate_prints_the_fmi3_sentence(tmp_path, capsys):
+    fmu = tmp_path / "three.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.writestr("modelDescription.xml", FMI3)
+    assert main(["validate", str(fmu)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 1 and "is FMI 3.0, and this master runs FMI 2.0" in out[0]
+
+
+def test_a_non_finite_structure_matrix_is_named_by_its_field_and_file(tmp_path):
+    import numpy as np
+
+    from structfmu.errors import ModelError
+    from structfmu.reduced import ReducedModel
+
+    fields = {"omega": [10.0, 20.0], "modal_damping": [0.01, 0.01], "B_e": [[1.0], [0.5]],
+              "C_e": [[1.0, 0.0]], "K_oo": np.zeros((0, 0)), "D_oo": np.zeros((0, 0)),
+              "B_o": np.zeros((0, 1)), "C_o": np.zeros((1, 0)), "input_names": ("f",),
+              "output_names": ("y",), "output_kinds": ("disp",), "name": "tiny"}
+    path = ReducedModel(**fields).save(tmp_path / "tiny.npz")
+    with pytest.raises(ModelError, match=r"C_e has a non-finite entry \(nan at index \(0, 1\)"):
+        ReducedModel(**{**fields, "C_e": [[1.0, np.nan]]})
+    data = dict(np.load(path, allow_pickle=False))
+    data["C_e"] = np.array([[1.0, np.inf]])
+    np.savez(tmp_path / "bad.npz", **data)
+    with pytest.raises(ModelError, match=r"bad.npz': reduced model 'tiny': C_e has a "
+                                         r"non-finite entry \(inf"):
+        ReducedModel.load(tmp_path / "bad.npz")
+
+
+def test_recorded_warnings_print_once_each_with_their_count(capsys):
+    import warnings
+
+    from orchestrator.cli import report_warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(2652):
+            warnings.warn("overflow encountered in reduce (test 14)", RuntimeWarning,
+                          stacklevel=1)
+        warnings.warn("an ordinary warning (test 14)", UserWarning, stacklevel=1)
+    report_warnings(caught)
+    err = capsys.readouterr().err.splitlines()
+    assert err == [("jitterfmu: warning: overflow encountered in reduce (test 14) "
+                    "(RuntimeWarning, 2652 times)"),
+                   "jitterfmu: warning: an ordinary warning (test 14)"]
+
+
+WORKERS = """
+import multiprocessing
+import warnings
+
+import numpy as np
+
+import orchestrator.cli  # what the console script imports: it sets up warnings
+
+
+class UnconnectedInputWarning(UserWarning):
+    pass
+
+
+def case(i):
+    warnings.warn("2 input(s) are not connected", UnconnectedInputWarning)
+    np.float64(1e308) * np.float64(10)   # numpy's RuntimeWarning
+    return i
+
+
+if __name__ == "__main__":
+    ctx = multiprocessing.get_context("spawn")
+    with ctx.Pool(2) as pool:
+        assert pool.map(case, range(4)) == list(range(4))
+    warnings.warn("2 input(s) are not connected", UnconnectedInputWarning)
+    warnings.warn("2 input(s) are not connected", UnconnectedInputWarning)
+"""
+
+
+def test_warnings_are_one_line_without_source_and_wiring_is_said_once_per_run(tmp_path):
+    script = tmp_path / "workers.py"
+    script.write_text(WORKERS)
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120, check=True)
+    lines = proc.stderr.splitlines()
+    assert lines.count("jitterfmu: warning: 2 input(s) are not connected") == 1
+    overflow = [ln for ln in lines if "overflow" in ln]
+    assert overflow and all(ln.startswith("jitterfmu: warning: overflow") for ln in overflow)
+    assert len(overflow) <= 2                        # at most once per worker
+    assert all(ln.startswith("jitterfmu: warning: ") for ln in lines), lines

@@ -79,15 +79,9 @@ class LinearRunner:
 
         Parameters
         ----------
-        scenario : dict
-            A case's scenario data (the TOML layout).
-        ref : str
-            ``"instance.variable"``.
-
-        Returns
-        -------
-        str or None
-            One sentence, or None when the variable can be set.
+        scenario, ref : dict, str
+            A case's scenario data and ``"instance.variable"``; returns one sentence, or
+            None when the variable can be set.
         """
         return self._master.override_problem(scenario, ref)
 

@@ -531,8 +531,10 @@ def test_a_busy_campaign_folder_is_refused_at_once(tmp_path):
     assert res.n_run == 6                                    # free again once released
 
 
-def test_pool_workers_exit_when_the_campaign_process_dies(tmp_path):
-    # the worker initialiser, in a process whose "campaign" parent is killed
+@pytest.mark.parametrize("end", ["reaped", "zombie"])
+def test_pool_workers_exit_when_the_campaign_process_dies(tmp_path, end):
+    # the worker initialiser, in a process whose "campaign" parent is killed; a zombie
+    # (dead, not yet reaped) still answers os.kill(pid, 0)
     parent = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     script = textwrap.dedent(f"""
         import time
@@ -545,12 +547,25 @@ def test_pool_workers_exit_when_the_campaign_process_dies(tmp_path):
         time.sleep(1.0)
         assert worker.poll() is None                    # alive while the parent is
         parent.kill()
-        parent.wait()
+        if end == "reaped":
+            parent.wait()
+        else:
+            deadline = time.monotonic() + 5
+            while not _zombie(parent.pid) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert _zombie(parent.pid)
         assert worker.wait(timeout=20) == 1             # gone soon after, not in 60 s
     finally:
         for p in (parent, worker):
             if p.poll() is None:
                 p.kill()
+            p.wait()
+
+
+def _zombie(pid: int) -> bool:
+    """Whether ``pid`` is a zombie (Linux: state Z in /proc/PID/stat)."""
+    text = Path(f"/proc/{pid}/stat").read_text()
+    return text.rsplit(")", 1)[1].split()[0] == "Z"
 
 
 from hypothesis import given, settings, strategies as st  # noqa: E402

@@ -1,19 +1,17 @@
 """Campaign faults that used to give a wrong summary, a silent no-op or a lost stop.
 
 Resume trusting a folder that holds another case's files, campaigns that run nothing or
-measure nothing, SIGTERM in an in-process campaign, pool workers of a zombie parent, and
-a plain file where a case folder should be.
+measure nothing, SIGTERM in an in-process campaign, and a plain file where a case folder
+should be (pool workers of a zombie parent: test_campaign.py).
 """
 
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -243,37 +241,6 @@ def test_sigterm_stops_an_in_process_campaign_and_keeps_finished_cases(tmp_path,
     assert f"kept {len(done)} finished case(s)" in lines[0] and str(out) in lines[0]
     assert "run the same command again" in lines[0]
     assert not list((out / "cases").glob(".tmp-*"))
-
-
-def test_pool_workers_exit_when_the_campaign_process_is_a_zombie(tmp_path):
-    # the campaign process has died but nobody has reaped it: os.kill(pid, 0) still works
-    parent = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
-    script = textwrap.dedent(f"""
-        import time
-        from orchestrator.campaign.engine import _die_with_parent
-        _die_with_parent({parent.pid}, period=0.05)
-        time.sleep(60)
-    """)
-    worker = subprocess.Popen([sys.executable, "-c", script])
-    try:
-        time.sleep(1.0)
-        assert worker.poll() is None
-        os.kill(parent.pid, signal.SIGKILL)       # not waited for: a zombie
-        deadline = time.monotonic() + 5
-        while not _zombie(parent.pid) and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert _zombie(parent.pid)
-        assert worker.wait(timeout=20) == 1
-    finally:
-        for p in (parent, worker):
-            if p.poll() is None:
-                p.kill()
-            p.wait()
-
-
-def _zombie(pid: int) -> bool:
-    text = Path(f"/proc/{pid}/stat").read_text()
-    return text.rsplit(")", 1)[1].split()[0] == "Z"
 
 
 # ----------------------------------------------------------------------------- folders

@@ -10,7 +10,8 @@ HELP = ("validate FMUs: FMI 2.0 errors fail; the project's conventions (units, "
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("fmus", nargs="+", metavar="FILE.fmu", help="FMU files")
+    parser.add_argument("fmus", nargs="+", metavar="FILE.fmu",
+                        help="FMU files, or SSP archives (each component FMU is checked)")
     parser.add_argument("--strict", action="store_true",
                         help="fail on the project's conventions too (as the build does)")
 
@@ -21,7 +22,11 @@ def run(args: argparse.Namespace) -> int:
     from fmutools.validate import check_fmu
 
     bad = 0
-    for path in args.fmus:
+    for path in _fmus(args.fmus):
+        if isinstance(path, Exception):
+            print(f"error: {path}")
+            bad += 1
+            continue
         errors, warnings = check_fmu(path)
         for problem in errors:
             print(f"error: {problem}")
@@ -30,3 +35,23 @@ def run(args: argparse.Namespace) -> int:
                   "(a convention of this project, not of FMI 2.0)")
         bad += bool(errors) or (args.strict and bool(warnings))
     return 1 if bad else 0
+
+
+def _fmus(paths):
+    """The FMU files to check: each FMU, and each component FMU of an SSP archive.
+
+    An archive that cannot be read (say one whose component sources leave it) yields
+    its error instead.
+    """
+    from orchestrator.scenario import ScenarioError, read_ssp
+
+    for path in paths:
+        if not str(path).lower().endswith(".ssp"):
+            yield path
+            continue
+        try:
+            scenario = read_ssp(path)
+        except ScenarioError as exc:
+            yield exc
+            continue
+        yield from dict.fromkeys(i.fmu for i in scenario.instances)

@@ -146,6 +146,21 @@ def test_an_ssp_component_source_outside_the_archive_is_refused(tmp_path, cache,
                  ["analyze", str(ssp), "--no-margins"]):
         assert main(argv) == 2
         assert "is unsafe" in capsys.readouterr().err
+    assert main(["validate", str(ssp)]) == 1
+    assert "is unsafe" in capsys.readouterr().out
+
+
+def test_validate_checks_the_component_fmus_of_an_ssp_archive(tmp_path, cache, capsys):
+    inner = make_fmu(tmp_path / "inner.fmu", "inner")
+    ssp = make_ssp(tmp_path / "ok.ssp", [("a", "resources/a.fmu", None)],
+                   {"resources/a.fmu": inner.read_bytes()})
+    assert main(["validate", str(ssp)]) == 0
+    bad = make_fmu(tmp_path / "bad.fmu", "../bad")
+    ssp = make_ssp(tmp_path / "bad.ssp", [("a", "resources/a.fmu", None)],
+                   {"resources/a.fmu": bad.read_bytes()})
+    capsys.readouterr()
+    assert main(["validate", str(ssp)]) == 1
+    assert "modelIdentifier '../bad' is not a C identifier" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("binding", ["../secret.ssv", "/etc/hostname", "resources/../../x"])

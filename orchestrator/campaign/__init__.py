@@ -68,8 +68,8 @@ scenario and whose files have the recorded sizes and SHA-256; any other (a copy 
 another case's folder, a link, a replaced file) runs again, and ``jitterfmu campaign``
 says so in one line.  A plain file where a case folder belongs fails that case only.
 Every ``instance.variable`` the campaign sets is checked against its FMU before any case
-runs.  With ``workers=0``, SIGTERM or SIGINT stops the campaign after keeping the
-finished cases (:class:`CampaignInterrupted`, exit status 128 + the signal).
+runs.  In this process or a local pool, SIGTERM or SIGINT stops the campaign after
+keeping the finished cases (:class:`CampaignInterrupted`, exit status 128 + the signal).
 
 Engines
 -------

@@ -3,8 +3,9 @@
 The campaign folder is locked for the run; cases whose folders are verified finished are
 skipped (resume), the others run with at most ``workers`` in flight, and a case whose
 worker died is recorded as failed.  Pool workers exit when the campaign process dies.
-In this process (``workers=0``), SIGTERM or SIGINT stops the campaign: the finished
-cases are kept, the one in flight is dropped, and :class:`CampaignInterrupted` says so.
+In this process or a local pool, SIGTERM or SIGINT stops the campaign: the finished
+cases are kept, those in flight are dropped (the pool's workers are ended), and
+:class:`CampaignInterrupted` says so.
 """
 
 from __future__ import annotations
@@ -107,8 +108,8 @@ def run_campaign(
         Before any case runs, when an override or swept parameter names a variable its
         FMU does not have or cannot set (runners with ``override_problem``).
     CampaignInterrupted
-        With ``workers=0``, on SIGTERM or SIGINT: the finished cases are kept and the
-        summary of those is written; the message says what was kept and how to resume.
+        On SIGTERM or SIGINT (not with a Dask scheduler): the finished cases are kept
+        and their summary written; the message says what was kept and how to resume.
     """
     out = Path(out_dir)
     cases_dir = out / "cases"
@@ -142,7 +143,10 @@ def run_campaign(
             bar.update("ok")
         failures = {}
 
+        finished = []
+
         def on_done(case, status):
+            finished.append(case.key)
             if status["status"] == "failed":
                 failures[case.label] = status["error"]
                 if status.get("unpublished"):  # the case never wrote its folder
@@ -151,7 +155,6 @@ def run_campaign(
 
         args = (runner, cases_dir, campaign.instruments, campaign.metrics, campaign.skip)
         workers = (os.cpu_count() or 1) if workers is None else int(workers)
-        finished = 0
         try:
             if scheduler is not None:
                 _run_dask(todo, args, scheduler, on_done)
@@ -159,18 +162,20 @@ def run_campaign(
                 with _stop_on_signals():
                     for case in todo:
                         on_done(case, execute_case(case, *args))
-                        finished += 1
             else:
-                _run_local(todo, args, workers, on_done)
+                with _stop_on_signals():
+                    _run_local(todo, args, workers, on_done)
         except (CampaignInterrupted, KeyboardInterrupt) as exc:
             bar.close()
             signum = getattr(exc, "signum", signal.SIGINT)
+            for stale in cases_dir.glob(".tmp-*"):  # the cases that were in flight
+                shutil.rmtree(stale, ignore_errors=True)
             write_summary(campaign, out)
-            kept = skipped + finished - len(failures)
+            kept = skipped + len(finished) - len(failures)
             raise CampaignInterrupted(signum, (
                 f"campaign {campaign.name!r} stopped by {signal.Signals(signum).name}: kept "
-                f"{kept} finished case(s) in {str(cases_dir)!r}, {len(todo) - finished} not "
-                "run; run the same command again to resume")) from None
+                f"{kept} finished case(s) in {str(cases_dir)!r}, {len(todo) - len(finished)} "
+                "not run; run the same command again to resume")) from None
         finally:
             bar.close()
         summary_path = write_summary(campaign, out)
@@ -241,6 +246,15 @@ def _run_local(todo, args, workers, on_done):
                         on_done(case, _lost(case, _WORKER_DIED))
                     inflight.clear()
                     break
+        except BaseException:   # interrupted: end the cases in flight, not wait for them
+            broken = True
+            # the executor has no public way to end its workers; its process table does
+            procs = list(getattr(pool, "_processes", {}).values())
+            for proc in procs:
+                proc.terminate()
+            for proc in procs:
+                proc.join(timeout=10)
+            raise
         finally:
             pool.shutdown(wait=not broken, cancel_futures=True)
 

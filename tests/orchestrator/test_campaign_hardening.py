@@ -201,9 +201,10 @@ def _finished(cases_dir: Path) -> dict:
     return out
 
 
-@pytest.mark.parametrize("runner", ["master", "synthetic"])
-def test_sigterm_stops_an_in_process_campaign_and_keeps_finished_cases(tmp_path, fmu_dir,
-                                                                      runner):
+@pytest.mark.parametrize("runner, workers", [("master", 0), ("synthetic", 0),
+                                             ("synthetic", 2)])
+def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, fmu_dir, runner,
+                                                           workers):
     if runner == "master":   # the master's own signal guard is active inside each case
         data = _fmu_campaign(tmp_path, "sc.x0", stop=200.0)
         data["sweeps"][0]["values"] = [i * 1e-6 for i in range(8)]
@@ -216,7 +217,7 @@ def test_sigterm_stops_an_in_process_campaign_and_keeps_finished_cases(tmp_path,
     path = _toml(tmp_path, data)
     out = tmp_path / "out"
     cmd = [sys.executable, "-c", _CLI, "campaign", str(path), "--out", str(out),
-           "--workers", "0", "--quiet", *extra]
+           "--workers", str(workers), "--quiet", *extra]
     proc = subprocess.Popen(cmd, cwd=HERE.parents[1], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120

@@ -85,8 +85,9 @@ class Campaign:
         ``parameters`` (:class:`~orchestrator.analysis.uncertainty.Uncertain`).
     source : str
         Where the campaign came from (``"campaign file 'c.toml'"``), for messages.
-    overrides : tuple of (str, str)
-        Every ``instance.variable`` the campaign sets, with the field that sets it;
+    overrides : tuple of (str, str, tuple)
+        Every ``instance.variable`` the campaign sets, with the field that sets it and
+        the values it takes;
         :func:`~orchestrator.campaign.run_campaign` checks them against the FMUs before
         any case runs.
     """

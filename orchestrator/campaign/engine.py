@@ -184,13 +184,14 @@ def run_campaign(
 
 
 def _check_overrides(campaign: Campaign, runner) -> None:
-    """Every variable the campaign sets must be settable in its FMU (before any case)."""
+    """Every variable the campaign sets must be settable in its FMU, and every value it
+    takes one of its type (checked before any case runs)."""
     problem = getattr(runner, "override_problem", None)
     if problem is None or not campaign.cases:
         return
     base = campaign.cases[0].scenario     # cases differ in parameter values only
-    for where, ref in campaign.overrides:
-        why = problem(base, ref)
+    for where, ref, values in campaign.overrides:
+        why = problem(base, ref, values)
         if why:
             raise CampaignError(f"{campaign.source}: {where}: {why}")
 

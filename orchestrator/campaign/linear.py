@@ -74,16 +74,16 @@ class LinearRunner:
         """The FMU digest of the master runner, marked as the linear engine's."""
         return "engine=linear;" + self._master.fingerprint(scenario)
 
-    def override_problem(self, scenario: dict, ref: str) -> str | None:
+    def override_problem(self, scenario: dict, ref: str, values=()) -> str | None:
         """As :meth:`MasterRunner.override_problem`, on the Python FMUs it reads.
 
         Parameters
         ----------
-        scenario, ref : dict, str
-            A case's scenario data and ``"instance.variable"``; returns one sentence, or
-            None when the variable can be set.
+        scenario, ref, values : dict, str, sequence
+            A case's scenario data, ``"instance.variable"`` and the values it takes;
+            returns one sentence, or None when they can be set.
         """
-        return self._master.override_problem(scenario, ref)
+        return self._master.override_problem(scenario, ref, values)
 
     # ------------------------------------------------------------------ compiled loops
     def _config_key(self, scenario: dict, sources) -> str:

@@ -23,6 +23,7 @@ import pyarrow as pa
 
 from .. import metrics as M
 from ..cosim import find_fmu, read_fmu_info
+from ..cosim.plan import coerce
 from ..results import RunResult, read_table
 from ..run import run_scenario
 from ..scenario import ScenarioError, closest, scenario_from_dict
@@ -96,12 +97,12 @@ class MasterRunner:
             self._fingerprints[identity] = _fmu_digest(files)
         return self._fingerprints[identity]
 
-    def override_problem(self, scenario: dict, ref: str) -> str | None:
+    def override_problem(self, scenario: dict, ref: str, values=()) -> str | None:
         """Why a case cannot set ``ref`` (``instance.variable``); None if it can.
 
-        The variable must be a parameter or an input of the instance's FMU (as the
-        master checks each run), so a misspelt override fails before any case runs
-        rather than in every one.  An FMU that cannot be found or read is left to the
+        The variable must be a parameter or an input of the instance's FMU and each
+        value one of its type (as the master checks each run), so a misspelt override
+        or a wrong value fails before any case runs rather than in every one.  An FMU that cannot be found or read is left to the
         cases, which say so.
 
         Parameters
@@ -110,6 +111,8 @@ class MasterRunner:
             A case's scenario data (the TOML layout).
         ref : str
             ``"instance.variable"``.
+        values : sequence
+            The values the campaign gives it (e.g. a sweep's points).
 
         Returns
         -------
@@ -132,6 +135,11 @@ class MasterRunner:
         if v.causality not in ("parameter", "input") or v.variability == "constant":
             return (f"{ref} is a {v.variability} {v.causality}; only parameters and inputs "
                     "can be set")
+        for value in values:
+            try:
+                coerce(value, v, ref)
+            except ScenarioError as exc:
+                return str(exc)
         return None
 
     def __call__(self, scenario: dict, out_dir) -> RunResult:

@@ -93,9 +93,9 @@ class CampaignSpec:
         Per sweep, its ``(parameter, value)`` points.
     instruments, metrics, requirements, unit, skip, base_dir, scenario_dir, source
         As in :class:`~orchestrator.campaign.Campaign`.
-    overrides : tuple of (str, str)
+    overrides : tuple of (str, str, tuple)
         Every ``instance.variable`` the campaign sets, with the field that sets it
-        (``"sweep 1 parameter 'sc.mass'"``), for a check against the FMUs.
+        (``"sweep 1 parameter 'sc.mass'"``) and the values, for a check against the FMUs.
     """
 
     name: str
@@ -212,10 +212,11 @@ def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> C
                             f"at least one entry, or leave [[{empty}]] out for one baseline")
     unc = _uncertainty(data.get("uncertainty"), scenario["fmus"])
     overrides = tuple(
-        [(f"event {v.name!r} override {k!r}", k) for v in events for k in v.overrides]
-        + [(f"configuration {v.name!r} override {k!r}", k)
-           for v in configurations for k in v.overrides]
-        + [(f"sweep {i + 1} parameter {sweep[0][0]!r}", sweep[0][0])
+        [(f"event {v.name!r} override {k!r}", k, (x,))
+         for v in events for k, x in v.overrides.items()]
+        + [(f"configuration {v.name!r} override {k!r}", k, (x,))
+           for v in configurations for k, x in v.overrides.items()]
+        + [(f"sweep {i + 1} parameter {sweep[0][0]!r}", sweep[0][0], tuple(x for _, x in sweep))
            for i, sweep in enumerate(sweeps)])
     return CampaignSpec(name, scenario, events, configurations, sweeps, instruments,
                         tuple(metrics), requirements, unit, skip, base_dir, scenario_dir,

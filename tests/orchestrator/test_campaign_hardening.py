@@ -175,12 +175,19 @@ def test_an_unknown_sweep_variable_is_refused_before_any_case_runs(tmp_path, fmu
     assert (res.n_run, res.n_failed) == (2, 0)
 
 
-def test_an_output_set_by_an_event_is_refused_before_any_case_runs(tmp_path, fmu_dir):
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["events"][0].update(overrides={"sc.steps": 3}),
+     (r"event 'e' override 'sc.steps': sc.steps is a discrete output; only parameters "
+      r"and inputs can be set")),
+    (lambda d: d["sweeps"][0].update(values=[0.0, "1e-6"]),
+     r"sweep 1 parameter 'sc.x0': sc.x0 is Real; got str '1e-6'"),
+])
+def test_an_override_the_fmu_cannot_take_is_refused_before_any_case_runs(tmp_path, fmu_dir,
+                                                                         edit, message):
     data = _fmu_campaign(tmp_path, "sc.x0")
-    data["events"][0]["overrides"] = {"sc.steps": 3}
+    edit(data)
     camp = load_campaign(_toml(tmp_path, data))
-    with pytest.raises(CampaignError, match=r"event 'e' override 'sc.steps': sc.steps is a "
-                       r"discrete output; only parameters and inputs can be set"):
+    with pytest.raises(CampaignError, match=message):
         run_campaign(camp, tmp_path / "out", MasterRunner(tmp_path, fmu_dir=fmu_dir),
                      workers=0, progress=False)
     assert not (tmp_path / "out").exists()

@@ -136,7 +136,7 @@ def _sentence(exc: BaseException) -> str:
         return f"{exc.strerror}: {short_repr(str(exc.filename))}"
     if isinstance(exc, MemoryError):
         return ("out of memory" + (f" ({exc})" if str(exc) else "")
-                + "; make the run or the record smaller")
+                + "; make the run, its record or its input smaller, or free memory")
     if isinstance(exc, RecursionError):
         return "the input nests too deeply to be read; flatten it"
     return str(exc) or exc.__class__.__name__

@@ -577,3 +577,17 @@ def test_warnings_are_one_line_without_source_and_wiring_is_said_once_per_run(tm
     assert overflow and all(ln.startswith("jitterfmu: warning: overflow") for ln in overflow)
     assert len(overflow) <= 2                        # at most once per worker
     assert all(ln.startswith("jitterfmu: warning: ") for ln in lines), lines
+
+
+def test_an_error_without_text_still_prints_a_sentence(monkeypatch, capsys):
+    """numpy or zipfile out of memory raise MemoryError() with no message at all."""
+    from orchestrator.cli import validate
+
+    def out_of_memory(args):
+        raise MemoryError()
+
+    monkeypatch.setattr(validate, "run", out_of_memory)
+    assert main(["validate", "x.fmu"]) == 2
+    err = capsys.readouterr().err.splitlines()[0]
+    assert err == ("jitterfmu: error: out of memory; make the run, its record or its input "
+                   "smaller, or free memory")

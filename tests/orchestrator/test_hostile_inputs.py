@@ -591,3 +591,17 @@ def test_an_error_without_text_still_prints_a_sentence(monkeypatch, capsys):
     err = capsys.readouterr().err.splitlines()[0]
     assert err == ("jitterfmu: error: out of memory; make the run, its record or its input "
                    "smaller, or free memory")
+
+
+def test_the_master_never_loads_a_world_writable_compiled_loop(tmp_path):
+    """A fastloop entry that others could have rewritten is compiled again, not loaded."""
+    code = ("from orchestrator.cosim.fastloop import compiled_library\n"
+            "assert compiled_library() is not None\n")
+    env = {**os.environ, "JITTERFMU_CACHE": str(tmp_path / "cache")}
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, cwd=ROOT, timeout=300)
+    (entry,) = (tmp_path / "cache").glob("fastloop-*.so")
+    entry.write_bytes(b"not a library: what another user wrote")
+    os.chmod(entry, 0o777)
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, cwd=ROOT, timeout=300)
+    assert entry.read_bytes()[:4] == b"\x7fELF"
+    assert stat.S_IMODE(entry.stat().st_mode) & 0o022 == 0

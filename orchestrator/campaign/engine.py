@@ -106,7 +106,8 @@ def run_campaign(
     ------
     CampaignError
         Before any case runs, when an override or swept parameter names a variable its
-        FMU does not have or cannot set (runners with ``override_problem``).
+        FMU does not have or cannot set (runners with ``override_problem``), or when
+        ``out_dir`` or its ``cases`` is a file.
     CampaignInterrupted
         On SIGTERM or SIGINT (not with a Dask scheduler): the finished cases are kept
         and their summary written; the message says what was kept and how to resume.
@@ -121,6 +122,10 @@ def run_campaign(
         # one compiled loop per configuration, kept in this process
         workers, scheduler = 0, None
     _check_overrides(campaign, runner)
+    for folder in (out, cases_dir):
+        if folder.exists() and not folder.is_dir():
+            raise CampaignError(f"{str(folder)!r} is a file, not a campaign folder; move it "
+                                "away or choose another --out")
     cases_dir.mkdir(parents=True, exist_ok=True)
     with _folder_lock(out):
         for stale in cases_dir.glob(".tmp-*"):  # left by a killed run

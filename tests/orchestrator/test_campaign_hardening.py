@@ -254,6 +254,17 @@ def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, fmu_dir, ru
 # ----------------------------------------------------------------------------- folders
 
 
+@pytest.mark.parametrize("where", ["out", "out/cases"])
+def test_a_plain_file_where_the_campaign_folder_belongs_is_one_sentence(tmp_path, where):
+    camp = campaign_from_dict(campaign_data())
+    (tmp_path / "out").mkdir() if where != "out" else None
+    (tmp_path / where).write_text("not a folder")
+    with pytest.raises(CampaignError, match=f"'{tmp_path / where}' is a file, not a campaign "
+                       "folder; move it away or choose another --out"):
+        run_campaign(camp, tmp_path / "out", synthetic_runner, workers=0, progress=False)
+    assert (tmp_path / where).read_text() == "not a folder"
+
+
 @pytest.mark.parametrize("workers", [0, 2])
 def test_a_plain_file_where_a_case_folder_belongs_fails_that_case_only(tmp_path, workers):
     camp = campaign_from_dict(campaign_data())

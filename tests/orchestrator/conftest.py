@@ -1,10 +1,12 @@
-"""Test FMUs for the master, built once per session with fmukit."""
+"""Test FMUs for the master, built once per session with fmukit; a fresh private cache."""
 
 import sys
 import zipfile
 from pathlib import Path
 
 import pytest
+
+from fmutools import fmucache
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE / "fmus"))
@@ -37,3 +39,12 @@ def fmu_dir(tmp_path_factory):
                                     b'canGetAndSetFMUstate="false"')
             zout.writestr(item, data)
     return out
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """A fresh cache folder and a fresh per-process memo of checked entries."""
+    root = tmp_path / "cache"
+    monkeypatch.setenv("JITTERFMU_CACHE", str(root))
+    monkeypatch.setattr(fmucache, "_VERIFIED", set())
+    return root

@@ -15,19 +15,9 @@ import tomli_w
 
 from fmutools import fmucache
 from fmutools.fmucache import MANIFEST, CacheError, cache_root, extract_cached
-from orchestrator.scenario import ScenarioError
-from orchestrator.scenario import read_ssp
+from orchestrator.scenario import ScenarioError, read_ssp
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    """A fresh cache folder and a fresh per-process memo of checked entries."""
-    root = tmp_path / "cache"
-    monkeypatch.setenv("JITTERFMU_CACHE", str(root))
-    monkeypatch.setattr(fmucache, "_VERIFIED", set())
-    return root
 
 
 def make_archive(path, files):

@@ -16,7 +16,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fmutools import fmucache
 from fmutools.archive import (
     MEMBER_ENV,
     TOTAL_ENV,
@@ -66,14 +65,6 @@ def one_instance(tmp_path, fmu):
                         f'[fmus.a]\nfmu = "{fmu}"\nperiod = 1e-3\n'
                         '[record]\nvariables = ["a.y"]\n')
     return scenario
-
-
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    root = tmp_path / "cache"
-    monkeypatch.setenv("JITTERFMU_CACHE", str(root))
-    monkeypatch.setattr(fmucache, "_VERIFIED", set())
-    return root
 
 
 # ------------------------------------------------------------------ 8. paths out of the archive

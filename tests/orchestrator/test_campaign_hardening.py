@@ -249,6 +249,12 @@ def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, fmu_dir, ru
     assert f"kept {len(done)} finished case(s)" in lines[0] and str(out) in lines[0]
     assert "run the same command again" in lines[0]
     assert not list((out / "cases").glob(".tmp-*"))
+    if runner == "synthetic":               # and the same command finishes the rest
+        again = subprocess.run(cmd, check=False, cwd=HERE.parents[1], capture_output=True,
+                               text=True, timeout=120)
+        assert again.returncode == 0, again.stderr
+        assert (f"{n_cases} cases: {n_cases - len(done)} run, {len(done)} already finished, "
+                "0 failed") in again.stdout
 
 
 # ----------------------------------------------------------------------------- folders

@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from fmutools.archive import ArchiveError, SizeLimits, check_directory, copy_member
+from fmutools.archive import ArchiveError, unpack
 from piezofmu.amplifier import linear_map
 from structfmu.discrete import discretize, step
 from structfmu.statespace import first_order
@@ -329,17 +329,12 @@ def extract_resources(path: Path, res: Path) -> Path:
     Path
         ``res``.
     """
-    where, limits = f"FMU {path.name!r}", SizeLimits.from_env()
+    def target_of(name: str):
+        return res.joinpath(*name.split("/")[1:]) if name.startswith("resources/") else None
+
     try:
         with zipfile.ZipFile(path) as z:
-            check_directory(z, where, limits)
-            budget = [limits.total]
-            for info in z.infolist():
-                if info.filename.startswith("resources/") and not info.is_dir():
-                    target = res.joinpath(*info.filename.split("/")[1:])
-                    target.parent.mkdir(parents=True, exist_ok=True)
-                    with open(target, "wb") as out:
-                        copy_member(z, info, out.write, where, limits, budget)
+            unpack(z, f"FMU {path.name!r}", target_of)
     except ArchiveError as exc:
         raise AnalysisError(str(exc)) from None
     return res

@@ -13,17 +13,19 @@ archive is refused the same way by ``run``, ``validate`` and ``analyze``:
   (:func:`model_identifier_problem`);
 - the uncompressed size of each member and of the whole archive is limited
   (:class:`SizeLimits`), checked from the zip directory before anything is unpacked
-  and again on the bytes actually unpacked (:func:`read_member`), so a lying header
-  gains nothing.
+  and again on the bytes actually unpacked (:func:`unpack`, :func:`read_member`), so a
+  lying header gains nothing.
 """
 
 from __future__ import annotations
 
+import hashlib
 import io
 import os
 import re
 import reprlib
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
@@ -37,6 +39,7 @@ __all__ = [
     "model_identifier_problem",
     "read_member",
     "short_repr",
+    "unpack",
 ]
 
 _C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -297,3 +300,53 @@ def read_member(zf: zipfile.ZipFile, name: str, where: str,
     buf = io.BytesIO()
     copy_member(zf, info, buf.write, where, limits)
     return buf.getvalue()
+
+
+def unpack(zf: zipfile.ZipFile, where: str, target_of,
+           limits: SizeLimits | None = None) -> dict[str, str]:
+    """Unpack the members of an archive within the limits; return their SHA-256.
+
+    The directory is checked first (:func:`check_directory`), then each member is
+    streamed to its file and counted (:func:`copy_member`).
+
+    Parameters
+    ----------
+    zf : zipfile.ZipFile
+        The open archive.
+    where : str
+        How messages name it.
+    target_of : callable
+        ``target_of(member_name)`` gives the file to write, or None to skip the member.
+    limits : SizeLimits, optional
+        Default :meth:`SizeLimits.from_env`.
+
+    Returns
+    -------
+    dict of str to str
+        ``{member: hex SHA-256}`` of the members written.
+
+    Raises
+    ------
+    ArchiveError
+        A path or size the rules refuse, or a member that cannot be read (corrupt).
+    """
+    limits = SizeLimits.from_env() if limits is None else limits
+    check_directory(zf, where, limits)
+    budget, digests = [limits.total], {}
+    for info in zf.infolist():
+        target = None if info.is_dir() else target_of(info.filename)
+        if target is None:
+            continue
+        target.parent.mkdir(parents=True, exist_ok=True)
+        h = hashlib.sha256()
+        try:
+            with open(target, "wb") as out:
+                def sink(chunk, out=out, h=h):
+                    h.update(chunk)
+                    out.write(chunk)
+                copy_member(zf, info, sink, where, limits, budget)
+        except (zipfile.BadZipFile, zlib.error, RuntimeError, EOFError) as exc:
+            raise ArchiveError(f"{where} is corrupt: member {info.filename!r} cannot be read "
+                               f"({exc or exc.__class__.__name__})") from None
+        digests[info.filename] = h.hexdigest()
+    return digests

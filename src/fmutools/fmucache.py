@@ -22,7 +22,7 @@ import zipfile
 import zlib
 from pathlib import Path
 
-from fmutools.archive import ArchiveError, SizeLimits, check_directory, copy_member
+from fmutools.archive import ArchiveError, SizeLimits, unpack
 
 #: Name of the file, inside each cache entry, that lists the hashes of its files.
 MANIFEST = ".jitterfmu-manifest.json"
@@ -176,37 +176,14 @@ def _unpack(data: bytes, archive: Path, into: Path, kind: str,
         zf = zipfile.ZipFile(io.BytesIO(data))
     except zipfile.BadZipFile:
         raise CacheError(f"{where} is not a zip archive") from None
-    limits = SizeLimits.from_env() if limits is None else limits
-    files = {}
     with zf:
+        if MANIFEST in zf.namelist():
+            raise CacheError(f"{where} holds a member named {MANIFEST!r}, which this cache "
+                             "reserves; rename it")
         try:
-            check_directory(zf, where, limits)
-        except ArchiveError as exc:
+            return unpack(zf, where, lambda name: into.joinpath(*name.split("/")), limits)
+        except (ArchiveError, OSError) as exc:
             raise CacheError(str(exc)) from None
-        budget = [limits.total]
-        for info in zf.infolist():
-            name = info.filename
-            if name == MANIFEST:
-                raise CacheError(f"{where} holds a member named {MANIFEST!r}, which this "
-                                 "cache reserves; rename it")
-            if info.is_dir():
-                continue
-            target = into.joinpath(*name.split("/"))
-            target.parent.mkdir(parents=True, exist_ok=True)
-            h = hashlib.sha256()
-            try:
-                with open(target, "wb") as out:
-                    def sink(chunk, out=out, h=h):
-                        h.update(chunk)
-                        out.write(chunk)
-                    copy_member(zf, info, sink, where, limits, budget)
-            except ArchiveError as exc:
-                raise CacheError(str(exc)) from None
-            except (zipfile.BadZipFile, zlib.error, OSError, RuntimeError, EOFError) as exc:
-                raise CacheError(f"{where} is corrupt: member {name!r} cannot be read "
-                                 f"({exc or exc.__class__.__name__})") from None
-            files[name] = h.hexdigest()
-    return files
 
 
 def extract_cached(archive, sha256: str | None = None, *, kind: str = "fmu",

@@ -89,6 +89,18 @@ def test_a_model_identifier_that_names_a_file_elsewhere_is_refused_by_every_comm
     assert not (tmp_path / "out" / "results.parquet").exists()
 
 
+@pytest.mark.parametrize("member", ["../escape.txt", "/abs.txt", "resources/../../x"])
+def test_an_fmu_member_outside_the_archive_is_refused_by_validate_and_run(tmp_path, cache,
+                                                                          capsys, member):
+    fmu = make_fmu(tmp_path / "bad.fmu", extra={member: b"x"})
+    assert main(["validate", str(fmu)]) == 1
+    assert f"holds the unsafe path {member!r}" in capsys.readouterr().out
+    scenario = one_instance(tmp_path, fmu)
+    assert main(["run", str(scenario), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert f"holds the unsafe path {member!r}" in capsys.readouterr().err
+    assert not (tmp_path / "escape.txt").exists()
+
+
 def test_a_c_identifier_is_a_valid_model_identifier(tmp_path):
     assert model_identifier_problem("truss10_structure") is None
     assert read_fmu_info(make_fmu(tmp_path / "ok.fmu", "_Ok_1")).model_identifier == "_Ok_1"

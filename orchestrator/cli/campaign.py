@@ -105,7 +105,7 @@ def run(args) -> int:
     else:
         runner = MasterRunner(camp.scenario_dir, fmu_dir=args.fmu_dir, fmu_kind=args.fmu_kind)
     camp = dataclasses.replace(camp, engine=engine)
-    if not args.runner and camp.cases:
+    if camp.cases:
         _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args)
     out = args.out or Path("out") / slug(camp.name)
     try:

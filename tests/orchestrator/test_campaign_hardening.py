@@ -210,14 +210,14 @@ def _finished(cases_dir: Path) -> dict:
 
 @pytest.mark.parametrize("runner, workers", [("master", 0), ("synthetic", 0),
                                              ("synthetic", 2)])
-def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, fmu_dir, runner,
+def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, request, runner,
                                                            workers):
     if runner == "master":   # the master's own signal guard is active inside each case
         data = _fmu_campaign(tmp_path, "sc.x0", stop=200.0)
         data["sweeps"][0]["values"] = [i * 1e-6 for i in range(8)]
         data["campaign"]["scenario"]["fmus"]["sc"]["period"] = 0.001
         data["campaign"]["scenario"]["experiment"]["output_interval"] = 0.001
-        extra = ["--fmu-dir", str(fmu_dir)]
+        extra = ["--fmu-dir", str(request.getfixturevalue("fmu_dir"))]
     else:                    # a runner without one
         data = campaign_data(sleep=0.4, n_events=4)
         extra = ["--runner", "tests.orchestrator.test_campaign:synthetic_runner"]

@@ -9,6 +9,10 @@ For each size n, side by side in one run:
 * ``duplicates``: the recorded-variable duplicate check over n names with one repeat,
   as :func:`orchestrator.scenario.model.duplicates` does it (one pass with a set) and
   as it was done before (``[v for v in names if names.count(v) > 1]``, O(n^2));
+* ``step_groups``: the Gauss-Seidel step order of n instances chained in the reverse
+  of their declaration order (every group waits for the one declared after it), as
+  :func:`orchestrator.cosim.graph.step_groups` does it (Kahn's algorithm with a heap)
+  and as it was done before (a scan of every component for the next ready one, O(n^2));
 * ``read_toml``: a whole TOML scenario of n instances, n connections (each to the last
   instance, the worst case of a list lookup) and n recorded variables, read and checked
   by :func:`orchestrator.scenario.read_toml`; its file size is printed, and its time
@@ -44,8 +48,29 @@ def scenario_text(n: int) -> str:
     return head + fmus + conns + f"[record]\nvariables = [{rec}]\n"
 
 
+def quadratic_order(instances, pairs):
+    """The step order as it was computed before: a full scan per placed component."""
+    from orchestrator.cosim.graph import strongly_connected
+
+    comps = strongly_connected(list(instances), pairs)
+    rank = {n: i for i, n in enumerate(instances)}
+    comp_of = {n: ci for ci, comp in enumerate(comps) for n in comp}
+    preds = {ci: set() for ci in range(len(comps))}
+    for a, b in pairs:
+        if comp_of[a] != comp_of[b]:
+            preds[comp_of[b]].add(comp_of[a])
+    done, groups = set(), []
+    while len(groups) < len(comps):
+        ready = [ci for ci in preds if ci not in done and preds[ci] <= done]
+        ci = min(ready, key=lambda i: rank[comps[i][0]])
+        done.add(ci)
+        groups.append(comps[ci])
+    return groups
+
+
 def main() -> None:
-    from orchestrator.scenario import read_toml
+    from orchestrator.cosim.graph import step_groups
+    from orchestrator.scenario import Connection, read_toml
     from orchestrator.scenario.model import duplicates
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -60,6 +85,14 @@ def main() -> None:
                         repeat=1)
             assert duplicates(names) == ["a.v1"]
             print(f"{n:>7} {'duplicates':<28} {lin:>11.4f} {quad:>14.3f} {'':>9}")
+            names = [f"i{k}" for k in range(n)]
+            pairs = list(zip(names[1:], names[:-1]))
+            edges = [Connection(b, "y", a, "u") for b, a in pairs]
+            lin = best(lambda names=names, edges=edges: step_groups(names, edges))
+            quad = best(lambda names=names, pairs=pairs: quadratic_order(names, pairs),
+                        repeat=1)
+            assert step_groups(names, edges)[0] == quadratic_order(names, pairs)
+            print(f"{n:>7} {'step_groups':<28} {lin:>11.4f} {quad:>14.3f} {'':>9}")
             path = Path(tmp) / f"s{n}.toml"
             path.write_text(scenario_text(n))
             t = best(lambda path=path: read_toml(path), repeat=1)

@@ -12,6 +12,7 @@ connections and dependency sets in, an ordered list of step groups out.
 
 from __future__ import annotations
 
+import heapq
 from dataclasses import dataclass
 
 __all__ = ["AlgebraicLoopError", "Loop", "feedthrough_edges", "strongly_connected",
@@ -177,16 +178,26 @@ def step_groups(instances, edges) -> tuple:
     comps = strongly_connected(list(instances), pairs)
     rank = {n: i for i, n in enumerate(instances)}
     comp_of = {n: ci for ci, comp in enumerate(comps) for n in comp}
-    preds = {ci: set() for ci in range(len(comps))}
+    succs = [set() for _ in comps]
     for a, b in pairs:
         if comp_of[a] != comp_of[b]:
-            preds[comp_of[b]].add(comp_of[a])
-    done, groups = set(), []
-    while len(groups) < len(comps):  # Kahn's algorithm, ties by scenario order
-        ready = [ci for ci in preds if ci not in done and preds[ci] <= done]
-        ci = min(ready, key=lambda i: rank[comps[i][0]])
-        done.add(ci)
+            succs[comp_of[a]].add(comp_of[b])
+    waiting = [0] * len(comps)   # predecessors not yet placed
+    for nxt in succs:
+        for cj in nxt:
+            waiting[cj] += 1
+    # Kahn's algorithm, ties by scenario order: a heap of the ready components keyed by
+    # the scenario rank of their first member (linear in the graph, up to the heap's log)
+    ready = [(rank[comps[ci][0]], ci) for ci in range(len(comps)) if not waiting[ci]]
+    heapq.heapify(ready)
+    groups = []
+    while ready:
+        _, ci = heapq.heappop(ready)
         groups.append(comps[ci])
+        for cj in succs[ci]:
+            waiting[cj] -= 1
+            if not waiting[cj]:
+                heapq.heappush(ready, (rank[comps[cj][0]], cj))
     self_loops = {a for a, b in pairs if a == b}
     loops = [
         Loop(g, describe_cycle(g, edges))

@@ -2,6 +2,9 @@
 
 from itertools import permutations
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from orchestrator.cosim.graph import feedthrough_edges, step_groups, strongly_connected
 from orchestrator.scenario import Connection
 
@@ -58,3 +61,35 @@ def test_tarjan_components():
     comps = strongly_connected(list("abcde"), [("a", "b"), ("b", "a"), ("b", "c"),
                                                ("c", "d"), ("d", "c"), ("e", "e")])
     assert sorted(comps) == [("a", "b"), ("c", "d"), ("e",)]
+
+
+def _reference_order(instances, pairs):
+    """The step order by its definition: repeatedly the first ready component in
+    scenario order (the quadratic loop the module used before)."""
+    comps = strongly_connected(list(instances), pairs)
+    rank = {n: i for i, n in enumerate(instances)}
+    comp_of = {n: ci for ci, comp in enumerate(comps) for n in comp}
+    preds = {ci: set() for ci in range(len(comps))}
+    for a, b in pairs:
+        if comp_of[a] != comp_of[b]:
+            preds[comp_of[b]].add(comp_of[a])
+    done, groups = set(), []
+    while len(groups) < len(comps):
+        ready = [ci for ci in preds if ci not in done and preds[ci] <= done]
+        ci = min(ready, key=lambda i: rank[comps[i][0]])
+        done.add(ci)
+        groups.append(comps[ci])
+    return groups
+
+
+@settings(max_examples=300, deadline=None)
+@given(n=st.integers(1, 9), data=st.data())
+def test_property_step_order_is_the_first_ready_group_in_scenario_order(n, data):
+    names = [f"i{k}" for k in range(n)]
+    pairs = data.draw(st.lists(st.tuples(st.sampled_from(names), st.sampled_from(names)),
+                               max_size=3 * n))
+    order = data.draw(st.permutations(names))
+    edges = [C(f"{a}.y", f"{b}.u") for a, b in pairs]
+    groups, _ = step_groups(order, edges)
+    assert groups == _reference_order(order, pairs)
+

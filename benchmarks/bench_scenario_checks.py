@@ -12,7 +12,8 @@ For each size n, side by side in one run:
 * ``step_groups``: the Gauss-Seidel step order of n instances chained in the reverse
   of their declaration order (every group waits for the one declared after it), as
   :func:`orchestrator.cosim.graph.step_groups` does it (Kahn's algorithm with a heap)
-  and as it was done before (a scan of every component for the next ready one, O(n^2));
+  and as it was done before (a scan of every component for the next ready one, O(n^2):
+  the tests' definition of the order, ``tests/orchestrator/test_graph.py``);
 * ``read_toml``: a whole TOML scenario of n instances, n connections (each to the last
   instance, the worst case of a list lookup) and n recorded variables, read and checked
   by :func:`orchestrator.scenario.read_toml`; its file size is printed, and its time
@@ -22,6 +23,7 @@ For each size n, side by side in one run:
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -48,30 +50,12 @@ def scenario_text(n: int) -> str:
     return head + fmus + conns + f"[record]\nvariables = [{rec}]\n"
 
 
-def quadratic_order(instances, pairs):
-    """The step order as it was computed before: a full scan per placed component."""
-    from orchestrator.cosim.graph import strongly_connected
-
-    comps = strongly_connected(list(instances), pairs)
-    rank = {n: i for i, n in enumerate(instances)}
-    comp_of = {n: ci for ci, comp in enumerate(comps) for n in comp}
-    preds = {ci: set() for ci in range(len(comps))}
-    for a, b in pairs:
-        if comp_of[a] != comp_of[b]:
-            preds[comp_of[b]].add(comp_of[a])
-    done, groups = set(), []
-    while len(groups) < len(comps):
-        ready = [ci for ci in preds if ci not in done and preds[ci] <= done]
-        ci = min(ready, key=lambda i: rank[comps[i][0]])
-        done.add(ci)
-        groups.append(comps[ci])
-    return groups
-
-
 def main() -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the tests' oracle
     from orchestrator.cosim.graph import step_groups
     from orchestrator.scenario import Connection, read_toml
     from orchestrator.scenario.model import duplicates
+    from tests.orchestrator.test_graph import reference_order as quadratic_order
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[2000, 20000])

@@ -63,9 +63,10 @@ def test_tarjan_components():
     assert sorted(comps) == [("a", "b"), ("c", "d"), ("e",)]
 
 
-def _reference_order(instances, pairs):
+def reference_order(instances, pairs):
     """The step order by its definition: repeatedly the first ready component in
-    scenario order (the quadratic loop the module used before)."""
+    scenario order (the quadratic loop the module used before; the benchmark
+    ``benchmarks/bench_scenario_checks.py`` times it against the module)."""
     comps = strongly_connected(list(instances), pairs)
     rank = {n: i for i, n in enumerate(instances)}
     comp_of = {n: ci for ci, comp in enumerate(comps) for n in comp}
@@ -91,5 +92,5 @@ def test_property_step_order_is_the_first_ready_group_in_scenario_order(n, data)
     order = data.draw(st.permutations(names))
     edges = [C(f"{a}.y", f"{b}.u") for a, b in pairs]
     groups, _ = step_groups(order, edges)
-    assert groups == _reference_order(order, pairs)
+    assert groups == reference_order(order, pairs)
 

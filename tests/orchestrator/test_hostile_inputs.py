@@ -43,6 +43,8 @@ MD = """<?xml version="1.0" encoding="UTF-8"?>
 <ModelVariables>
 <ScalarVariable name="y" valueReference="1" causality="output" variability="discrete"
   initial="exact"><Real start="0" unit="V"/></ScalarVariable>
+<ScalarVariable name="k" valueReference="2" causality="parameter" variability="fixed"
+  initial="exact"><Real start="1" unit="V"/></ScalarVariable>
 </ModelVariables>
 <ModelStructure><Outputs><Unknown index="1" dependencies=""/></Outputs></ModelStructure>
 </fmiModelDescription>
@@ -608,3 +610,12 @@ def test_the_master_never_loads_a_world_writable_compiled_loop(tmp_path):
     subprocess.run([sys.executable, "-c", code], check=True, env=env, cwd=ROOT, timeout=300)
     assert entry.read_bytes()[:4] == b"\x7fELF"
     assert stat.S_IMODE(entry.stat().st_mode) & 0o022 == 0
+
+
+@pytest.mark.parametrize("value", ["1e309", "nan", "-inf"])
+def test_a_start_value_that_overflows_is_refused_before_the_run(tmp_path, cache, capsys,
+                                                                value):
+    scenario = one_instance(tmp_path, make_fmu(tmp_path / "k.fmu", "k"))
+    code, err = cli_error(capsys, ["run", str(scenario), "--out", str(tmp_path / "o"),
+                                   "--quiet", "--set", f"a.k={value}"])
+    assert code == 2 and "a.k is Real; got" in err and "expected a finite number" in err

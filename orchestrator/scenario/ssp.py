@@ -23,7 +23,7 @@ from fmutools.fmucache import CacheError, extract_cached
 from ..files import atomic_write
 from ..timebase import make_timebase, to_fraction
 from .model import Scenario, ScenarioError
-from .toml import scenario_from_dict
+from .toml import read_scenario_bytes, scenario_from_dict
 
 __all__ = ["JacobiExportWarning", "read_ssp", "write_ssp"]
 
@@ -276,7 +276,7 @@ def read_ssp(path) -> Scenario:
     folder = path if path.is_dir() else _extract(path)
     ssd_path = folder / "SystemStructure.ssd"
     where = f"{path.name}/SystemStructure.ssd"
-    root = _parse(ssd_path.read_bytes(), where)
+    root = _parse(read_scenario_bytes(ssd_path, where), where)
     if root.tag != _q("ssd:SystemStructureDescription"):
         raise ScenarioError(f"{where} is not an SSP 1.0 SystemStructureDescription")
     system = root.find("ssd:System", NS)

@@ -29,7 +29,8 @@ from .model import (
     duplicates,
 )
 
-__all__ = ["MAX_FILE_MIB", "load_toml_file", "read_toml", "scenario_from_dict"]
+__all__ = ["MAX_FILE_MIB", "load_toml_file", "read_scenario_bytes", "read_toml",
+           "scenario_from_dict"]
 
 
 def _parse_instance(name: str, spec) -> Instance:
@@ -181,6 +182,36 @@ MAX_FILE_MIB = 16
 MAX_FILE_ENV = "JITTERFMU_MAX_SCENARIO_MIB"
 
 
+def read_scenario_bytes(path: Path, what: str, error: type = ScenarioError) -> bytes:
+    """The bytes of a scenario file (TOML, or an SSP's SystemStructure.ssd) within the
+    size limit, :data:`MAX_FILE_MIB` MiB unless ``$JITTERFMU_MAX_SCENARIO_MIB`` says
+    otherwise; one sentence naming the file, its size and the limit if it is larger.
+
+    Parameters
+    ----------
+    path : Path
+    what : str
+        How the message names the file (``"scenario file 'a.toml'"``).
+    error : exception class
+
+    Returns
+    -------
+    bytes
+    """
+    raw = os.environ.get(MAX_FILE_ENV)
+    try:
+        limit = float(raw) if raw else MAX_FILE_MIB
+    except ValueError:
+        raise error(f"{MAX_FILE_ENV} is {short_repr(raw)}; expected a size in MiB") from None
+    size = path.stat().st_size
+    if size > limit * (1 << 20):
+        raise error(f"{what} is {size / (1 << 20):.1f} MiB, above the "
+                    f"limit of {limit:g} MiB for a scenario (it lists FMUs, connections and "
+                    "actions; data belongs in an FMU's resources); to read it anyway, set "
+                    f"{MAX_FILE_ENV}")
+    return path.read_bytes()
+
+
 def load_toml_file(path, what: str = "scenario file", error: type = ScenarioError) -> dict:
     """The tables of a TOML file, or one sentence naming the file and what is wrong.
 
@@ -208,18 +239,7 @@ def load_toml_file(path, what: str = "scenario file", error: type = ScenarioErro
                         "SSP archive")
         if not path.is_file():
             raise error(f"{what} {shown} does not exist")
-        size = path.stat().st_size
-        raw = os.environ.get(MAX_FILE_ENV)
-        try:
-            limit = float(raw) if raw else MAX_FILE_MIB
-        except ValueError:
-            raise error(f"{MAX_FILE_ENV} is {short_repr(raw)}; expected a size in MiB") from None
-        if size > limit * (1 << 20):
-            raise error(f"{what} {shown} is {size / (1 << 20):.1f} MiB, above the limit of "
-                        f"{limit:g} MiB for a scenario (it lists FMUs, connections and "
-                        f"actions; data belongs in an FMU's resources); to read it anyway, "
-                        f"set {MAX_FILE_ENV}")
-        data = path.read_bytes()
+        data = read_scenario_bytes(path, f"{what} {shown}", error)
     except OSError as exc:
         raise error(f"{what} {shown} cannot be read: {exc.strerror}") from None
     try:

@@ -619,3 +619,16 @@ def test_a_start_value_that_overflows_is_refused_before_the_run(tmp_path, cache,
     code, err = cli_error(capsys, ["run", str(scenario), "--out", str(tmp_path / "o"),
                                    "--quiet", "--set", f"a.k={value}"])
     assert code == 2 and "a.k is Real; got" in err and "expected a finite number" in err
+
+
+def test_an_ssp_system_structure_above_the_size_limit_is_refused(tmp_path, cache,
+                                                                 monkeypatch):
+    many = "".join(COMPONENT.format(name=f"c{i}", source="resources/a.fmu", bindings="")
+                   for i in range(400))
+    ssp = tmp_path / "big.ssp"
+    with zipfile.ZipFile(ssp, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("SystemStructure.ssd", SSD.format(components=many))
+    monkeypatch.setenv(MAX_FILE_ENV, "0.05")
+    with pytest.raises(ScenarioError, match=r"big.ssp/SystemStructure.ssd is 0.1 MiB, above "
+                                            r"the limit of 0.05 MiB for a scenario"):
+        read_ssp(ssp)

@@ -328,7 +328,8 @@ def read_ssp(path) -> Scenario:
                 if not ssv.is_file():
                     raise ScenarioError(f"{where}: parameter file {binding.get('source')!r} "
                                         f"of component {name!r} is missing")
-                pset = _parse(ssv.read_bytes(), f"{path.name}/{binding.get('source')}")
+                ssv_name = f"{path.name}/{binding.get('source')}"
+                pset = _parse(read_scenario_bytes(ssv, ssv_name), ssv_name)
             else:
                 pset = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
                 if pset is None:

@@ -12,41 +12,42 @@ turned into jitter metrics (:mod:`orchestrator.metrics`), and the campaign's sum
 one row per case, instrument, axis, metric and window plus the RSS over events of every
 configuration and sweep point, against the requirements.
 
-Campaign file (TOML)::
+Campaign file (TOML), e.g. ``campaigns/truss10_quick.toml`` (abridged; every path is
+relative to the campaign file)::
 
     [campaign]
     name = "truss10_quick"
-    scenario = "../scenarios/truss10.toml"   # base scenario, relative to this file
+    scenario = "../scenarios/truss10_campaign.toml"   # the base scenario
     unit = "arcsec"                          # unit of the summary, requirements and report
-    skip = 0.5                               # s of transient dropped from every record
-    stop = 5.0                               # optional experiment overrides of the base
+    skip = 0.0                               # s of transient dropped from every record
+    stop = 3.0                               # optional experiment overrides of the base
     output_interval = 1e-3
 
     [[events]]                               # each case turns on exactly one event
-    name = "VNIR pointing"
-    overrides = { "dist.amplitude" = 1.0, "dist.frequency" = 8.4 }
+    name = "diagonal 8.4 Hz"
+    overrides = { "excitation.amp1" = 10.0 }
 
     [[configurations]]                       # every event runs in every configuration
-    name = "isolation off"
-    overrides = { "ctrl.enable" = false }
+    name = "control off"
+    overrides = { "ctrl_diag.gain" = 0.0, "ctrl_long.gain" = 0.0 }
 
     [[sweeps]]                               # optional, cartesian product of all sweeps
-    parameter = "structure.zeta"
-    values = [0.002, 0.004]
+    parameter = "piezo_diag.bandwidth"
+    values = [1000.0, 2000.0]
 
     [[instruments]]                          # recorded LOS angles (rad) per axis
-    name = "SWIR"
-    axes = { pitch = "structure.los_swir_pitch", yaw = "structure.los_swir_yaw" }
+    name = "tip"
+    axes = { pitch = "structure.los_tip_pitch", yaw = "structure.los_tip_yaw" }
 
     [[metrics]]                              # kind and windows (s); stability: lags (s)
     kind = "peak_to_peak"                    # peak_to_peak | rms_jitter | stability | rms
-    windows = [1.8]
+    windows = [0.5]
 
     [[requirements]]                         # in `unit`; axis and window optional
-    instrument = "SWIR"
+    instrument = "tip"
     metric = "peak_to_peak"
-    window = 1.8
-    value = 2.0
+    window = 0.5
+    value = 5.0
 
 Output folder::
 

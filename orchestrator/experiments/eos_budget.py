@@ -263,5 +263,11 @@ def summary(result: dict) -> str:
     """The budget table and the case count, as ``jitterfmu reproduce`` prints them."""
     text = format_table(result["budget"], _requirements_source(result["requirements_file"]))
     wall = result["case_wall_s"].get("mean", float("nan"))
-    return (f"{text}\ncases: {result['n_cases']} ({result['n_failed']} failed), "
-            f"wall per case {wall:.1f} s\ncampaign: {result['campaign_dir']}")
+    run, reused = result.get("n_run", result["n_cases"]), result.get("n_skipped", 0)
+    if run == 0:
+        timing = f"all {reused} reused from an earlier run, none run now"
+    else:
+        timing = (f"{run} run now" + (f", {reused} reused from an earlier run" if reused
+                                      else "") + f", wall per case {wall:.1f} s")
+    return (f"{text}\ncases: {result['n_cases']} ({result['n_failed']} failed; {timing})"
+            f"\ncampaign: {result['campaign_dir']}")

@@ -288,3 +288,25 @@ def test_a_plain_file_where_a_case_folder_belongs_fails_that_case_only(tmp_path,
     assert rows[camp.cases[2].label]["status"] == "failed"
     assert rows[camp.cases[2].label]["error"] == error
     assert sum(r["status"] == "ok" for r in rows.values()) == 5
+
+
+def test_the_campaign_docstring_example_is_a_valid_campaign(tmp_path):
+    """The module's example file loads as written (paths relative to campaigns/)."""
+    import re
+    import textwrap
+
+    import orchestrator.campaign as campaign_pkg
+    from orchestrator.campaign import load_campaign
+
+    doc = campaign_pkg.__doc__
+    block = doc[doc.index("Campaign file (TOML)"):doc.index("Output folder::")]
+    text = textwrap.dedent(block.split("::", 1)[1]).strip("\n")
+    text = re.sub(r"\s+#.*$", "", text, flags=re.M)   # the comments explain, TOML allows
+    root = Path(__file__).resolve().parents[2] / "campaigns"
+    rel = re.search(r'^scenario = "(.+)"$', text, re.M).group(1)
+    assert (root / rel).is_file()
+    text = text.replace(f'"{rel}"', f'"{(root / rel).resolve().as_posix()}"')
+    path = tmp_path / "example.toml"
+    path.write_text(text + "\n", encoding="utf-8")
+    camp = load_campaign(path)
+    assert camp.name == "truss10_quick" and len(camp.cases) == 2

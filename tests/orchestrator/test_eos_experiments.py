@@ -91,6 +91,10 @@ def test_eos_budget(out, tmp_path, suite_fmu_dir):
     mine.write_text(changed, encoding="utf-8")
     res2 = eos_budget.run(out, quick=True, fmu_dir=suite_fmu_dir, campaign=mine)
     assert res2["n_run"] == 0 and res2["n_skipped"] == res["n_cases"]
+    # what it prints says so, not a wall time of cases it did not run
+    assert (f"cases: {res['n_cases']} (0 failed; all {res['n_cases']} reused from an earlier "
+            "run, none run now)") in eos_budget.summary(res2)
+    assert f"{res['n_cases']} run now, wall per case" in eos_budget.summary(res)
     before = {(r["instrument"], r["axis"]): r for r in table}
     for r in res2["budget"]:
         b = before[(r["instrument"], r["axis"])]

@@ -90,17 +90,20 @@ def _mib(n: int) -> str:
     return f"{n / _MIB:.1f} MiB" if n < 1024 * _MIB else f"{n / (1024 * _MIB):.1f} GiB"
 
 
-def member_problem(name: str) -> str | None:
+def member_problem(name: str, *, reference: bool = False) -> str | None:
     """Why ``name`` may not be a path inside an archive, or None if it may.
 
-    A valid name is relative, uses forward slashes, and has no ``..``, drive (``C:``),
-    backslash, NUL or URI scheme.  ``a/../b`` is refused too: no archive of
+    A valid name is relative, uses forward slashes, and has no ``..``, ``.`` or empty
+    part (a trailing ``/`` marks a folder), drive (``C:``), backslash, NUL or URI scheme.  ``a/../b`` is refused too: no archive of
     ours needs it, and a reader that resolves paths differently could be led outside.
 
     Parameters
     ----------
     name : str
         A member name, or a path the archive's own files give to another member.
+    reference : bool
+        ``name`` is such a path (``./resources/a.fmu``): ``.`` and empty parts, which
+        stay in place, are allowed.
 
     Returns
     -------
@@ -117,8 +120,13 @@ def member_problem(name: str) -> str | None:
         return "an absolute path"
     if _SCHEME.match(name):
         return "a drive or URI scheme"
-    if ".." in PurePosixPath(name).parts:
+    parts = name.split("/")
+    if parts[-1] == "":   # "a/b/" names a folder
+        parts = parts[:-1]
+    if ".." in parts:
         return "a '..' part"
+    if not reference and ("" in parts or "." in parts):
+        return "an empty or '.' part"
     return None
 
 
@@ -144,7 +152,7 @@ def inside(folder, ref: str, what: str) -> Path:
     ArchiveError
         If ``ref`` is refused by :func:`member_problem` or resolves outside ``folder``.
     """
-    problem = member_problem(ref)
+    problem = member_problem(ref, reference=True)
     folder = Path(folder)
     target = folder.joinpath(*PurePosixPath(ref).parts) if problem is None else None
     if target is not None and not target.resolve().is_relative_to(folder.resolve()):
@@ -337,14 +345,17 @@ def unpack(zf: zipfile.ZipFile, where: str, target_of,
         target = None if info.is_dir() else target_of(info.filename)
         if target is None:
             continue
-        target.parent.mkdir(parents=True, exist_ok=True)
         h = hashlib.sha256()
         try:
+            target.parent.mkdir(parents=True, exist_ok=True)
             with open(target, "wb") as out:
                 def sink(chunk, out=out, h=h):
                     h.update(chunk)
                     out.write(chunk)
                 copy_member(zf, info, sink, where, limits, budget)
+        except (IsADirectoryError, NotADirectoryError, FileExistsError):
+            raise ArchiveError(f"{where} holds {short_repr(info.filename)} both as a file and "
+                               "as a folder; expected each path once") from None
         except (zipfile.BadZipFile, zlib.error, RuntimeError, EOFError) as exc:
             raise ArchiveError(f"{where} is corrupt: member {info.filename!r} cannot be read "
                                f"({exc or exc.__class__.__name__})") from None

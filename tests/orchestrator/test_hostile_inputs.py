@@ -16,6 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from fmutools import fmucache
 from fmutools.archive import (
     MEMBER_ENV,
     TOTAL_ENV,
@@ -190,6 +191,13 @@ def test_an_extracted_ssp_folder_may_not_link_out_of_itself(tmp_path):
         read_ssp(folder)
 
 
+def test_an_ssp_source_with_a_dot_part_stays_inside_and_is_read(tmp_path, cache):
+    ssp = make_ssp(tmp_path / "x.ssp", [("a", "./resources//a.fmu", None)],
+                   {"resources/a.fmu": b"x"})
+    fmu = Path(read_ssp(ssp).instance("a").fmu)
+    assert fmu.name == "a.fmu" and fmu.parent.name == "resources"
+
+
 def test_two_ssp_components_with_one_name_are_refused(tmp_path, cache):
     ssp = make_ssp(tmp_path / "x.ssp", [("a", "resources/a.fmu", None),
                                         ("a", "resources/b.fmu", None)])
@@ -216,14 +224,47 @@ def test_property_inside_never_names_a_file_outside_the_folder(tmp_path_factory,
     assert not absolute and ".." not in parts and "\\" not in ref
 
 
+@settings(max_examples=100, deadline=None)
+@given(names=st.lists(st.lists(SEGMENT, min_size=1, max_size=4).map("/".join).filter(bool),
+                      min_size=1,
+                      max_size=4, unique=True))
+def test_property_an_archive_unpacks_inside_its_entry_or_not_at_all(tmp_path_factory, names):
+    base = tmp_path_factory.mktemp("unpack")
+    work = base / "deep" / "er"
+    work.mkdir(parents=True)
+    fmu = work / "a.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.writestr("modelDescription.xml", "<fmiModelDescription/>")
+        for name in names:
+            if name != "modelDescription.xml":
+                z.writestr(name, b"x")
+    before = {p for p in base.rglob("*") if "cache" not in p.relative_to(base).parts}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("JITTERFMU_CACHE", str(base / "cache"))
+        mp.setattr(fmucache, "_VERIFIED", set())
+        try:
+            dest = extract_cached(fmu)
+        except CacheError as exc:
+            assert ("unsafe path" in str(exc) or "both as a file and as a folder" in str(exc)
+                    or "no modelDescription.xml" in str(exc)), exc
+            assert list((base / "cache").iterdir()) == []
+        else:
+            assert all(path.resolve().is_relative_to(dest.resolve())
+                       for path in dest.rglob("*"))
+    after = {p for p in base.rglob("*") if "cache" not in p.relative_to(base).parts}
+    assert after == before
+
+
 @settings(max_examples=300, deadline=None)
 @given(parts=st.lists(st.text(st.characters(blacklist_categories=("Cs",)), min_size=1,
                               max_size=8), min_size=1, max_size=5))
 def test_property_member_names_without_dotdot_or_root_are_accepted(parts):
     name = "/".join(parts)
     problem = member_problem(name)
-    clean = ("\x00" not in name and "\\" not in name and ".." not in name.split("/")
-             and not name.startswith("/") and ":" not in name.split("/")[0])
+    split = name.split("/")
+    split = split[:-1] if split[-1] == "" else split   # a trailing / marks a folder
+    clean = ("\x00" not in name and "\\" not in name and not {"..", ".", ""} & set(split)
+             and not name.startswith("/") and ":" not in split[0])
     if clean:
         assert problem is None
     if ".." in name.split("/") or name.startswith("/"):

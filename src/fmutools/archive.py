@@ -94,8 +94,9 @@ def member_problem(name: str, *, reference: bool = False) -> str | None:
     """Why ``name`` may not be a path inside an archive, or None if it may.
 
     A valid name is relative, uses forward slashes, and has no ``..``, ``.`` or empty
-    part (a trailing ``/`` marks a folder), drive (``C:``), backslash, NUL or URI scheme.  ``a/../b`` is refused too: no archive of
-    ours needs it, and a reader that resolves paths differently could be led outside.
+    part (a trailing ``/`` marks a folder), drive (``C:``), backslash, NUL or URI
+    scheme.  ``a/../b`` is refused too: no archive of ours needs it, and a reader that
+    resolves paths differently could be led outside.
 
     Parameters
     ----------

@@ -16,6 +16,16 @@ from pathlib import Path
 from typing import Callable
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)   # read it (there is no getter) and put it back at once
+    os.umask(mask)
+    return mask
+
+
+#: Mode of every file written here: what ``open`` would give (0666 less the umask).
+_FILE_MODE = 0o666 & ~_umask()
+
+
 def atomic_write(path, writer: Callable[[str], None]) -> Path:
     """Write ``path`` through ``writer(tmp_name)`` and rename it into place.
 
@@ -31,7 +41,8 @@ def atomic_write(path, writer: Callable[[str], None]) -> Path:
     Returns
     -------
     Path
-        ``path``.
+        ``path``, with the mode a plain ``open`` gives under the process's umask (not
+        the private 0600 of a temporary file).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -39,6 +50,7 @@ def atomic_write(path, writer: Callable[[str], None]) -> Path:
     os.close(fd)
     try:
         writer(tmp)
+        os.chmod(tmp, _FILE_MODE)   # mkstemp makes 0600; a result is the group's to read
         os.replace(tmp, path)
     except BaseException:
         try:

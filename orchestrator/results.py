@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import sys
 from dataclasses import dataclass, field
 from importlib import metadata as _md
@@ -20,7 +21,8 @@ import pyarrow.parquet as pq
 
 from .files import atomic_write
 
-__all__ = ["RunResult", "write_table", "read_table", "write_metadata", "package_versions"]
+__all__ = ["RunResult", "arrow_table", "write_table", "write_mat", "read_table", "read_units",
+           "write_metadata", "package_versions"]
 
 
 @dataclass(frozen=True)
@@ -57,7 +59,25 @@ class RunResult:
         return pa.table({k: np.asarray(v) for k, v in self.table.items()})
 
 
-def write_table(table: dict, path, csv: bool = False) -> Path:
+def arrow_table(table: dict, units: dict | None = None) -> pa.Table:
+    """A column table as a ``pyarrow.Table`` whose fields carry their units.
+
+    Parameters
+    ----------
+    table : dict of str to ndarray, shape (n_rows,)
+    units : dict of str to str, optional
+        Unit of each column (``"rad"``, ``"s"``); a field's metadata ``unit``, and the
+        schema metadata ``units`` (JSON), for pandas and MATLAB readers alike.
+    """
+    units = {k: u for k, u in (units or {}).items() if k in table and u}
+    fields = [pa.field(k, pa.array(np.asarray(v)).type,
+                       metadata={"unit": units[k]} if k in units else None)
+              for k, v in table.items()]
+    schema = pa.schema(fields, metadata={"units": json.dumps(units)} if units else None)
+    return pa.table({k: np.asarray(v) for k, v in table.items()}, schema=schema)
+
+
+def write_table(table: dict, path, csv: bool = False, units: dict | None = None) -> Path:
     """Write a column table atomically to Parquet (or CSV) and return the path.
 
     Parameters
@@ -67,19 +87,24 @@ def write_table(table: dict, path, csv: bool = False) -> Path:
         Target file.
     csv : bool
         Write CSV (``%.17g``, lossless) instead of Parquet.
+    units : dict of str to str, optional
+        Unit of each column: Parquet field and schema metadata, or the CSV header as
+        ``name [unit]`` (:func:`read_table` reads both back).
     """
     path = Path(path)
     cols = {k: np.asarray(v) for k, v in table.items()}
+    units = units or {}
     if csv:
         def writer(tmp):
             names = list(cols)
+            header = [f"{n} [{units[n]}]" if units.get(n) else n for n in names]
             with open(tmp, "w", encoding="utf-8", newline="") as f:
-                f.write(",".join(names) + "\n")
+                f.write(",".join(header) + "\n")
                 if names:
                     data = np.column_stack([cols[n].astype(float) for n in names])
                     np.savetxt(f, data, delimiter=",", fmt="%.17g")
     else:
-        arrow = pa.table(cols)
+        arrow = arrow_table(cols, units)
 
         def writer(tmp):
             # float columns gain nothing from dictionary encoding, which costs 2.5x
@@ -88,17 +113,90 @@ def write_table(table: dict, path, csv: bool = False) -> Path:
     return path
 
 
+def write_mat(table: dict, path, units: dict | None = None) -> Path:
+    """Write a column table atomically as a MATLAB file (``scipy.io.savemat``, v5).
+
+    ``time`` is a top-level vector and each ``instance.variable`` a field of a struct per
+    instance (``structure.los_tip_pitch``); ``units`` mirrors that layout, and
+    ``columns`` lists the original names (names that are not MATLAB identifiers are
+    written with ``_``).
+
+    Parameters
+    ----------
+    table : dict of str to ndarray, shape (n_rows,)
+    path : path-like
+        Target ``.mat`` file.
+    units : dict of str to str, optional
+        Unit of each column.
+    """
+    import scipy.io   # only for this format
+
+    units = units or {}
+    data, unit_tree = {}, {}
+    for name, col in table.items():
+        inst, _, var = name.partition(".")
+        key = [_mat_name(inst)] + ([_mat_name(var)] if var else [])
+        for tree, value in ((data, np.asarray(col, float)), (unit_tree, units.get(name, ""))):
+            node = tree
+            for part in key[:-1]:
+                node = node.setdefault(part, {})
+            node[key[-1]] = value
+    data["units"] = unit_tree
+    data["columns"] = np.array(list(table), dtype=object)
+
+    def writer(tmp):
+        with open(tmp, "wb") as f:
+            scipy.io.savemat(f, data, do_compression=True, oned_as="column")
+    atomic_write(Path(path), writer)
+    return Path(path)
+
+
+def _mat_name(name: str) -> str:
+    out = re.sub(r"\W", "_", name)
+    return out if out[:1].isalpha() else f"x{out}"
+
+
 def read_table(path) -> dict:
-    """Read a results file (Parquet or CSV) back into a dict of numpy arrays."""
+    """Read a results file (Parquet, CSV or MATLAB) back into a dict of numpy arrays."""
     path = Path(path)
+    if path.suffix == ".mat":
+        import scipy.io   # only for this format
+
+        m = scipy.io.loadmat(path, simplify_cells=True)
+        out = {}
+        for name in m["columns"]:
+            inst, _, var = str(name).partition(".")
+            node = m[_mat_name(inst)]
+            out[str(name)] = np.atleast_1d(node[_mat_name(var)] if var else node).astype(float)
+        return out
     if path.suffix == ".csv":
         with open(path, encoding="utf-8") as f:
-            names = f.readline().strip().split(",")
+            names = [_UNIT_SUFFIX.sub("", n) for n in f.readline().strip().split(",")]
         data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
         return {n: data[:, j] for j, n in enumerate(names)}
 
     t = pq.read_table(path)
     return {n: t.column(n).to_numpy() for n in t.column_names}
+
+
+def read_units(path) -> dict:
+    """Units of a results file's columns (Parquet metadata or CSV header), by column."""
+    path = Path(path)
+    if path.suffix == ".csv":
+        with open(path, encoding="utf-8") as f:
+            header = f.readline().strip().split(",")
+        out = {}
+        for h in header:
+            m = _UNIT_SUFFIX.search(h)
+            if m:
+                out[_UNIT_SUFFIX.sub("", h)] = m.group(1)
+        return out
+    schema = pq.read_schema(path)
+    return {f.name: f.metadata[b"unit"].decode() for f in schema
+            if f.metadata and b"unit" in f.metadata}
+
+
+_UNIT_SUFFIX = re.compile(r" \[([^\]]*)\]$")
 
 
 def write_metadata(meta: dict, path) -> Path:

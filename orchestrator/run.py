@@ -21,7 +21,6 @@ import time as _time
 import warnings
 from pathlib import Path
 
-import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .cosim import (
@@ -34,7 +33,14 @@ from .cosim import (
 )
 from .files import atomic_write
 from .progress import ProgressBar
-from .results import RunResult, package_versions, write_metadata, write_table
+from .results import (
+    RunResult,
+    arrow_table,
+    package_versions,
+    write_mat,
+    write_metadata,
+    write_table,
+)
 from .scenario import load_scenario
 
 __all__ = ["run_scenario", "OutputError", "RecordTooLargeError", "check_record_size",
@@ -52,7 +58,9 @@ FLUSH_SECONDS = 5.0
 PREVIOUS_DIR = "previous"
 #: Statuses of a run that completed (its results replace the previous ones).
 FINISHED = ("ok", "terminated")
-RESULT_FILES = ("results.parquet", "results.csv")
+RESULT_FILES = ("results.parquet", "results.csv", "results.mat")
+#: Formats of the results file: Parquet, CSV (``name [unit]`` header), MATLAB v5.
+FORMATS = ("parquet", "csv", "mat")
 
 
 class OutputError(OSError):
@@ -147,9 +155,11 @@ class _OutputFolder:
     flushed to ``results.partial/part-NNNNNN.parquet`` (each file complete, so a killed
     run leaves readable rows), and the final results replace the old ones atomically."""
 
-    def __init__(self, path: Path, csv: bool, overwrite: bool = False):
+    def __init__(self, path: Path, fmt: str = "parquet", overwrite: bool = False,
+                 units: dict | None = None):
         self.path = path
-        self.csv = csv
+        self.fmt = fmt
+        self.units = units or {}
         self.finished = False
         self.partial = path / PARTIAL_DIR
         self.flushed = 0
@@ -215,7 +225,7 @@ class _OutputFolder:
         for j, ref in enumerate(sim.plan.scenario.record):
             cols[ref] = sim.rec[self.flushed:rows, j]
         final = self.partial / f"part-{self.parts:06d}.parquet"
-        atomic_write(final, lambda tmp: pq.write_table(pa.table(cols), tmp))
+        atomic_write(final, lambda tmp: pq.write_table(arrow_table(cols, self.units), tmp))
         self.parts += 1
         self.flushed = rows
 
@@ -231,7 +241,11 @@ class _OutputFolder:
         for name in RESULT_FILES:  # the other format of an earlier run
             if name != self.results_name and (self.path / name).exists():
                 os.unlink(self.path / name)
-        write_table(table, self.path / self.results_name, csv=self.csv)
+        if self.fmt == "mat":
+            write_mat(table, self.path / self.results_name, self.units)
+        else:
+            write_table(table, self.path / self.results_name, csv=self.fmt == "csv",
+                        units=self.units)
         write_metadata(meta, self.path / "run.json")
         shutil.rmtree(self.partial, ignore_errors=True)
         self.finished = True
@@ -240,7 +254,7 @@ class _OutputFolder:
 
     @property
     def results_name(self) -> str:
-        return "results.csv" if self.csv else "results.parquet"
+        return f"results.{self.fmt}"
 
     def close(self) -> None:
         self._lock.close()  # releases the lock
@@ -280,7 +294,8 @@ class _SignalGuard:
 
 
 def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algorithm=None,
-                 quiet=True, csv=False, fmu_dir=None, fmu_kind=None, overwrite=False):
+                 quiet=True, csv=False, fmu_dir=None, fmu_kind=None, overwrite=False,
+                 fmt=None):
     """Run a scenario and return (and optionally write) its recorded results.
 
     Parameters
@@ -304,11 +319,15 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
     quiet : bool
         No progress bar.
     csv : bool
-        Write CSV instead of Parquet.
+        Write CSV instead of Parquet (the same as ``fmt="csv"``).
     fmu_dir : path-like, optional
         Extra folder searched first for FMU names.
     fmu_kind : {"native", "python"}, optional
         Overrides ``experiment.fmu_kind``: which build of the suite's FMUs to run.
+    fmt : {"parquet", "csv", "mat"}, optional
+        Format of the results file (default Parquet): ``results.parquet`` (units in the
+        field metadata), ``results.csv`` (header ``name [unit]``) or ``results.mat``
+        (MATLAB v5: a struct per instance, and ``units``).
     overwrite : bool
         Discard the rows a killed run left in ``out_dir/results.partial/`` (without it
         such a folder is refused).  A complete earlier result is never lost: it moves
@@ -341,11 +360,18 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
         Before anything runs, if the record cannot fit in the memory available.
     """
     wall0 = _time.perf_counter()
+    fmt = "csv" if csv else (fmt or "parquet")
+    if fmt not in FORMATS:
+        raise ValueError(f"results format {fmt!r} is not one of {', '.join(FORMATS)}")
     sc = load_scenario(scenario)
     sc = sc.with_overrides(overrides).with_experiment(stop=stop_time, algorithm=algorithm,
                                                       fmu_kind=fmu_kind)
     plan = prepare(sc, fmu_dir)
     check_record_size(plan)
+    units = {"time": "s"}
+    for ref in sc.record:
+        inst, _, var = ref.partition(".")
+        units[ref] = plan.fmus[inst].variables[var].unit or ""
     meta = {
         "scenario": sc.source,
         "scenario_sha256": sc.digest(),
@@ -360,9 +386,12 @@ def run_scenario(scenario, out_dir=None, *, stop_time=None, overrides=None, algo
                           "period": str(i.period)} for i in sc.instances},
         "loops": [l.describe() for l in plan.loops],
         "unconnected_inputs": list(plan.unconnected),
+        "units": units,
+        "format": fmt,
         "versions": package_versions(),
     }
-    folder = _OutputFolder(Path(out_dir), csv, overwrite) if out_dir is not None else None
+    folder = (_OutputFolder(Path(out_dir), fmt, overwrite, units) if out_dir is not None
+              else None)
     try:
         if folder is not None:
             folder.start(meta)

@@ -14,12 +14,16 @@ def add_arguments(parser) -> None:
     """Declare the options of ``jitterfmu run``."""
     parser.add_argument("scenario", help="scenario file (.toml) or SSP archive (.ssp)")
     parser.add_argument("--out", default=None,
-                        help="output folder (default: runs/<scenario name>)")
+                        help="output folder (default: out/<scenario name>, as campaign and reproduce)")
     parser.add_argument("--stop-time", type=float, default=None, help="stop time (s)")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="INST.VAR=VALUE", help="set a start value (repeatable)")
     parser.add_argument("--algorithm", choices=["gauss-seidel", "jacobi"], default=None)
-    parser.add_argument("--csv", action="store_true", help="write results.csv instead")
+    parser.add_argument("--format", choices=("parquet", "csv", "mat"), default=None,
+                        dest="fmt", help="results file: results.parquet (default, units in "
+                        "its metadata), results.csv (header 'name [unit]') or results.mat "
+                        "(MATLAB: a struct per instance)")
+    parser.add_argument("--csv", action="store_true", help="the same as --format csv")
     parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
     parser.add_argument("--python-fmus", action="store_const", const="python",
                         dest="fmu_kind", default=None,
@@ -36,7 +40,7 @@ def run(args) -> int:
     from orchestrator import SimulationError, run_scenario
     from orchestrator.scenario import parse_override
 
-    out = Path(args.out) if args.out else Path("runs") / Path(args.scenario).stem
+    out = Path(args.out) if args.out else Path("out") / Path(args.scenario).stem
     overrides = dict(parse_override(s) for s in args.overrides)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -44,21 +48,39 @@ def run(args) -> int:
             result = run_scenario(args.scenario, out, stop_time=args.stop_time,
                                   overrides=overrides, algorithm=args.algorithm,
                                   quiet=args.quiet, csv=args.csv, fmu_dir=args.fmu_dir,
-                                  fmu_kind=args.fmu_kind, overwrite=args.overwrite)
+                                  fmu_kind=args.fmu_kind, overwrite=args.overwrite,
+                                  fmt=args.fmt)
         except SimulationError as exc:
             _warn(caught)
             rows = len(exc.result.table["time"]) if exc.result else 0
             print(f"jitterfmu: error: {exc}", file=sys.stderr)
             print(f"jitterfmu: the {rows} rows recorded so far are in {out}", file=sys.stderr)
             return 1
+        except KeyboardInterrupt:   # SIGINT: the run wrote its rows before it ended
+            _warn(caught)
+            print(f"jitterfmu: interrupted; {_kept(out)}", file=sys.stderr)
+            return 130
     _warn(caught)
     meta = result.metadata
-    name = "results.csv" if args.csv else "results.parquet"
+    name = f"results.{meta['format']}"
     print(f"{meta['rows']} rows x {len(result.table) - 1} variables in {out / name} "
           f"({meta['wall_time_s']:.2f} s wall)")
     return 0
 
 
+def _kept(out: Path) -> str:
+    """Where the rows of an interrupted run are, from its run.json."""
+    import json
+
+    try:
+        meta = json.loads((out / "run.json").read_text(encoding="utf-8"))
+        rows, name = meta["rows"], out / f"results.{meta['format']}"
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"the rows recorded so far, if any, are in {out}"
+    return f"the {rows} rows recorded so far are in {name}"
+
+
 def _warn(caught) -> None:
-    for w in caught:
-        print(f"jitterfmu: warning: {w.message}", file=sys.stderr)
+    from . import report_warnings
+
+    report_warnings(caught)

@@ -104,6 +104,23 @@ def test_sigterm_ends_the_run_with_the_rows_so_far(fmu_dir, tmp_path):
     assert not (out / PARTIAL_DIR).exists()
 
 
+def test_sigint_says_where_the_kept_rows_are(fmu_dir, tmp_path):
+    out = tmp_path / "o"
+    proc = start_long_run(fmu_dir, tmp_path, out)
+    try:
+        wait_for_parts(out, n=1)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "interrupted" and meta["rows"] > 0
+    assert (f"jitterfmu: interrupted; the {meta['rows']} rows recorded so far are in "
+            f"{out / 'results.parquet'}") in err
+    check_rows(read_table(out / "results.parquet"))
+
+
 def test_a_busy_output_folder_is_refused_before_anything_runs(fmu_dir, tmp_path):
     out = tmp_path / "o"
     proc = start_long_run(fmu_dir, tmp_path, out)

@@ -1,0 +1,76 @@
+"""Results in the formats people load: units in Parquet and CSV, MATLAB files, files the
+group can read, and one default output folder."""
+
+import json
+import os
+import stat
+
+import numpy as np
+import pytest
+import scipy.io
+import tomli_w
+
+from orchestrator import run_scenario
+from orchestrator.cli import main
+from orchestrator.results import read_table, read_units
+
+pytestmark = pytest.mark.filterwarnings(
+    "ignore::orchestrator.cosim.UnconnectedInputWarning")
+
+UNITS = {"time": "s", "i.x": "1", "i.xm": "m"}
+
+
+def scenario():
+    """x(t) = t (unit 1) and its copy xm (unit m)."""
+    return {
+        "experiment": {"stop": 0.02, "output_interval": 1e-3},
+        "fmus": {"i": {"fmu": "MtIntegrator", "period": 1e-3, "parameters": {"u": 1.0}}},
+        "record": {"variables": ["i.x", "i.xm"]},
+    }
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "csv", "mat"])
+def test_every_format_carries_the_units_and_reads_back(fmu_dir, tmp_path, fmt):
+    res = run_scenario(scenario(), tmp_path / fmt, fmu_dir=fmu_dir, fmt=fmt)
+    path = tmp_path / fmt / f"results.{fmt}"
+    assert res.metadata["units"] == UNITS and res.metadata["format"] == fmt
+    back = read_table(path)
+    assert list(back) == ["time", "i.x", "i.xm"]
+    for k in back:
+        np.testing.assert_array_equal(back[k], res.table[k])   # lossless in every format
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
+
+        assert read_units(path) == UNITS
+        assert json.loads(pq.read_schema(path).metadata[b"units"]) == UNITS
+    elif fmt == "csv":
+        assert path.read_text().splitlines()[0] == "time [s],i.x [1],i.xm [m]"
+        assert read_units(path) == UNITS
+    else:   # what MATLAB's load gives: results.i.xm, results.units.i.xm
+        m = scipy.io.loadmat(path, simplify_cells=True)
+        np.testing.assert_array_equal(m["i"]["xm"], res.table["i.xm"])
+        np.testing.assert_array_equal(m["time"], res.table["time"])
+        assert m["units"]["i"]["xm"] == "m" and m["units"]["time"] == "s"
+
+
+def test_result_files_are_readable_by_the_group(fmu_dir, tmp_path):
+    old = os.umask(0o022)
+    os.umask(old)
+    run_scenario(scenario(), tmp_path / "o", fmu_dir=fmu_dir)
+    for name in ("results.parquet", "run.json"):
+        mode = stat.S_IMODE((tmp_path / "o" / name).stat().st_mode)
+        assert mode == 0o666 & ~old, oct(mode)
+        if not old & 0o040:
+            assert mode & 0o040   # the temporary file's private 0600 is gone
+
+
+def test_run_writes_mat_from_the_cli_and_defaults_to_out(fmu_dir, tmp_path, monkeypatch,
+                                                         capsys):
+    scen = tmp_path / "tiny.toml"
+    scen.write_text(tomli_w.dumps(scenario()))
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(scen), "--fmu-dir", str(fmu_dir), "--quiet",
+                 "--format", "mat"]) == 0
+    out = capsys.readouterr().out
+    assert "21 rows x 2 variables in out/tiny/results.mat" in out
+    assert (tmp_path / "out/tiny/results.mat").is_file()

@@ -31,7 +31,9 @@ held over the step, then reports the command that applies at ``t + h``.  So:
 * ``h`` smaller than, or not a multiple of, ``dt``: steps without a sample hold the
   last command, exactly as a sampled controller with a zero-order hold would.
 
-Sample instants are matched with a tolerance of 1e-9 sample periods.  In the
+Sample instants are matched with a tolerance of ``fmukit.timing.TIME_RTOL`` (1e-6) sample
+periods, and ``t + h`` is taken with :func:`fmukit.timing.end_time`, so a host's rounding
+or drift of time (1e-12 s over a run) never slips a sample.  In the
 non-delayed form, at a sample instant the outputs are recomputed whenever an input is
 set (direct feedthrough); between instants they hold.
 
@@ -47,12 +49,12 @@ import numpy as np
 
 from ctrlfmu.law import DiscreteLaw, LawState, load_law, output, step
 from fmukit.slave import FmuSlave
+from fmukit.timing import TIME_RTOL, end_time
 
 __all__ = ["ControllerSlave", "ControllerParameterError", "NO_LIMIT"]
 
 NO_LIMIT = 1e30
 """Output limit (V) standing for "none" (FMU start values must be finite)."""
-_TOL = 1e-9
 
 
 class ControllerParameterError(ValueError):
@@ -122,10 +124,10 @@ class ControllerSlave(FmuSlave):
 
     def _samples_before(self, tau: float) -> int:
         """Number of samples ``k`` with ``t_k < tau`` (sample-instant tolerance)."""
-        return max(0, math.ceil((tau - self._t0) / self._law.dt - _TOL))
+        return max(0, math.ceil((tau - self._t0) / self._law.dt - TIME_RTOL))
 
     def _at_instant(self, tau: float, k: int) -> bool:
-        return abs((tau - self._t0) / self._law.dt - k) <= _TOL
+        return abs((tau - self._t0) / self._law.dt - k) <= TIME_RTOL
 
     def _write_outputs(self) -> None:
         law, tau, k = self._law, self._tau, self._k
@@ -173,8 +175,10 @@ class ControllerSlave(FmuSlave):
         self._ready = True
         self._write_outputs()
 
-    def _set_fmu_state(self, state):
-        super()._set_fmu_state(state)
+    def _fmu_state_restored(self):
+        if not (type(self._k) is int and self._k >= 0 and type(self._ready) is bool):
+            raise ControllerParameterError(f"sample counter {self._k!r} and ready flag "
+                                           f"{self._ready!r} are not a controller state")
         if self._ready:
             self._apply_parameters()    # parameters and clock origin come with the state
 
@@ -196,7 +200,7 @@ class ControllerSlave(FmuSlave):
             Always True.
         """
         law = self._law
-        tau = current_time + step_size
+        tau = end_time(current_time, step_size, self._tau)
         k_end = self._samples_before(tau)
         if self._k < k_end:
             y = self._inputs()

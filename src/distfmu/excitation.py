@@ -16,13 +16,13 @@ import math
 import numpy as np
 
 from fmukit.slave import FmuSlave
-from fmukit.timing import end_time
+from fmukit.timing import end_time, reached
 
 N_CHANNELS = 2
 
 
 def sine_burst(t, amplitude: float, frequency: float, t_start: float = 0.0,
-               t_stop: float = math.inf):
+               t_stop: float = math.inf, period: float = 0.0):
     """Sine burst ``a sin(2 pi f (t - t_start))`` on ``[t_start, t_stop)`` (arrays accepted).
 
     Parameters
@@ -35,9 +35,12 @@ def sine_burst(t, amplitude: float, frequency: float, t_start: float = 0.0,
         Frequency (Hz).
     t_start, t_stop : float
         Burst window (s).
+    period : float
+        Step of the times ``t`` (s): the window's edges are met within
+        ``fmukit.timing.TIME_RTOL`` of it (a host's rounding of time); 0 for exact.
     """
     t = np.asarray(t, float)
-    on = (t >= t_start) & (t < t_stop)
+    on = reached(t, t_start, period) & ~reached(t, t_stop, period)
     return np.where(on, amplitude * np.sin(2 * np.pi * frequency * (t - t_start)), 0.0)
 
 
@@ -63,10 +66,10 @@ class ExcitationSlave(FmuSlave):
         self._t0 = 0.0
         self.x = np.zeros(1)
 
-    def _write(self, t: float) -> None:
+    def _write(self, t: float, period: float = 0.0) -> None:
         for i in range(1, N_CHANNELS + 1):
             value = sine_burst(t, getattr(self, f"amp{i}"), getattr(self, f"freq{i}"),
-                               self.t_start, self.t_stop)
+                               self.t_start, self.t_stop, period)
             setattr(self, f"v{i}", float(value))
 
     def series(self, times) -> np.ndarray:
@@ -114,5 +117,5 @@ class ExcitationSlave(FmuSlave):
             Always True.
         """
         self.x[0] = end_time(current_time, step_size, float(self.x[0]))
-        self._write(float(self.x[0]))
+        self._write(float(self.x[0]), step_size)
         return True

@@ -111,9 +111,10 @@ class DisturbanceSlave(FmuSlave):
     def _state(self, time: float) -> DisturbanceState:
         return DisturbanceState(time=time, theta=float(self.x[1]), omega=float(self.x[2]))
 
-    def _write(self, config: DisturbanceConfig, state: DisturbanceState) -> None:
+    def _write(self, config: DisturbanceConfig, state: DisturbanceState,
+               period: float = 0.0) -> None:
         self.x[:] = (state.time, state.theta, state.omega)
-        self.wrench[:] = disturbance_output(config, state)
+        self.wrench[:] = disturbance_output(config, state, period)
 
     def series(self, times) -> np.ndarray:
         """Outputs ``Fx .. Mz`` at the communication points ``times`` (s), shape (n, 6).
@@ -147,5 +148,5 @@ class DisturbanceSlave(FmuSlave):
                                  float(self.wheel_speed))
         # the host's communication point, robust to its time arithmetic (fmukit.timing)
         self._write(config, DisturbanceState(end_time(current_time, step_size, self.x[0]), state.theta,
-                                             state.omega))
+                                             state.omega), step_size)
         return True

@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from distfmu.sources import Source, SourceError, WheelImbalance, advance_wheel
+from fmukit.timing import reached
 
 
 @dataclass(frozen=True)
@@ -77,12 +78,13 @@ class DisturbanceState:
     omega: float = 0.0
 
 
-def _gate(config: DisturbanceConfig, t: float, w: np.ndarray) -> np.ndarray:
-    on = config.start <= t < config.stop
+def _gate(config: DisturbanceConfig, t: float, w: np.ndarray, period: float) -> np.ndarray:
+    on = reached(t, config.start, period) and not reached(t, config.stop, period)
     return config.scale * w if on else np.zeros(6)
 
 
-def disturbance_output(config: DisturbanceConfig, state: DisturbanceState) -> np.ndarray:
+def disturbance_output(config: DisturbanceConfig, state: DisturbanceState,
+                       period: float = 0.0) -> np.ndarray:
     """Wrench at the state's time.
 
     Parameters
@@ -91,6 +93,9 @@ def disturbance_output(config: DisturbanceConfig, state: DisturbanceState) -> np
         The disturbance.
     state : DisturbanceState
         Current state.
+    period : float
+        The step that ended at the state's time (s): the active window's edges are met
+        within ``fmukit.timing.TIME_RTOL`` of it (a host's rounding of time); 0 for exact.
 
     Returns
     -------
@@ -102,7 +107,7 @@ def disturbance_output(config: DisturbanceConfig, state: DisturbanceState) -> np
         w = config.source.wrench_at(state.theta, state.omega)
     else:
         w = config.source.wrench(t)
-    return _gate(config, t, np.asarray(w, dtype=float))
+    return _gate(config, t, np.asarray(w, dtype=float), period)
 
 
 def disturbance_step(config: DisturbanceConfig, state: DisturbanceState, h: float,

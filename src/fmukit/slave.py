@@ -105,6 +105,19 @@ class VariableSpec:
     block: str | None = field(default=None, compare=False)
 
 
+def _finite(value: Any) -> bool:
+    """Whether every float or complex in ``value`` (nested lists, tuples, dicts) is finite."""
+    if isinstance(value, np.ndarray):
+        return value.dtype.kind not in "fc" or bool(np.all(np.isfinite(value)))
+    if isinstance(value, (float, complex, np.floating, np.complexfloating)):
+        return bool(np.isfinite(value))
+    if isinstance(value, (list, tuple)):
+        return all(_finite(v) for v in value)
+    if isinstance(value, dict):
+        return all(_finite(v) for v in value.values())
+    return True
+
+
 def _enum(enum_type, value):
     return None if value is None else enum_type[value]
 
@@ -663,13 +676,35 @@ class FmuSlave(Fmi2Slave):
         }
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        """Restore a snapshot made by :meth:`_get_fmu_state` (the snapshot stays intact).
+        """Restore a snapshot made by :meth:`_get_fmu_state`, all or nothing.
 
         The whole snapshot is checked against this slave's variables and
-        ``state_attributes`` first; on any mismatch :class:`FmuStateError` is raised
-        and nothing is changed.
+        ``state_attributes`` first (shapes, types, every float finite); on any mismatch
+        :class:`FmuStateError` is raised and nothing is changed.  Then
+        :meth:`_fmu_state_restored` checks and refreshes what the subclass derives
+        from the state; if it raises, the previous state is written back and
+        :class:`FmuStateError` is raised.  The snapshot itself stays intact.
         """
         self._check_fmu_state(state)
+        before = FmuSlave._get_fmu_state(self)
+        self._write_fmu_state(state)
+        try:
+            self._fmu_state_restored()
+        except Exception as exc:  # noqa: BLE001 - any refusal by the subclass
+            self._write_fmu_state(before)
+            self._fmu_state_restored()
+            raise FmuStateError(f"FMU state refused by slave {self.instance_name!r} "
+                                f"({type(self).__name__}): {exc}; its previous state is "
+                                "kept") from None
+
+    def _fmu_state_restored(self) -> None:
+        """Check and refresh what the slave derives from a restored state (override).
+
+        Raise (any exception) to refuse the state; :meth:`_set_fmu_state` then writes
+        the previous state back.
+        """
+
+    def _write_fmu_state(self, state: dict[str, Any]) -> None:
         self._real_values[: self._n_real] = state["real"]
         for name, value in state["other"].items():
             setattr(self, name, value)
@@ -695,6 +730,12 @@ class FmuSlave(Fmi2Slave):
         if real.shape != (self._n_real,):
             raise FmuStateError(f"FMU state holds {real.shape[0]} Real values; {who} has "
                                 f"{self._n_real}")
+        if not np.all(np.isfinite(real)):
+            bad = int(np.flatnonzero(~np.isfinite(real))[0])
+            name = next(spec.name for vr, spec in self._specs.items()
+                        if self._real_slot.get(vr) == bad)
+            raise FmuStateError(f"FMU state for {who} sets Real {name!r} to {real[bad]}; "
+                                "expected finite values")
         kinds = {name: var_type for name, var_type in self._other_attr.values()}
         other = state["other"]
         if not isinstance(other, dict) or set(other) != set(kinds):
@@ -720,6 +761,9 @@ class FmuSlave(Fmi2Slave):
                 shape = saved.shape if isinstance(saved, np.ndarray) else type(saved).__name__
                 raise FmuStateError(f"FMU state for {who} gives attribute {name!r} as {shape}; "
                                     f"expected an array of shape {current.shape}")
+            if not _finite(saved):
+                raise FmuStateError(f"FMU state for {who} gives attribute {name!r} a value "
+                                    "that is not finite; expected finite values")
 
     @staticmethod
     def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:

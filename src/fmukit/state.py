@@ -11,7 +11,11 @@ Layout (all integers little-endian)
 ========  ======================================================================
 header    ``MAGIC`` (8 bytes), version ``u16``, body length ``u64``
 body      one value (the state dict), exactly ``body length`` bytes
+checksum  CRC-32 (``zlib.crc32``, ``u32``) of the header and the body
 ========  ======================================================================
+
+The checksum is checked before the body is read, so a flipped byte anywhere is refused
+with one message (CRC-32 detects every error burst of up to 32 bits).
 
 A value is a one-byte tag followed by its payload:
 
@@ -50,17 +54,19 @@ array([0., 1., 2.])
 from __future__ import annotations
 
 import struct
+import zlib
 from typing import Any
 
 import numpy as np
 
-__all__ = ["FmuStateError", "encode_state", "decode_state", "MAGIC", "VERSION", "DTYPES",
-           "MAX_DEPTH"]
+__all__ = ["DTYPES", "MAGIC", "MAX_DEPTH", "VERSION", "FmuStateError", "decode_state",
+           "encode_state", "seal"]
 
 #: First bytes of every serialized state.
 MAGIC = b"JFMUSTAT"
-#: Layout version written by :func:`encode_state`; :func:`decode_state` accepts only it.
-VERSION = 1
+#: Layout version written by :func:`encode_state`; :func:`decode_state` accepts only it
+#: (version 1 had no checksum).
+VERSION = 2
 #: Array element types, by their one-byte code (little-endian, no objects).
 DTYPES = (np.dtype("<f8"), np.dtype("<f4"), np.dtype("<i8"), np.dtype("<i4"),
           np.dtype("<i2"), np.dtype("i1"), np.dtype("<u8"), np.dtype("<u4"),
@@ -70,6 +76,7 @@ DTYPES = (np.dtype("<f8"), np.dtype("<f4"), np.dtype("<i8"), np.dtype("<i4"),
 MAX_DEPTH = 32
 
 _HEADER = struct.Struct("<8sHQ")
+_CRC = struct.Struct("<I")
 _CODE = {dt: i for i, dt in enumerate(DTYPES)}
 _MAX_NDIM = 32
 
@@ -97,7 +104,12 @@ def encode_state(state: Any) -> bytes:
     out: list[bytes] = []
     _encode(state, out, "state", 0)
     body = b"".join(out)
-    return _HEADER.pack(MAGIC, VERSION, len(body)) + body
+    return seal(_HEADER.pack(MAGIC, VERSION, len(body)) + body)
+
+
+def seal(data: bytes) -> bytes:
+    """``data`` (header and body) followed by its CRC-32, as the layout ends."""
+    return data + _CRC.pack(zlib.crc32(data))
 
 
 def _encode(value: Any, out: list[bytes], path: str, depth: int) -> None:
@@ -225,10 +237,14 @@ def decode_state(data: bytes | bytearray | memoryview) -> Any:
             raise _Bad(f"it starts with {bytes(magic)!r} instead of {MAGIC!r}")
         if version != VERSION:
             raise _Bad(f"its layout version is {version}; this FMU reads version {VERSION}")
-        if length != len(view) - _HEADER.size:
-            raise _Bad(f"its header announces {length} bytes of body but "
-                       f"{len(view) - _HEADER.size} follow")
-        reader = _Reader(view[_HEADER.size:])
+        end = len(view) - _CRC.size
+        if length != end - _HEADER.size:
+            raise _Bad(f"its header announces {length} bytes of body and a checksum but "
+                       f"{len(view) - _HEADER.size} bytes follow")
+        (crc,) = _CRC.unpack(view[end:])
+        if crc != zlib.crc32(view[:end]):
+            raise _Bad("its checksum does not match its bytes (corrupted)")
+        reader = _Reader(view[_HEADER.size:end])
         value = _decode(reader, 0)
         if reader.pos != len(reader.data):
             raise _Bad(f"{len(reader.data) - reader.pos} bytes follow the state")

@@ -236,8 +236,8 @@ class PiezoSlave(FmuSlave):
             self._force_stale = False
         return super()._get_fmu_state()
 
-    def _set_fmu_state(self, state):
-        super()._set_fmu_state(state)
+    def _fmu_state_restored(self):
+        ActuatorState.from_array(self.x)   # a valid actuator state, or StateArrayError
         self._key = None  # parameters may have changed with the state
         self._ahead = None
         self._force_stale = False   # the state holds the force it was saved with

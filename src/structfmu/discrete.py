@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as la
 
+from fmukit.timing import same_step
 from structfmu.reduced import ReducedModel
 from structfmu.sensors import filter_blocks
 from structfmu.statespace import first_order
@@ -302,7 +303,9 @@ class ZohStepper:
     """Allocation-free stepping of a reduced model, one discretisation per step size.
 
     Holds the state ``x`` (layout of :class:`DiscreteModel`), caches
-    :func:`discretize` per step size, and splits outputs into a state part and a
+    :func:`discretize` for up to :attr:`CACHE` step sizes (a step within
+    ``fmukit.timing.STEP_RTOL`` of a cached one is that step: the host's rounding of
+    ``(k + 1) h - k h``, not a new step), and splits outputs into a state part and a
     direct-feedthrough part ``D u`` (acceleration rows only), so that a change of
     inputs updates feedthrough outputs without stepping.
 
@@ -310,6 +313,9 @@ class ZohStepper:
     ----------
     model : ReducedModel
     """
+
+    #: Number of step sizes whose discretisation is kept (the oldest is replaced first).
+    CACHE = 8
 
     def __init__(self, model: ReducedModel):
         self.model = model
@@ -344,10 +350,14 @@ class ZohStepper:
         self.y_state = np.zeros(model.n_outputs)
 
     def discrete(self, h: float) -> DiscreteModel:
+        """The discretisation for step ``h`` (s): a cached one that ``h`` is up to
+        rounding (:func:`fmukit.timing.same_step`), else a new one, cached."""
         dm = self._cache.get(h)
         if dm is None:
-            if len(self._cache) > 16:
-                self._cache.clear()
+            dm = next((d for known, d in self._cache.items() if same_step(h, known)), None)
+        if dm is None:
+            if len(self._cache) >= self.CACHE:
+                del self._cache[next(iter(self._cache))]
             dm = self._cache[h] = discretize(self.model, h)
         return dm
 
@@ -359,7 +369,7 @@ class ZohStepper:
         u : ndarray, shape (n_in,)
             Inputs held over the step: forces (N) or torques (N.m), per input channel.
         h : float
-            Step (s); one discretisation is cached per distinct value.
+            Step (s); see :meth:`discrete` for which discretisation it uses.
         """
         dm = self.discrete(h)
         if self._xf.size:  # the filter reads the state before the step

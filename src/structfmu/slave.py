@@ -5,7 +5,8 @@ N).  Outputs are its named sensors: LOS angles (rad), angular rates (rad/s), gau
 strains, member elongations (m) and accelerations (m/s^2).  Only accelerations have
 direct feedthrough, and each declares exactly the inputs it depends on; a model whose
 accelerometers have a bandwidth (``ReducedModel.accel_lowpass``) has none.  Any
-communication step is accepted; the discretisation is cached per step size.
+communication step is accepted; discretisations are cached by step size, and a step
+within the host's rounding of a cached one is that step (``ZohStepper.discrete``).
 """
 
 from __future__ import annotations
@@ -73,7 +74,7 @@ class StructureSlave(FmuSlave):
         current_time : float
             Communication point at the start of the step (s); not used.
         step_size : float
-            Step (s); one discretisation is cached per distinct value.
+            Step (s); a step within rounding of a cached one reuses its discretisation.
 
         Returns
         -------
@@ -85,6 +86,5 @@ class StructureSlave(FmuSlave):
         self.stepper.outputs(self.u, self.y)
         return True
 
-    def _set_fmu_state(self, state):
-        super()._set_fmu_state(state)
+    def _fmu_state_restored(self):
         self.stepper.update_state_outputs()

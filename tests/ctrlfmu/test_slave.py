@@ -171,6 +171,27 @@ def test_fmu_state_round_trip_is_exact(tmp_path):
     np.testing.assert_array_equal(run(fresh, y[50:], law.dt, t0=50 * law.dt), first)
 
 
+def test_a_state_the_controller_refuses_changes_nothing(tmp_path):
+    """A saved state whose limits are crossed (u_min > u_max): refused as a whole, and
+    the controller continues exactly as if no restore had been tried."""
+    from fmukit.state import FmuStateError
+
+    law = design("testbed_isolation")
+    slave = make_slave(tmp_path, law)
+    twin = make_slave(tmp_path, law)
+    y = np.random.default_rng(6).standard_normal((100, 2))
+    run(slave, y[:20], law.dt)
+    run(twin, y[:20], law.dt)
+    state = slave._get_fmu_state()
+    state["attrs"]["_x"] = state["attrs"]["_x"] + 1.0     # a state that would change x
+    state["real"][slave._real_slot[vr_of(slave, "u_min")]] = 5.0
+    state["real"][slave._real_slot[vr_of(slave, "u_max")]] = -5.0
+    with pytest.raises(FmuStateError, match="u_min <= u_max.*previous state is kept"):
+        slave._set_fmu_state(state)
+    np.testing.assert_array_equal(run(slave, y[20:], law.dt, t0=20 * law.dt),
+                                  run(twin, y[20:], law.dt, t0=20 * law.dt))
+
+
 def test_bad_parameters_are_reported(tmp_path):
     with pytest.raises(ControllerParameterError, match="u_min <= u_max"):
         make_slave(tmp_path, design("eos_isolation"), u_min=1.0, u_max=-1.0)

@@ -13,7 +13,14 @@ sys.path.insert(0, str(Path(__file__).parent))  # toyslave.py
 
 from toyslave import ToyFilter  # noqa: E402
 
-from fmukit.state import MAGIC, VERSION, FmuStateError, decode_state, encode_state  # noqa: E402
+from fmukit.state import (  # noqa: E402
+    MAGIC,
+    VERSION,
+    FmuStateError,
+    decode_state,
+    encode_state,
+    seal,
+)
 
 H = 1e-3
 
@@ -78,10 +85,12 @@ def _good() -> bytes:
 @pytest.mark.parametrize("mutate, reason", [
     (lambda b: b[:5], "fewer than the 18-byte header"),
     (lambda b: b"XXXXXXXX" + b[8:], "starts with b'XXXXXXXX'"),
-    (lambda b: b[:8] + struct.pack("<H", VERSION + 1) + b[10:], "layout version is 2"),
+    (lambda b: b[:8] + struct.pack("<H", VERSION + 1) + b[10:],
+     f"layout version is {VERSION + 1}"),
     (lambda b: b[:-1], "announces"),
     (lambda b: b + b"\x00", "announces"),
-    (lambda b: b[:18] + b"?" + b[19:], "unknown value tag"),
+    (lambda b: seal(b[:18] + b"?" + b[19:-4]), "unknown value tag"),
+    (lambda b: b[:-12] + bytes([b[-12] ^ 1]) + b[-11:], "checksum does not match"),
 ])
 def test_bad_bytes_give_one_clear_error(mutate, reason):
     with pytest.raises(FmuStateError, match=f"serialized FMU state is invalid: .*{reason}"):
@@ -90,15 +99,15 @@ def test_bad_bytes_give_one_clear_error(mutate, reason):
 
 def test_huge_counts_and_shapes_are_refused_without_allocating():
     body = b"a" + bytes([0, 2]) + struct.pack("<2Q", 2**40, 2**40)
-    blob = struct.pack("<8sHQ", MAGIC, VERSION, len(body)) + body
+    blob = seal(struct.pack("<8sHQ", MAGIC, VERSION, len(body)) + body)
     with pytest.raises(FmuStateError, match="larger than the state"):
         decode_state(blob)
     body = b"l" + struct.pack("<I", 2**31)
-    blob = struct.pack("<8sHQ", MAGIC, VERSION, len(body)) + body
+    blob = seal(struct.pack("<8sHQ", MAGIC, VERSION, len(body)) + body)
     with pytest.raises(FmuStateError, match="claims 2147483648 items"):
         decode_state(blob)
     body = b"l\x01\x00\x00\x00" * 40 + b"N"
-    blob = struct.pack("<8sHQ", MAGIC, VERSION, len(body)) + body
+    blob = seal(struct.pack("<8sHQ", MAGIC, VERSION, len(body)) + body)
     with pytest.raises(FmuStateError, match="nested deeper"):
         decode_state(blob)
 
@@ -106,7 +115,7 @@ def test_huge_counts_and_shapes_are_refused_without_allocating():
 @settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=200))
 def test_arbitrary_bytes_decode_or_give_fmu_state_error(data):
-    for blob in (data, struct.pack("<8sHQ", MAGIC, VERSION, len(data)) + data):
+    for blob in (data, seal(struct.pack("<8sHQ", MAGIC, VERSION, len(data)) + data)):
         try:
             decode_state(blob)
         except FmuStateError:
@@ -166,3 +175,34 @@ def test_restore_writes_arrays_in_place_so_aliases_stay_valid():
     assert s.x is alias
     np.testing.assert_array_equal(alias, state["attrs"]["x"])
     assert s.n_steps == 4 and type(s.n_steps) is int
+
+
+def test_one_flipped_bit_in_a_value_is_refused():
+    """A bit of the state's float payload flipped (x[0] = 0.7 becomes another finite
+    number): the checksum refuses it, whichever bit."""
+    s, state = _state_after_steps(3)
+    blob = ToyFilter._fmu_state_to_bytes(state)
+    at = blob.index(np.float64(s.x[0]).tobytes())
+    for bit in range(64):
+        bad = bytearray(blob)
+        bad[at + bit // 8] ^= 1 << (bit % 8)
+        with pytest.raises(FmuStateError, match="checksum does not match"):
+            ToyFilter._fmu_state_from_bytes(bytes(bad))
+
+
+@pytest.mark.parametrize("where", ["real", "attr"])
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_non_finite_state_values_are_refused_before_anything_changes(where, value):
+    s, _ = _state_after_steps(3)
+    _, other = _state_after_steps(7)
+    if where == "real":
+        other["real"][0] = value
+    else:
+        other["attrs"]["x"][0] = value
+    other = ToyFilter._fmu_state_from_bytes(ToyFilter._fmu_state_to_bytes(other))
+    before = s._real_values.copy(), s.x.copy(), s.n_steps
+    with pytest.raises(FmuStateError, match="not finite|expected finite"):
+        s._set_fmu_state(other)
+    np.testing.assert_array_equal(s._real_values, before[0])
+    np.testing.assert_array_equal(s.x, before[1])
+    assert s.n_steps == before[2] == 3

@@ -4,7 +4,8 @@
  *
  * gain scales C and D (L divided by it), t_on and enable gate the law (zero command and
  * state while inactive), r is added to the command after the limits.  The law samples
- * on its own clock t_k = t_start + k dt.  Matrices come from resources/controller.dat.
+ * on its own clock t_k = t_start + k dt, instants matched within JF_TIME_RTOL of dt and
+ * t + h taken with jf_end_time (a host's rounding or drift never slips a sample).  Matrices come from resources/controller.dat.
  * State: [x (n), u (n_out), u_prev (n_out), k, t0, tau, ready].
  */
 #include <math.h>
@@ -13,7 +14,7 @@
 
 #include "jfmu.h"
 
-#define TOL 1e-9
+#define TOL 1e-9 /* t_on / dt, as ctrlfmu.law.first_active_sample */
 #define NO_LIMIT 1e30
 
 typedef struct {
@@ -192,7 +193,7 @@ static void write_outputs(JfInstance *inst) {
     double tau = STAU(inst), k = SK(inst);
     const double *u;
     size_t i;
-    if (fabs((tau - ST0(inst)) / m->dt - k) <= TOL) {
+    if (fabs((tau - ST0(inst)) / m->dt - k) <= JF_TIME_RTOL) {
         if (m->delayed) {
             u = SU(inst);
         } else {
@@ -255,7 +256,8 @@ static void sample(JfInstance *inst) {
 
 int model_do_step(JfInstance *inst, double t, double h) {
     Law *m = LAW;
-    double tau = t + h, k_end = ceil((tau - ST0(inst)) / m->dt - TOL);
+    double tau = jf_end_time(t, h, STAU(inst));
+    double k_end = ceil((tau - ST0(inst)) / m->dt - JF_TIME_RTOL);
     size_t i;
     if (k_end < 0) k_end = 0;
     if (SK(inst) < k_end) {

@@ -551,8 +551,9 @@ static void term_wrench(const Term *term, double t, double w[6]) {
     }
 }
 
-/* disturbance_output: the gated, scaled wrench at the state's time. */
-static void write_outputs(JfInstance *inst) {
+/* disturbance_output: the gated, scaled wrench at the state's time, the window's edges met
+ * within JF_TIME_RTOL of the step h that ended there (0 on initialisation). */
+static void write_outputs(JfInstance *inst, double h) {
     Dist *m = DS;
     const double *x = inst->state;
     double t = x[0], total[6] = {0, 0, 0, 0, 0, 0}, start = inst->r[m->start_time];
@@ -569,7 +570,9 @@ static void write_outputs(JfInstance *inst) {
         }
     }
     for (k = 0; k < 6; k++)
-        inst->r[m->out[k]] = (start <= t && t < stop) ? inst->r[m->scale] * total[k] : 0.0;
+        inst->r[m->out[k]] = (jf_reached(t, start, h) && !jf_reached(t, stop, h))
+                                 ? inst->r[m->scale] * total[k]
+                                 : 0.0;
 }
 
 /* ------------------------------------------------------------------ FMI hooks */
@@ -579,7 +582,7 @@ int model_exit_initialization(JfInstance *inst) {
     inst->state[0] = inst->start_time;
     inst->state[1] = 0.0;
     inst->state[2] = 0.0;
-    write_outputs(inst);
+    write_outputs(inst, 0.0);
     return JF_OK;
 }
 
@@ -602,6 +605,6 @@ int model_do_step(JfInstance *inst, double t, double h) {
         x[2] = omega;
     }
     x[0] = jf_end_time(t, h, x[0]); /* the host's communication point, never drifting */
-    write_outputs(inst);
+    write_outputs(inst, h);
     return JF_OK;
 }

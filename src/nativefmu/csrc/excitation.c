@@ -2,6 +2,8 @@
  *
  *   v_i(t) = amp_i sin(2 pi freq_i (t - t_start))  for t_start <= t < t_stop, else 0
  *
+ * the window's edges met within JF_TIME_RTOL of the step (jf_reached), as
+ * distfmu.excitation.sine_burst with the step as its period,
  * written at the start time on initialisation and at t + h after each step.
  * No internal state.
  */
@@ -43,20 +45,21 @@ void model_free(JfInstance *inst) {
     inst->model = NULL;
 }
 
-static void write_outputs(JfInstance *inst, double t) {
+static void write_outputs(JfInstance *inst, double t, double h) {
     const Excitation *m = (const Excitation *)inst->model;
     const double *r = inst->r;
     double t0 = r[m->start], t1 = r[m->stop];
     int i;
     for (i = 0; i < 2; i++) {
         double a = r[m->amp[i]], f = r[m->freq[i]];
-        inst->r[m->out[i]] = (t >= t0 && t < t1) ? a * sin(2 * PI * f * (t - t0)) : 0.0;
+        int on = jf_reached(t, t0, h) && !jf_reached(t, t1, h);
+        inst->r[m->out[i]] = on ? a * sin(2 * PI * f * (t - t0)) : 0.0;
     }
 }
 
 int model_exit_initialization(JfInstance *inst) {
     inst->state[0] = inst->start_time;
-    write_outputs(inst, inst->start_time);
+    write_outputs(inst, inst->start_time, 0.0);
     return JF_OK;
 }
 
@@ -72,6 +75,6 @@ int model_state_restored(JfInstance *inst) {
 
 int model_do_step(JfInstance *inst, double t, double h) {
     inst->state[0] = jf_end_time(t, h, inst->state[0]);
-    write_outputs(inst, inst->state[0]);
+    write_outputs(inst, inst->state[0], h);
     return JF_OK;
 }

@@ -3,7 +3,10 @@
  * Variables live in arrays indexed by value reference; the model kernel steps them.
  * The FMU state is kept in its serialised form: one byte layout, written by
  * fmi2GetFMUstate / fmi2SerializeFMUstate and checked field by field before
- * fmi2SetFMUstate / fmi2DeSerializeFMUstate write anything (see state_check):
+ * fmi2SetFMUstate / fmi2DeSerializeFMUstate write anything (see state_check: checksum,
+ * sizes, GUID, phase, Booleans, and every Real value, the start time and the kernel state
+ * finite).  The kernel then checks its own state (model_state_restored); if it refuses
+ * it, the instance's previous state is written back, so a refused state changes nothing:
  *
  *   offset  size        field
  *   0       8           magic "JFMUSTAT"
@@ -467,6 +470,7 @@ static StateBlob *state_write(JfInstance *inst) {
 
 /* Check every field of a serialised state before anything is written; 0 if valid. */
 static int state_check(JfInstance *inst, const unsigned char *p, size_t n) {
+    const unsigned char *start = p;
     uint32_t head[6];
     uint64_t sum;
     char guid[64];
@@ -528,14 +532,28 @@ static int state_check(JfInstance *inst, const unsigned char *p, size_t n) {
             return 1;
         }
     }
+    p = start + 96;
+    for (i = 0; i <= JF_N_VR; i++, p += 8) {   /* the start time, then every Real value */
+        double x;
+        memcpy(&x, p, 8);
+        if (!isfinite(x) && i == 0) {
+            jf_log(inst, 3, "FMU state rejected: its start time is not finite");
+            return 1;
+        }
+        if (!isfinite(x)) {
+            jf_log(inst, 3, "FMU state rejected: Real value reference %lu is not finite",
+                   (unsigned long)(i - 1));
+            return 1;
+        }
+    }
     return 0;
 }
 
-static fmi2Status state_read(JfInstance *inst, const unsigned char *p, size_t n) {
+/* Write a checked state into the instance (no kernel hook). */
+static void state_apply(JfInstance *inst, const unsigned char *p) {
     uint32_t phase;
     int32_t word;
     size_t i;
-    if (state_check(inst, p, n) != 0) return fmi2Error;
     memcpy(&phase, p + 88, 4);
     inst->phase = (int)phase;
     memcpy(&inst->start_time, p + 96, 8);
@@ -551,7 +569,26 @@ static fmi2Status state_read(JfInstance *inst, const unsigned char *p, size_t n)
         inst->bv[i] = (int)word;
     }
     if (inst->n_state) memcpy(inst->state, p, inst->n_state * 8u);
-    return kernel_status(inst, model_state_restored(inst));
+}
+
+/* Restore a state all or nothing: checked bytes, then the kernel's own check; a state the
+ * kernel refuses is replaced by the instance's previous one. */
+static fmi2Status state_read(JfInstance *inst, const unsigned char *p, size_t n) {
+    StateBlob *before;
+    if (state_check(inst, p, n) != 0) return fmi2Error;
+    before = state_write(inst);
+    if (before == NULL) return fmi2Error;
+    state_apply(inst, p);
+    if (model_state_restored(inst) != JF_OK) {
+        state_apply(inst, before->bytes);
+        (void)model_state_restored(inst);
+        free(before);
+        jf_log(inst, 3, "FMU state rejected by %s; its previous state is kept",
+               inst->instance_name);
+        return fmi2Error;
+    }
+    free(before);
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
@@ -709,9 +746,17 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2Stri
 
 double jf_end_time(double t, double h, double last) {
     double te, g;
-    if (fabs(t - last) <= 1.0e-6 * fabs(h)) t = last;
+    if (fabs(t - last) <= JF_TIME_RTOL * fabs(h)) t = last;
     te = t + h;
     if (!(fabs(te) < 9.0e3)) return te; /* ps counts exact below 2^53 ps */
     g = nearbyint(te * 1.0e12) / 1.0e12;
     return fabs(g - te) <= 4.0 * DBL_EPSILON * fabs(te) ? g : te;
+}
+
+int jf_reached(double t, double event, double period) {
+    return t >= event - JF_TIME_RTOL * fabs(period);
+}
+
+int jf_same_step(double h, double known) {
+    return fabs(h - known) <= JF_STEP_RTOL * fabs(known);
 }

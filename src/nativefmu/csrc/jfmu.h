@@ -79,6 +79,14 @@ int jf_expm_balanced(const double *a, size_t n, double *out);
  * rounded (so t_k + h, an accumulated t += h and the exact t_{k+1} are one time).
  * The same rule as fmukit.timing.end_time. */
 double jf_end_time(double t, double h, double last);
+/* Two times closer than this fraction of a step (or sample period) are one time; a step
+ * within JF_STEP_RTOL (relative) of a known step is that step.  As fmukit.timing. */
+#define JF_TIME_RTOL 1e-6
+#define JF_STEP_RTOL 1e-9
+/* t at or after event within JF_TIME_RTOL of period (fmukit.timing.reached). */
+int jf_reached(double t, double event, double period);
+/* h is the step known up to host rounding (fmukit.timing.same_step). */
+int jf_same_step(double h, double known);
 
 /* Kernel interface. */
 int model_instantiate(JfInstance *inst);           /* read data, allocate, set n_state */

@@ -8,14 +8,16 @@
  * accelerometer low-pass rows x_f+ = F_x x + F_u u with one exponential of the whole
  * first-order model (given in this layout in the data file as A_full, B_full).
  * Discretisations for the declared step sizes (data arrays steps, a11_<j>, ...) are
- * computed by structfmu.discrete.discretize at build time and used when the step
- * matches one exactly; any other step size is discretised here, at its first step, with
- * the same formulas (the last one is kept).  The Ritz block is stiff (kHz stack modes):
- * its exponential carries round-off of ~1e-10 relative in any implementation, so a step
- * discretised here agrees with the Python FMU to that level rather than to 1e-15.
+ * computed by structfmu.discrete.discretize at build time.  A step within JF_STEP_RTOL of
+ * a declared or an already discretised step is that step (the host's rounding: FMPy's
+ * (k+1)h - kh, a host counting nanoseconds); any other step is discretised here, at its
+ * first step, and kept in a cache of CACHE steps (the oldest replaced first).  The Ritz
+ * block and the filter rows are stiff (kHz stack modes: an augmented matrix of norm
+ * ~1e6 for 1 ms), so both are exponentiated after an exact power-of-two balancing
+ * (jf_expm_balanced), which keeps scipy.linalg.expm's accuracy (about 1e-14 of peak
+ * against the Python FMU, where the unbalanced exponential was 5e-8 off).
  * Outputs: y = C_x x + D u (D non-zero only for unfiltered accelerations).
  */
-#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,7 +25,10 @@
 
 #include "jfmu.h"
 
+#define CACHE 8
+
 typedef struct {
+    double h;
     double *a11, *G1, *G2, *Phi_o, *G_o, *F_x, *F_u; /* a11 holds a11, a12, a21, a22 */
 } Zoh;
 
@@ -31,12 +36,14 @@ typedef struct {
     size_t n_steps;
     double *steps;
     Zoh *pre;
+    Zoh cache[CACHE];     /* steps discretised here */
+    size_t n_cached, next_slot;
+    const Zoh *cur;       /* the discretisation in use */
     size_t n_m, n_r, n_in, n_out, n_f, ns, n;
     double *omega, *cdamp, *B_e, *K_oo, *D_oo, *B_o, *C_x, *D, *A_full, *B_full;
     size_t *u_vr, *y_vr;
     int has_ft;
-    /* discretisation for step h */
-    double h;
+    /* views of the discretisation in use (cur) */
     double *a11, *a12, *a21, *a22, *G1, *G2, *Phi_o, *G_o, *F_x, *F_u;
     /* work */
     double *u, *y_state, *tq, *tv, *to, *tf;
@@ -108,6 +115,7 @@ int model_instantiate(JfInstance *inst) {
             char name[32];
             Zoh *z = &m->pre[j];
             double *a[4];
+            z->h = m->steps[j];
             const char *abcd[4] = {"a11", "a12", "a21", "a22"};
             for (i = 0; i < 4; i++) {
                 sprintf(name, "%s_%lu", abcd[i], (unsigned long)j);
@@ -139,13 +147,6 @@ int model_instantiate(JfInstance *inst) {
     if (!ok) return JF_ERROR;
     for (i = 0; i < m->n_out * m->n_in; i++)
         if (m->D[i] != 0.0) m->has_ft = 1;
-    m->a11 = (double *)jf_alloc(inst, 6 * m->n_m, sizeof(double));
-    m->G1 = (double *)jf_alloc(inst, m->n_m * m->n_in, sizeof(double));
-    m->G2 = (double *)jf_alloc(inst, m->n_m * m->n_in, sizeof(double));
-    m->Phi_o = (double *)jf_alloc(inst, 4 * m->n_r * m->n_r, sizeof(double));
-    m->G_o = (double *)jf_alloc(inst, 2 * m->n_r * m->n_in, sizeof(double));
-    m->F_x = (double *)jf_alloc(inst, m->n_f * m->n, sizeof(double));
-    m->F_u = (double *)jf_alloc(inst, m->n_f * m->n_in, sizeof(double));
     m->u = (double *)jf_alloc(inst, m->n_in, sizeof(double));
     m->y_state = (double *)jf_alloc(inst, m->n_out, sizeof(double));
     m->tq = (double *)jf_alloc(inst, 2 * m->n_m, sizeof(double));
@@ -153,30 +154,29 @@ int model_instantiate(JfInstance *inst) {
     m->tf = (double *)jf_alloc(inst, m->n_f, sizeof(double));
     inst->n_state = m->n;
     inst->state = (double *)jf_alloc(inst, m->n, sizeof(double));
-    if (!m->a11 || !m->G1 || !m->G2 || !m->Phi_o || !m->G_o || !m->F_x || !m->F_u || !m->u ||
-        !m->y_state || !m->tq || !m->to || !m->tf || !inst->state)
-        return JF_ERROR;
-    m->a12 = m->a11 + m->n_m;
-    m->a21 = m->a11 + 2 * m->n_m;
-    m->a22 = m->a11 + 3 * m->n_m;
+    if (!m->u || !m->y_state || !m->tq || !m->to || !m->tf || !inst->state) return JF_ERROR;
     m->tv = m->tq + m->n_m;
-    m->h = 0.0;
+    m->cur = NULL;
     return JF_OK;
+}
+
+static void zoh_free(Zoh *z) {
+    free(z->a11);
+    free(z->G1);
+    free(z->G2);
+    free(z->Phi_o);
+    free(z->G_o);
+    free(z->F_x);
+    free(z->F_u);
+    memset(z, 0, sizeof *z);
 }
 
 void model_free(JfInstance *inst) {
     Structure *m = M;
     size_t j;
     if (m == NULL) return;
-    for (j = 0; m->pre != NULL && j < m->n_steps; j++) {
-        free(m->pre[j].a11);
-        free(m->pre[j].G1);
-        free(m->pre[j].G2);
-        free(m->pre[j].Phi_o);
-        free(m->pre[j].G_o);
-        free(m->pre[j].F_x);
-        free(m->pre[j].F_u);
-    }
+    for (j = 0; m->pre != NULL && j < m->n_steps; j++) zoh_free(&m->pre[j]);
+    for (j = 0; j < CACHE; j++) zoh_free(&m->cache[j]);
     free(m->pre);
     free(m->steps);
     free(m->omega);
@@ -191,13 +191,6 @@ void model_free(JfInstance *inst) {
     free(m->B_full);
     free(m->u_vr);
     free(m->y_vr);
-    free(m->a11);
-    free(m->G1);
-    free(m->G2);
-    free(m->Phi_o);
-    free(m->G_o);
-    free(m->F_x);
-    free(m->F_u);
     free(m->u);
     free(m->y_state);
     free(m->tq);
@@ -207,28 +200,12 @@ void model_free(JfInstance *inst) {
     inst->model = NULL;
 }
 
-/* Exact ZOH of every mode, of the Ritz block and of the filter rows for step h. */
+/* Exact ZOH of every mode, of the Ritz block and of the filter rows for step h, into the
+ * views m->a11 ... (the buffers of a cache slot). */
 static int discretize(JfInstance *inst, double h) {
     Structure *m = M;
     size_t i, j, k, nr = m->n_r, n3 = 3 * nr, nin = m->n_in;
     double g1, g2, E[9], Aug[9];
-    for (j = 0; j < m->n_steps; j++)
-        /* a declared step, discretised at build time; to a few ulps, because a host
-           that counts time in nanoseconds passes 1 ms as 0.0010000000000000002 */
-        if (fabs(m->steps[j] - h) <= 4.0 * DBL_EPSILON * m->steps[j]) {
-            const Zoh *z = &m->pre[j];
-            memcpy(m->a11, z->a11, 4 * m->n_m * sizeof(double));
-            memcpy(m->G1, z->G1, m->n_m * nin * sizeof(double));
-            memcpy(m->G2, z->G2, m->n_m * nin * sizeof(double));
-            memcpy(m->Phi_o, z->Phi_o, 4 * nr * nr * sizeof(double));
-            memcpy(m->G_o, z->G_o, 2 * nr * nin * sizeof(double));
-            if (m->n_f) {
-                memcpy(m->F_x, z->F_x, m->n_f * m->n * sizeof(double));
-                memcpy(m->F_u, z->F_u, m->n_f * nin * sizeof(double));
-            }
-            m->h = h;
-            return JF_OK;
-        }
     for (i = 0; i < m->n_m; i++) {
         double w = m->omega[i], cc = m->cdamp[i];
         if (w == 0.0) {
@@ -304,7 +281,7 @@ static int discretize(JfInstance *inst, double h) {
             for (j = 0; j < n; j++) A[i * na + j] = m->A_full[i * n + j] * h;
             for (j = 0; j < nin; j++) A[i * na + n + j] = m->B_full[i * nin + j] * h;
         }
-        if (jf_expm(A, na, X) != JF_OK) {
+        if (jf_expm_balanced(A, na, X) != JF_OK) {
             free(A);
             return JF_ERROR;
         }
@@ -314,9 +291,66 @@ static int discretize(JfInstance *inst, double h) {
         }
         free(A);
     }
-    m->h = h;
     return JF_OK;
 }
+
+static void use(Structure *m, const Zoh *z) {
+    m->cur = z;
+    m->a11 = z->a11;
+    m->a12 = z->a11 + m->n_m;
+    m->a21 = z->a11 + 2 * m->n_m;
+    m->a22 = z->a11 + 3 * m->n_m;
+    m->G1 = z->G1;
+    m->G2 = z->G2;
+    m->Phi_o = z->Phi_o;
+    m->G_o = z->G_o;
+    m->F_x = z->F_x;
+    m->F_u = z->F_u;
+}
+
+/* Make the discretisation for step h the one in use: a declared or cached step that h is
+ * up to rounding (jf_same_step), else a new one in the next cache slot. */
+static int select_step(JfInstance *inst, double h) {
+    Structure *m = M;
+    Zoh *z;
+    size_t j, nm = m->n_m, nr = m->n_r, nin = m->n_in;
+    for (j = 0; j < m->n_steps; j++)
+        if (jf_same_step(h, m->pre[j].h)) {
+            use(m, &m->pre[j]);
+            return JF_OK;
+        }
+    for (j = 0; j < m->n_cached; j++)
+        if (jf_same_step(h, m->cache[j].h)) {
+            use(m, &m->cache[j]);
+            return JF_OK;
+        }
+    z = &m->cache[m->next_slot];
+    zoh_free(z);
+    z->a11 = (double *)jf_alloc(inst, 4 * nm + 1, sizeof(double));
+    z->G1 = (double *)jf_alloc(inst, nm * nin + 1, sizeof(double));
+    z->G2 = (double *)jf_alloc(inst, nm * nin + 1, sizeof(double));
+    z->Phi_o = (double *)jf_alloc(inst, 4 * nr * nr + 1, sizeof(double));
+    z->G_o = (double *)jf_alloc(inst, 2 * nr * nin + 1, sizeof(double));
+    z->F_x = (double *)jf_alloc(inst, m->n_f * m->n + 1, sizeof(double));
+    z->F_u = (double *)jf_alloc(inst, m->n_f * nin + 1, sizeof(double));
+    if (!z->a11 || !z->G1 || !z->G2 || !z->Phi_o || !z->G_o || !z->F_x || !z->F_u) {
+        zoh_free(z);
+        m->cur = NULL;
+        return JF_ERROR;
+    }
+    z->h = h;
+    use(m, z);
+    if (discretize(inst, h) != JF_OK) {
+        zoh_free(z);
+        m->cur = NULL;
+        return JF_ERROR;
+    }
+    if (m->next_slot == m->n_cached) m->n_cached++;
+    m->next_slot = (m->next_slot + 1) % CACHE;
+    return JF_OK;
+}
+
+
 
 static void read_inputs(JfInstance *inst) {
     Structure *m = M;
@@ -370,7 +404,7 @@ int model_do_step(JfInstance *inst, double t, double h) {
     size_t i, j, nm = m->n_m, nr = m->n_r, nin = m->n_in;
     double *x = inst->state, *q = x, *v = x + nm, *xo = x + 2 * nm;
     (void)t;
-    if (h != m->h && discretize(inst, h) != JF_OK) {
+    if ((m->cur == NULL || h != m->cur->h) && select_step(inst, h) != JF_OK) {
         jf_log(inst, 3, "cannot discretise the structure for step %g s", h);
         return JF_ERROR;
     }

@@ -1,0 +1,110 @@
+"""Cost per step of every FMU under the hosts' time styles, side by side in one run.
+
+Each FMU (native and Python) is stepped at 1 ms through fmpy with the same inputs
+under four hosts:
+
+* ``exact``: the tick ``k / 1000`` and the period (the reference);
+* ``(k+1)h-kh``: FMPy's arithmetic (12 distinct step values over 8 s);
+* ``t+=h``: an accumulated time;
+* ``new step``: every step a step size the FMU has not seen (50 sizes 1e-8 apart,
+  cycled, more than the structure's cache of 8): what the structure FMU paid at
+  almost every step under ``(k+1)h-kh`` before a step within rounding of a known one
+  was that step (it re-discretised whenever the value changed).
+
+The time is the wall time of ``setReal + doStep + getReal`` per step (µs), best of
+``--repeat`` runs; the ``new step`` column runs ``--new-steps`` steps only (a stiff
+structure's discretisation takes about a second).
+
+Run:  .venv/bin/python benchmarks/bench_host_time.py [--steps 2000] [--new-steps 20]
+      [--repeat 3] [--model eos_testbed_structure ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+import time
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+MODELS = ("truss10_structure", "eos_testbed_structure", "piezo_p845_37",
+          "controller_eos_isolation", "acs", "disturbance", "excitation")
+H = 1e-3
+
+
+def hosts(n: int, n_new: int) -> dict:
+    acc, t = [], 0.0
+    for _ in range(n):
+        acc.append((t, H))
+        t += H
+    return {
+        "exact": [(float(Fraction(k, 1000)), H) for k in range(n)],
+        "(k+1)h-kh": [(k * H, (k + 1) * H - k * H) for k in range(n)],
+        "t+=h": acc,
+        "new step": [(k * H, H * (1 + 1e-8 * (1 + k % 50))) for k in range(n_new)],
+    }
+
+
+def per_step_us(path: Path, steps: list, repeat: int) -> float:
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(path))
+    ins = [v.valueReference for v in md.modelVariables
+           if v.causality == "input" and v.type == "Real"]
+    outs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+    u = np.random.default_rng(1).standard_normal((len(steps), len(ins))) * 1e-3
+    unzipped = extract(str(path))
+    best = np.inf
+    try:
+        for _ in range(repeat):
+            fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, instanceName="b",
+                            modelIdentifier=md.coSimulation.modelIdentifier)
+            fmu.instantiate()
+            fmu.setupExperiment(startTime=0.0)
+            fmu.enterInitializationMode()
+            fmu.exitInitializationMode()
+            t0 = time.perf_counter()
+            for k, (t, h) in enumerate(steps):
+                if ins:
+                    fmu.setReal(ins, u[k].tolist())
+                fmu.doStep(t, h)
+                fmu.getReal(outs)
+            best = min(best, (time.perf_counter() - t0) / len(steps))
+            fmu.terminate()
+            fmu.freeInstance()
+    finally:
+        shutil.rmtree(unzipped, ignore_errors=True)
+    return best * 1e6
+
+
+def main(argv=None) -> None:
+    from fmutools.ensure import ensure_fmus
+
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--steps", type=int, default=2000)
+    p.add_argument("--new-steps", type=int, default=20)
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--model", action="append", choices=MODELS)
+    args = p.parse_args(argv)
+    models = args.model or list(MODELS)
+    styles = hosts(args.steps, args.new_steps)
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = {kind: ensure_fmus(models, Path(tmp), kind=kind)
+                 for kind in ("native", "python")}
+        print(f"µs per step, best of {args.repeat}; {args.steps} steps "
+              f"({args.new_steps} for 'new step')")
+        print(f"{'model':<26} {'build':<7}" + "".join(f"{s:>12}" for s in styles))
+        for model in models:
+            for kind in ("native", "python"):
+                cells = [per_step_us(paths[kind][model], steps, args.repeat)
+                         for steps in styles.values()]
+                print(f"{model:<26} {kind:<7}" + "".join(f"{c:12.1f}" for c in cells),
+                      flush=True)
+
+
+if __name__ == "__main__":
+    main()

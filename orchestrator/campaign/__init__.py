@@ -55,7 +55,9 @@ Output folder::
     DIR/cases/KEY/case.json    definition, status ("ok" or "failed"), error, timings
     DIR/cases/KEY/results.parquet, metrics.parquet   (successful cases)
     DIR/cases.parquet, cases.csv       one row per case with its status and error
-    DIR/summary.parquet, summary.csv   the jitter table (see :func:`summarize`)
+    DIR/summary.parquet        the jitter table, every row (see :func:`summarize`)
+    DIR/summary.csv            its case rows; a swept parameter is a numeric column
+    DIR/budget.csv             its RSS rows: the budget against the requirements
 
 Resuming
 --------

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import pyarrow as pa
+import pyarrow.compute  # noqa: F401  (pa.compute)
 import pyarrow.parquet as pq
 
 from .. import metrics as M
@@ -14,6 +15,8 @@ from .cases import Campaign
 from .spec import ANGLE_UNITS, RSS_EVENT
 from .store import METRICS_FILE, case_status, write_table
 
+#: The RSS rows of the summary, as CSV.
+BUDGET_CSV = "budget.csv"
 SUMMARY_SCHEMA = pa.schema([
     ("case", pa.string()), ("key", pa.string()), ("event", pa.string()),
     ("configuration", pa.string()), ("sweep", pa.string()), ("instrument", pa.string()),
@@ -107,8 +110,27 @@ def summarize(campaign: Campaign, out_dir) -> tuple[pa.Table, pa.Table]:
             r["margin"], r["margin_ratio"] = float(a), float(ratio)
             r["pass"] = None if r["note"] else bool(r["value"] <= req)
     summary = pa.Table.from_pylist(rows, schema=SUMMARY_SCHEMA)
+    for name, values in _sweep_columns([r["sweep"] for r in rows]).items():
+        summary = summary.append_column(pa.field(name, pa.float64()), pa.array(values))
     cases = pa.Table.from_pylist(case_rows, schema=_CASES_SCHEMA)
     return summary, cases
+
+
+def _sweep_columns(sweeps: list) -> dict:
+    """One numeric column per swept parameter, from the ``sweep`` labels ``p=v, q=w``
+    (NaN where a row has no such point, or a value that is not a number)."""
+    points = []
+    for label in sweeps:
+        point = {}
+        for part in filter(None, (label or "").split(", ")):
+            name, _, value = part.partition("=")
+            try:
+                point[name] = float(value)
+            except ValueError:
+                point[name] = math.nan
+        points.append(point)
+    names = list(dict.fromkeys(n for p in points for n in p))
+    return {n: [p.get(n, math.nan) for p in points] for n in names}
 
 
 def _cross_checks(out: Path) -> dict:
@@ -134,7 +156,11 @@ def _cross_checks(out: Path) -> dict:
 
 
 def write_summary(campaign: Campaign, out_dir) -> Path:
-    """Write summary.parquet/.csv and cases.parquet/.csv atomically.
+    """Write summary.parquet, summary.csv, budget.csv and cases.parquet/.csv atomically.
+
+    ``summary.parquet`` holds every row; for spreadsheet readers ``summary.csv`` holds
+    the case rows and ``budget.csv`` the RSS rows (the budget against the requirements).
+    A swept parameter is a numeric column of its own in all three.
 
     Parameters
     ----------
@@ -151,7 +177,9 @@ def write_summary(campaign: Campaign, out_dir) -> Path:
     out = Path(out_dir)
     summary, cases = summarize(campaign, out)
     write_table(summary, out / "summary.parquet")
-    write_table(summary, out / "summary.csv", csv=True)
+    is_rss = pa.compute.equal(summary["event"], RSS_EVENT)
+    write_table(summary.filter(pa.compute.invert(is_rss)), out / "summary.csv", csv=True)
+    write_table(summary.filter(is_rss), out / BUDGET_CSV, csv=True)
     write_table(cases, out / "cases.parquet")
     write_table(cases, out / "cases.csv", csv=True)
     return out / "summary.parquet"

@@ -117,7 +117,10 @@ def run(args) -> int:
     for label, why in res.rerun.items():
         print(f"  case {label!r} not trusted ({why}); running it again", file=sys.stderr)
     print(f"{res.n_cases} cases: {res.n_run} run, {res.n_skipped} already finished, "
-          f"{res.n_failed} failed ({engine} engine); summary in {out / 'summary.csv'}")
+          f"{res.n_failed} failed ({engine} engine); cases in {out / 'summary.csv'}, "
+          f"budget in {out / 'budget.csv'}")
+    for line in budget_lines(out / "summary.parquet"):
+        print(line)
     for label, err in res.failures.items():
         print(f"  failed: {label}: {err}", file=sys.stderr)
     n_verify = args.verify if args.verify is not None else camp.verify
@@ -168,3 +171,36 @@ def run(args) -> int:
             print(f"  {line['configuration']:<16} {line['instrument']:>6}/{line['axis']:<6}"
                   f" {qs} {line['unit']}{meet}")
     return min(res.n_failed, 100)
+
+
+def budget_lines(summary_path, limit: int = 20) -> list:
+    """The verdict a user runs a campaign for: per instrument and axis, the RSS of each
+    configuration against its requirement (the first metric that has requirements)."""
+    import pyarrow.parquet as pq
+
+    from ..campaign.spec import RSS_EVENT
+
+    try:
+        rows = [r for r in pq.read_table(summary_path).to_pylist()
+                if r["event"] == RSS_EVENT and not r["sweep"]]
+    except OSError:
+        return []
+    with_req = [r for r in rows if r["requirement"] == r["requirement"]]   # not NaN
+    if not with_req:
+        return []
+    metric, window = with_req[0]["metric"], with_req[0]["window"]
+    chosen = [r for r in with_req if r["metric"] == metric and r["window"] == window]
+    lines: dict = {}
+    for r in chosen:
+        lines.setdefault((r["instrument"], r["axis"]), []).append(r)
+    what = f"{metric} over {window:g} s" if window == window else metric
+    out = [f"budget ({what}, RSS over events, {chosen[0]['unit']}):"]
+    for (inst, axis), rs in list(lines.items())[:limit]:
+        cells = [f"{r['configuration'] or 'all'} {r['value']:.3g} "
+                 f"({'PASS' if r['pass'] else 'FAIL' if r['pass'] is False else 'n/a'})"
+                 for r in rs]
+        out.append(f"  {inst} {axis}: " + " | ".join(cells) + f"  requirement "
+                   f"{rs[0]['requirement']:.3g}")
+    if len(lines) > limit:
+        out.append(f"  ... {len(lines) - limit} more lines in budget.csv")
+    return out

@@ -322,7 +322,10 @@ def test_serial_summary_holds_analytic_jitter_rss_and_margins(tmp_path):
     assert get[("RSS", "isolation off", "A", "yaw", "rms_jitter")]["pass"] is None
     csv = (tmp_path / "summary.csv").read_text()
     assert csv.splitlines()[0].startswith('"case","key","event","configuration"')
-    assert csv.count("\n") == len(rows) + 1
+    n_rss = sum(r["event"] == "RSS" for r in rows)
+    assert csv.count("\n") == len(rows) - n_rss + 1 and '"RSS"' not in csv   # case rows
+    budget = (tmp_path / "budget.csv").read_text().splitlines()
+    assert len(budget) == n_rss + 1 and all('"RSS"' in line for line in budget[1:])
 
 
 def table_runner(scenario: dict, out_dir) -> RunResult:
@@ -485,6 +488,9 @@ def test_cli_runs_campaign_and_reports_failures_in_exit_status(tmp_path, capsys)
     assert "6 cases: 6 run, 0 already finished, 2 failed" in out
     assert "diverged at 5.0 Hz" in err
     assert (tmp_path / "o/summary.csv").is_file()
+    # it ends with the verdict a user came for, not only a path
+    assert "budget (peak_to_peak over 0.2 s, RSS over events, arcsec):" in out
+    assert "  A pitch: isolation off " in out and "requirement 1" in out
 
 
 @pytest.mark.parametrize("damage", ["truncate results", "truncate metrics", "replace metrics",
@@ -608,5 +614,10 @@ def test_report_draws_the_rss_against_a_swept_parameter(tmp_path):
            and r["instrument"] == "A"]
     top = max(rss, key=lambda r: r["value"])
     at = float(top["sweep"].split("=")[1])
+    # the swept value is a number in a column of its own, in the Parquet and both CSVs
+    assert all(r["sc.mass"] == float(r["sweep"].split("=")[1]) for r in rss)
+    for name in ("summary.csv", "budget.csv"):
+        header = (tmp_path / name).read_text().splitlines()[0].split(",")
+        assert header[-1] == '"sc.mass"'
     want = f"| sc.mass | isolation off | A | pitch | peak_to_peak | sc.mass = {at:.4g} |"
     assert want in text

@@ -29,13 +29,21 @@ ANGLE_UNITS = {
     "deg": DEG_PER_RAD,
     "arcsec": ARCSEC_PER_RAD,
 }
-#: Metric kinds and what their ``windows`` mean.
+#: Metric kinds of a campaign and what their window (s) means; each gives one number
+#: per record, its largest value over the record (the ECSS temporal interpretation).
 METRIC_KINDS = {
     "peak_to_peak": "windowed peak-to-peak jitter over T (s)",
     "rms_jitter": "RMS deviation from the window mean over T (s)",
     "stability": "RMS change across a lag Ts (s)",
     "rms": "RMS about the record mean (no window)",
+    "ape": "ECSS absolute performance error: largest |e| (no window)",
+    "mpe": "ECSS mean performance error: largest |mean of e| over windows T (s)",
+    "rpe": "ECSS relative performance error: largest |e - its window mean|, windows T (s)",
+    "pde": "ECSS performance drift error: largest |difference of the means of two "
+           "windows T (s) one window apart|",
 }
+#: Metric kinds that take no window.
+WINDOWLESS = ("rms", "ape")
 #: Event name of the summary rows holding the RSS over the events.
 RSS_EVENT = "RSS"
 # Valid keys of every table of a campaign file.
@@ -335,7 +343,7 @@ def _metrics(items, record: float | None, skip: float) -> list:
             raise CampaignError(
                 f"metric {i + 1} kind is {kind!r}; expected one of {sorted(METRIC_KINDS)}"
             )
-        if kind == "rms":
+        if kind in WINDOWLESS:
             metrics.append((kind, None))
             continue
         windows = m.get("windows", [m["window"]] if "window" in m else [])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import ecss
 from .peak import peak_to_peak
 from .rms import jitter_rms, stability_rms
 
@@ -21,7 +22,9 @@ def metric_values(x, dt: float, metrics) -> np.ndarray:
         Sample interval (s).
     metrics : sequence of (str, float or None)
         ``(kind, window)``: ``peak_to_peak`` (window T, the whole record when shorter),
-        ``rms_jitter`` (window T), ``stability`` (lag), ``rms`` (about the record mean).
+        ``rms_jitter`` (window T), ``stability`` (lag), ``rms`` (about the record mean),
+        and the ECSS indices ``ape`` (largest ``|e|``), ``mpe``, ``rpe``, ``pde``
+        (window T; :data:`orchestrator.campaign.spec.METRIC_KINDS`).
 
     Returns
     -------
@@ -37,7 +40,18 @@ def metric_values(x, dt: float, metrics) -> np.ndarray:
             v = jitter_rms(x, dt, w)
         elif kind == "stability":
             v = stability_rms(x, dt, w)
-        else:
+        elif kind == "ape":
+            v = np.max(np.abs(ecss.ape(x)), axis=-1)
+        elif kind == "mpe":
+            v = np.max(np.abs(ecss.mpe(x, dt, w)), axis=-1)
+        elif kind == "rpe":
+            v = np.max(np.abs(ecss.rpe(x, dt, w)), axis=-1)
+        elif kind == "pde":
+            v = np.max(np.abs(ecss.pde(x, dt, w, w)), axis=-1)
+        elif kind == "rms":
             v = np.std(x, axis=-1)
+        else:
+            raise ValueError(f"metric kind {kind!r} is unknown; see "
+                             "orchestrator.campaign.spec.METRIC_KINDS")
         out.append(np.asarray(v, float))
     return np.stack(out, axis=-1)

@@ -621,3 +621,27 @@ def test_report_draws_the_rss_against_a_swept_parameter(tmp_path):
         assert header[-1] == '"sc.mass"'
     want = f"| sc.mass | isolation off | A | pitch | peak_to_peak | sc.mass = {at:.4g} |"
     assert want in text
+
+
+def test_ecss_indices_are_campaign_metrics(tmp_path):
+    """ape (no window) and mpe/rpe/pde (windows) in [[metrics]]: on the sines of the
+    synthetic runner (crests on the grid, whole periods per 0.2 s window) APE = RPE = the
+    amplitude, MPE = PDE = 0 to round-off, in the campaign's unit."""
+    data = campaign_data(n_events=1)
+    data["metrics"] = [{"kind": "ape"}, {"kind": "mpe", "windows": [0.2]},
+                       {"kind": "rpe", "windows": [0.2]}, {"kind": "pde", "windows": [0.2]}]
+    data["requirements"] = [{"instrument": "A", "metric": "ape", "value": 0.5}]
+    camp = campaign_from_dict(data)
+    assert list(camp.metrics) == [("ape", None), ("mpe", 0.2), ("rpe", 0.2), ("pde", 0.2)]
+    run_campaign(camp, tmp_path, synthetic_runner, workers=0, progress=False)
+    rows = {(r["configuration"], r["metric"]): r for r in pq.read_table(
+        tmp_path / "summary.parquet").to_pylist()
+        if r["event"] == "event0" and r["instrument"] == "A" and r["axis"] == "pitch"}
+    a = 1e-6 * ARCSEC   # event0's amplitude (rad) in arcsec, control off
+    np.testing.assert_allclose(rows[("isolation off", "ape")]["value"], a, rtol=1e-9)
+    np.testing.assert_allclose(rows[("isolation off", "rpe")]["value"], a, rtol=1e-9)
+    assert abs(rows[("isolation off", "mpe")]["value"]) < 1e-9 * a
+    assert abs(rows[("isolation off", "pde")]["value"]) < 1e-9 * a
+    assert rows[("isolation off", "ape")]["requirement"] == 0.5
+    with pytest.raises(CampaignError, match=r"metric 1 kind is 'apee'; expected one of"):
+        campaign_from_dict({**data, "metrics": [{"kind": "apee"}]})

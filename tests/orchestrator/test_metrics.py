@@ -287,3 +287,24 @@ def test_budget_rejects_duplicates_and_negative_values():
         M.budget([("a", "X", "yaw", 1.0), ("a", "X", "yaw", 2.0)])
     with pytest.raises(ValueError, match="non-negative"):
         M.budget([("a", "X", "yaw", -1.0)])
+
+
+def test_campaign_ecss_kinds_on_a_ramp():
+    """e = c t sampled at dt: every ECSS index of a ramp has a closed form.  With windows
+    of m = T/dt samples (whole blocks from t = 0): APE = c t_end; MPE = the mean of the
+    last whole block, c dt (n_blocks m - (m + 1) / 2); RPE = the half-spread of a block,
+    c dt (m - 1) / 2; PDE = the difference of two sliding means one window apart, c T."""
+    from orchestrator.metrics.kinds import metric_values
+
+    c, dt, T = 2.0, 1e-3, 0.05
+    n = 1001                                   # t = 0 .. 1 s
+    e = c * dt * np.arange(n)
+    m = round(T / dt)
+    blocks = n // m
+    got = metric_values(e, dt, [("ape", None), ("mpe", T), ("rpe", T), ("pde", T)])
+    want = [c * dt * (n - 1), c * dt * (blocks * m - (m + 1) / 2), c * dt * (m - 1) / 2,
+            c * T]
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    # linear and even in e, as a budget's RSS over events assumes
+    np.testing.assert_allclose(metric_values(-3 * e, dt, [("ape", None), ("pde", T)]),
+                               [3 * want[0], 3 * want[3]], rtol=1e-12)

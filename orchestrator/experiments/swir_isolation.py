@@ -8,17 +8,19 @@ strain-rate feedback through a low-pass -> voltage), all twelve loops independen
 
 Two halves:
 
-* **Linear design** (before any co-simulation): the structure reduced and discretised
-  exactly (ZOH, 1 kHz), the discrete law with its Eq. (11) delay, the P-865.10 amplifier
-  whose mean force over each step the structure holds (the stack FMU's step-mean
-  coupling, :func:`stack_map`), the ACS stepped with its own pure functions at 10 Hz; it
-  equals the co-simulation.  It gives per leg loop gain and phase margins, the MIMO gain margin
-  (common gain factor at which the twelve closed loops go unstable), closed-loop damping,
-  the **ideal ceiling** (:func:`ls_ceiling`: per-frequency least squares over the twelve
-  stack forces, exact and within 5 um / 15 lbf), the **rigid-body share** of the SWIR line
-  of sight (mount forces are self-equilibrated: they cannot move the rigid-body modes) and
-  the share below ``LOW_HZ`` (rigid body, solar array, antenna), the modes that carry SWIR
-  pitch (:func:`modal_breakdown`) and what uniform 5 % damping would give
+* **Linear design** (before any co-simulation), on the engine's sampled-structure tools
+  (:mod:`orchestrator.analysis.sampled`, ``.margins``, ``.bounds``, ``.lqg``): the
+  structure reduced and discretised exactly (ZOH, 1 kHz), the discrete law with its
+  Eq. (11) delay, the P-865.10 amplifier whose mean force over each step the structure
+  holds (``amplifier_step``, the stack FMU's step-mean coupling), the ACS stepped with
+  its own pure functions at 10 Hz; it equals the co-simulation.  It gives per leg loop
+  gain and phase margins, the MIMO gain margin (common gain factor at which the twelve
+  closed loops go unstable), closed-loop damping, the **ideal ceiling**
+  (:func:`ls_ceiling`: per-frequency least squares over the twelve stack forces, exact
+  and within 5 um / 15 lbf), the **rigid-body share** of the SWIR line of sight (mount
+  forces are self-equilibrated: they cannot move the rigid-body modes) and the share
+  below ``LOW_HZ`` (rigid body, solar array, antenna), the modes that carry SWIR pitch
+  (:func:`modal_breakdown`) and what uniform 5 % damping would give
   (:func:`reduction_with_damping`).
 * **Co-simulation** of the same loop with the FMUs (isolation off, then on), the numbers
   the JSON reports as the result.
@@ -36,26 +38,32 @@ from __future__ import annotations
 
 import tomllib
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from acsfmu.design import pid_gains_for
-from acsfmu.pid import AcsConfig, PidGains, acs_advance, acs_outputs, initial_state
-from ctrlfmu.analysis import frequency_response, mode_damping, to_statespace
+from acsfmu.pid import AcsConfig, PidGains
+from ctrlfmu.analysis import mode_damping
 from ctrlfmu.designs import design
 from ctrlfmu.fmuspec import law_spec
-from ctrlfmu.law import DiscreteLaw
 from distfmu.presets import get_preset
 from fmukit.units import ARCSEC, LBF
 from fmutools.ensure import ensure_fmus as _ensure
 from orchestrator import UnconnectedInputWarning, run_scenario
 from orchestrator.analysis import stability_margin_db
+from orchestrator.analysis.bounds import least_squares_records
+from orchestrator.analysis.frf import modal_frequency_response
+from orchestrator.analysis.lqg import lqg_law, stack_lqg
+from orchestrator.analysis.margins import (band_damping, channel_margins, spectral_radius,
+                                           without_states)
+from orchestrator.analysis.sampled import (SampledStructure, amplifier_step,
+                                           sample_structure, simulate_with_acs,
+                                           stack_force_per_volt, stack_loop)
 from orchestrator.metrics import peak_to_peak
 from piezofmu import preset
 from structfmu.models import eos_testbed
-from structfmu.statespace import first_order
 
 from . import eos
 from . import verdicts as vd
@@ -77,6 +85,8 @@ LOAD_SCALE = 0.1
 STRUCTURE = eos.MOUNTS_STRUCTURE
 OTHER_FMUS = ("disturbance", "acs", "piezo_p845_37", "controller_eos_isolation")
 ACS_INERTIA = (378.0, 827.0, 1123.0)   # as scenarios/eos_budget.toml
+AMPLIFIER, STACK = "P-865.10", "P-845.37"
+W = 9               # plant inputs: the VNIR wrench and ACS torques, then the stack forces
 PAPER = {"reduction_pct": {"roll": 30, "pitch": ">= 50 (Fig. 9: 'significantly')",
                            "yaw": ">= 50 (Fig. 9: 'significantly')"},
          "misr_reduction_pct": 10, "max_stroke_um": "< 5", "max_force_lbf": "< 15",
@@ -130,254 +140,86 @@ def law(gain: float = GAIN):
     return design("eos_isolation").with_gain(gain)
 
 
-def stack_map(coupling: int = 1):
-    """The stack FMU over one step ``H``, linear: ``(a, cx, cu)``.
-
-    With the amplifier state ``v`` and the command ``u`` held over the step,
-    ``v+ = a v + (1 - a) u`` and the force the structure holds is
-    ``c h (cx v + cu u)``: the P-865.10's trapezoidal mean over the step
-    (``coupling = 1``, the FMU's default) or its state, the command one step late
-    (``coupling = 0``: ``cx = 1, cu = 0``).
-    """
-    from piezofmu.amplifier import amplifier_preset, linear_map
-
-    A, _, cx, cu = linear_map(amplifier_preset("P-865.10"), H)
-    a = float(A[0, 0])
-    return (a, 1.0, 0.0) if coupling == 0 else (a, float(cx[0]), float(cu))
+def _amp(coupling: int = 1):
+    # the stack FMU's P-865.10 over one step: its mean force (coupling 1, the default)
+    return amplifier_step(AMPLIFIER, H, coupling)
 
 
-def force_per_volt() -> float:
-    """Blocked force per volt ``c h`` of the P-845.37 stack (N/V)."""
-    s = preset("P-845.37")
-    return s.k_e * s.stroke / s.rated_voltage
-
-
-@dataclass(frozen=True)
-class Plant:
-    """Structure sampled at ``H`` with ZOH inputs, dense.
-
-    Parameters
-    ----------
-    A : ndarray, shape (n, n)
-    Bw : ndarray, shape (n, 9)
-        VNIR wrench (N, N m) then ACS torques (N m).
-    Bf : ndarray, shape (n, 12)
-        Stack forces of ``LEGS`` (N).
-    C : ndarray, shape (n_out, n)
-        Outputs ``outputs``.
-    C_low : ndarray, shape (n_out, n)
-        ``C`` restricted to the modes below ``LOW_HZ`` (rigid body included).
-    C_rigid : ndarray, shape (n_out, n)
-        ``C`` restricted to the six rigid-body modes.
-    outputs : tuple of str
-    rigid_states : ndarray of int
-        Displacement and velocity states of the rigid-body modes (decoupled from the rest;
-        the stack forces do not reach them).
-    """
-
-    A: np.ndarray
-    Bw: np.ndarray
-    Bf: np.ndarray
-    C: np.ndarray
-    C_low: np.ndarray
-    C_rigid: np.ndarray
-    outputs: tuple
-    rigid_states: np.ndarray
-
-    def rows(self, prefix, names):
-        """Rows of ``C`` of the outputs ``<prefix><name>``, in order.
-
-        Parameters
-        ----------
-        prefix : str
-            Output name prefix, e.g. ``"strain_"``.
-        names : sequence of str
-            Name suffixes, e.g. ``LEGS`` or ``AXES``.
-
-        Returns
-        -------
-        list of int
-        """
-        idx = {n: i for i, n in enumerate(self.outputs)}
-        return [idx[f"{prefix}{n}"] for n in names]
-
-
-def linear_plant(model=None) -> Plant:
-    """Exact ZOH discretisation of the structure (inputs and outputs this study uses)."""
-    # deferred: scipy takes about 1 s to load
-    import scipy.linalg as la
-
+def linear_plant(model=None) -> SampledStructure:
+    """The structure sampled at ``H`` (ZOH): inputs the VNIR wrench (N, N m), the ACS
+    torques (N m) and the stack forces of ``LEGS`` (N); outputs the SWIR and MISR lines
+    of sight, attitude, rate, and each leg's strain and elongation
+    (:func:`orchestrator.analysis.sampled.sample_structure`)."""
     model = structure_model() if model is None else model
     ins = ([f"vnir_{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")]
            + [f"acs_t{a}" for a in "xyz"] + [f"fc_{leg}" for leg in LEGS])
     outs = ([f"los_{i}_{a}" for i in ("swir", "misr") for a in AXES]
             + [f"att_{a}" for a in AXES] + [f"rate_{a}" for a in AXES]
             + [f"strain_{leg}" for leg in LEGS] + [f"elong_{leg}" for leg in LEGS])
-    ms = model.select(ins, outs)
-    A, B, C, _ = first_order(ms)
-    n, nu = A.shape[0], B.shape[1]
-    M = np.zeros((n + nu, n + nu))
-    M[:n, :n], M[:n, n:] = A, B
-    E = la.expm(M * H)
-    parts = []
-    for sel in (ms.omega < 2 * np.pi * LOW_HZ, ms.omega == 0.0):
-        Cp = np.zeros_like(C)
-        Cp[:, np.flatnonzero(sel)] = C[:, np.flatnonzero(sel)]
-        parts.append(Cp)
-    rig = np.flatnonzero(ms.omega == 0.0)
-    rigid_states = np.concatenate([rig, ms.n_modes + ms.n_ritz + rig])
-    return Plant(E[:n, :n], E[:n, n:n + 9], E[:n, n + 9:], C, *parts, tuple(outs),
-                 rigid_states)
+    return sample_structure(model, ins, outs, H)
 
 
-def closed_loop(plant: Plant, law_, gain: float = 1.0, coupling: int = 1):
+def _parts(plant):
+    """``C`` restricted to the modes below ``LOW_HZ`` and to the rigid-body modes."""
+    return (plant.modal_output(plant.omega < 2 * np.pi * LOW_HZ),
+            plant.modal_output(plant.omega == 0.0))
+
+
+def closed_loop(plant, law_, gain: float = 1.0, coupling: int = 1):
     """Dense discrete closed loop of the twelve legs: ``(A, Bw, C, C_low, C_rigid, C_force)``.
 
-    State ``[x_structure, x_law (Eq. 11 delay included), v (12)]``: the law maps strain at
-    ``t_k`` to the command ``u`` applied at ``t_{k+1}``; the amplifier voltages ``v``
-    follow it, and the structure holds the mean stack force over each step,
-    ``c h (cx v + cu u)`` (:func:`stack_map`).
-
-    Parameters
-    ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    law_ : ctrlfmu.law.DiscreteLaw
-        The law of every leg (:func:`law`: one strain in, one command out, twelve
-        independent copies), or one law for all legs (twelve strains in ``LEGS`` order,
-        twelve commands out: :func:`central_law`).
-    gain : float
-        Factor on the law's command (-), the same on all twelve legs.
-    coupling : {1, 0}
-        The stack FMUs' coupling (:func:`stack_map`).
-
-    Returns
-    -------
-    A : ndarray, shape (n, n)
-        Closed-loop transition over one step ``H``.
-    Bw : ndarray, shape (n, 9)
-        VNIR wrench (N, N m) then ACS torques (N m).
-    C, C_low, C_rigid : ndarray, shape (n_out, n)
-        As in :class:`Plant`, padded with zeros for the law and force states.
-    C_force : ndarray, shape (12, n)
-        Stack forces of ``LEGS`` (N).
+    :func:`orchestrator.analysis.sampled.stack_loop` on the strains and stack forces of
+    ``LEGS`` (``law_``: one law per leg, :func:`law`, or one for all, :func:`central_law`;
+    ``gain`` on every leg; the stack FMUs' ``coupling``); ``Bw`` the VNIR wrench and ACS
+    torques, the output matrices padded with zeros for the law and amplifier states.
     """
-    # deferred: scipy takes about 1 s to load
-    from scipy.linalg import block_diag
-
-    k = to_statespace(law_, include_delay=True)
-    Ak, Bk, Ck, Dk = (np.asarray(m) for m in (k.A, k.B, k.C, k.D))
-    nl, ns = len(LEGS), plant.A.shape[0]
-    if Bk.shape[1] == 1:        # one SISO law per leg: twelve independent blocks
-        Ak, Bk, Ck, Dk = (block_diag(*[m] * nl) for m in (Ak, Bk, Ck, Dk))
-    elif Bk.shape[1] != nl or Ck.shape[0] != nl:
-        raise ValueError(f"the law has {Bk.shape[1]} inputs and {Ck.shape[0]} outputs; "
-                         f"give one per leg (1 and 1) or one for all legs ({nl} and {nl})")
-    nk = Ak.shape[0]
-    ce = plant.C[plant.rows("strain_", LEGS)]
-    ch = force_per_volt()
-    a, cx, cu = stack_map(coupling)
-    n = ns + nk + nl
-    # command u = gain (Ck x_law + Dk ce x); force f = ch (cx v + cu u); v+ = a v + (1-a) u
-    U = np.zeros((nl, n))
-    U[:, ns:ns + nk] = gain * Ck
-    U[:, :ns] = gain * Dk @ ce
-    C_force = ch * cu * U
-    C_force[:, ns + nk:] += ch * cx * np.eye(nl)
-    A = np.zeros((n, n))
-    A[:ns, :ns] = plant.A
-    A[:ns] += plant.Bf @ C_force
-    A[ns:ns + nk, ns:ns + nk] = Ak
-    A[ns:ns + nk, :ns] = Bk @ ce
-    A[ns + nk:] = (1.0 - a) * U
-    A[ns + nk:, ns + nk:] += a * np.eye(nl)
-    Bw = np.vstack([plant.Bw, np.zeros((n - ns, plant.Bw.shape[1]))])
-    pad = np.zeros((plant.C.shape[0], n - ns))
-    return (A, Bw, np.hstack([plant.C, pad]), np.hstack([plant.C_low, pad]),
-            np.hstack([plant.C_rigid, pad]), C_force)
+    A, C_force = stack_loop(plant.A, plant.B[:, W:], plant.C[plant.rows("strain_", LEGS)],
+                            law_, gain=gain, force_per_volt=stack_force_per_volt(STACK),
+                            amplifier=_amp(coupling))
+    ns = plant.A.shape[0]
+    Bw = np.vstack([plant.B[:, :W], np.zeros((A.shape[0] - ns, W))])
+    pad = np.zeros((plant.C.shape[0], A.shape[0] - ns))
+    return (A, Bw, *(np.hstack([c, pad]) for c in (plant.C, *_parts(plant))), C_force)
 
 
-def central_gains(plant: Plant, rho: float = CENTRAL_WEIGHTS["rho"],
+def central_gains(plant, rho: float = CENTRAL_WEIGHTS["rho"],
                   q: float = CENTRAL_WEIGHTS["q"], snr: float = CENTRAL_WEIGHTS["snr"],
                   sensors=LEGS, actuators=LEGS) -> dict:
-    """The LQG of :func:`central_law`: its design model and its two gains.
-
-    Parameters
-    ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    rho, q, snr : float
-        Weights (dimensionless), see :func:`central_law`.
-    sensors, actuators : sequence of str
-        Legs read and driven, see :func:`central_law`.
-
-    Returns
-    -------
-    dict
-        ``Aa``, ``Ba``, ``Ca``: the flexible structure with the stack FMU's amplifier
-        (state ``[x, p]``, ``p = c h v`` the amplifier force, ``u`` the commanded force
-        in N: ``p+ = a p + (1 - a) u``, the structure holds ``cx p + cu u``,
-        :func:`stack_map`), strains out; ``K`` (state
-        feedback, ``u = -K xh``) and ``L`` (one-step predictor gain); ``sensors`` and
-        ``actuators`` as indices into ``LEGS``.
-    """
-    # deferred: python-control takes about 1 s to load
-    import control
-
+    """The LQG of :func:`central_law` (:func:`orchestrator.analysis.lqg.stack_lqg` on the
+    flexible states), with ``sensors`` and ``actuators`` as indices into ``LEGS``."""
     si = [LEGS.index(leg) for leg in sensors]
     ai = [LEGS.index(leg) for leg in actuators]
     keep = np.setdiff1d(np.arange(plant.A.shape[0]), plant.rigid_states)
-    A, Bf = plant.A[np.ix_(keep, keep)], plant.Bf[np.ix_(keep, ai)]
+    Bf = plant.B[:, W:][np.ix_(keep, ai)]
     Cs = plant.C[np.ix_(plant.rows("strain_", sensors), keep)]
-    Cp = (plant.C - plant.C_low)[np.ix_(plant.rows("los_swir_", ["pitch"]), keep)]
+    Cp = (plant.C - _parts(plant)[0])[np.ix_(plant.rows("los_swir_", ["pitch"]), keep)]
     # the event's wrench direction (its dominant right singular vector)
     w = vnir_wrench(np.arange(0.0, 1.1, H))
-    bw = plant.Bw[keep, :6] @ np.linalg.svd(w, full_matrices=False)[2][0]
-    n, m, ms = A.shape[0], len(ai), len(si)
-    static = np.linalg.solve(np.eye(n) - A, np.column_stack([Bf, bw]))
-    # the stack FMU: augmented state [x, p], p+ = a p + (1 - a) u, force cx p + cu u
-    a, cx, cu = stack_map()
-    Aa = np.block([[A, cx * Bf], [np.zeros((m, n)), a * np.eye(m)]])
-    Ba = np.vstack([cu * Bf, (1.0 - a) * np.eye(m)])
-    Ca = np.hstack([Cs, np.zeros((ms, m))])
-    Cpa = np.hstack([Cp, np.zeros((1, m))])
-    R = rho * np.abs(Cp @ static[:, :m]).max() ** 2 * np.eye(m)
-    K = control.dlqr(Aa, Ba, Cpa.T @ Cpa, R)[0]
-    strain_w, strain_f = np.abs(Cs @ static[:, m]).max(), np.abs(Cs @ static[:, :m]).max()
-    Gw = np.vstack([np.column_stack([bw, q * strain_w / strain_f * Bf]),
-                    np.zeros((m, 1 + m))])
-    V = (snr * strain_w) ** 2 * np.eye(ms)
-    # dlqe's gain is the one-step predictor's, A P C' (C P C' + V)^-1
-    L = control.dlqe(Aa, Gw, Ca, np.eye(1 + m), V)[0]
-    return {"Aa": Aa, "Ba": Ba, "Ca": Ca, "K": K, "L": L, "sensors": si, "actuators": ai}
+    bw = plant.B[keep, :6] @ np.linalg.svd(w, full_matrices=False)[2][0]
+    g = stack_lqg(without_states(plant.A, plant.rigid_states), Bf, Cs, Cp, bw,
+                  amplifier=_amp(), rho=rho, q=q, snr=snr)
+    return {**g, "sensors": si, "actuators": ai}
 
 
-def central_law(plant: Plant, rho: float = CENTRAL_WEIGHTS["rho"],
+def central_law(plant, rho: float = CENTRAL_WEIGHTS["rho"],
                 q: float = CENTRAL_WEIGHTS["q"], snr: float = CENTRAL_WEIGHTS["snr"],
                 sensors=LEGS, actuators=LEGS):
     """One controller for all twelve legs: LQG on the twelve stack strains (DiscreteLaw).
 
     The question it answers: can the same strain gauges attenuate SWIR pitch when their
-    signals are combined, rather than each leg feeding back its own strain?  Designed on
-    the flexible part of :func:`linear_plant` (the rigid-body modes are invisible to the
-    strains and untouched by the self-equilibrated stack forces):
-
-    * performance: SWIR pitch from the modes above ``LOW_HZ`` (the controller leaves the
-      rigid body, the solar array and the antenna to the ACS), control weight
-      ``rho`` times the squared largest static gain from a stack force to that pitch;
-    * Kalman filter: process noise along the VNIR event's wrench direction, plus ``q``
-      times its strain-equivalent at the stack forces (input-noise robustness, which buys
-      gain margin), strain noise ``snr`` times the event's largest static strain;
-    * timing as in the co-simulation: the law in Eq. (11) form (its command is applied one
-      sample after the strain it used) and the stack FMU's mean force over the step
-      after its amplifier's lag (:func:`stack_map`).
+    signals are combined, rather than each leg feeding back its own strain?  Designed
+    (:func:`orchestrator.analysis.lqg.stack_lqg`) on the flexible part of
+    :func:`linear_plant` for SWIR pitch from the modes above ``LOW_HZ`` (the rigid body,
+    the solar array and the antenna are left to the ACS), the process noise along the
+    VNIR event's wrench, the stack FMU's amplifier lag and mean force, in Eq. (11) form.
 
     Parameters
     ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
+    plant : SampledStructure
+        :func:`linear_plant`.
     rho, q, snr : float
-        Weights (dimensionless), see above; defaults ``CENTRAL_WEIGHTS``.
+        Control weight, input-noise robustness and strain noise (dimensionless,
+        :func:`~orchestrator.analysis.lqg.stack_lqg`); defaults ``CENTRAL_WEIGHTS``.
     sensors, actuators : sequence of str
         The legs whose strains the law reads and whose stacks it drives (the others get
         zero columns and rows), e.g. the VNIR legs' strains and the SWIR legs' stacks.
@@ -390,25 +232,15 @@ def central_law(plant: Plant, rho: float = CENTRAL_WEIGHTS["rho"],
         voltage.
     """
     g = central_gains(plant, rho, q, snr, sensors, actuators)
-    Aa, Ba, Ca, K, L = (g[k] for k in ("Aa", "Ba", "Ca", "K", "L"))
-    si, ai = g["sensors"], g["actuators"]
-    # predictor: xh_{k+1} = Ac xh_k + L y_k, command u_k = -K xh_k.  In Eq. (11) form the
-    # output at t_{k+1} is -K xh_{k+1} = -K Ac xh_k - K L y_k.
-    Ac = Aa - Ba @ K - L @ Ca
-    fpv = force_per_volt()
-    vmax = preset("P-845.37").rated_voltage
     nl = len(LEGS)
-    B, C, D = (np.zeros(shape) for shape in ((len(Ac), nl), (nl, len(Ac)), (nl, nl)))
-    B[:, si] = L
-    C[ai] = -K @ Ac / fpv
-    D[np.ix_(ai, si)] = -K @ L / fpv
-    return DiscreteLaw(Ac, B, C, D, H, delayed=True,
-                       u_min=-vmax, u_max=vmax, name="swir_central",
-                       inputs=tuple(f"strain_{leg}" for leg in LEGS),
-                       outputs=tuple(f"v_{leg}" for leg in LEGS),
-                       input_units=("1",) * nl, output_units=("V",) * nl,
-                       description="LQG on the twelve SWIR/VNIR mount stack strains "
-                                   "(swir_isolation.central_law)")
+    return lqg_law(g, nl, g["sensors"], g["actuators"],
+                   force_per_volt=stack_force_per_volt(STACK),
+                   u_max=preset(STACK).rated_voltage, dt=H, name="swir_central",
+                   inputs=tuple(f"strain_{leg}" for leg in LEGS),
+                   outputs=tuple(f"v_{leg}" for leg in LEGS),
+                   input_units=("1",) * nl, output_units=("V",) * nl,
+                   description="LQG on the twelve SWIR/VNIR mount stack strains "
+                               "(swir_isolation.central_law)")
 
 
 def acs_config():
@@ -419,76 +251,35 @@ def acs_config():
 
 
 def vnir_wrench(t, preset="vnir_pointing"):
-    """Wrench of the preset at the structure (``LOAD_SCALE`` applied), shape (n, 6).
-
-    Parameters
-    ----------
-    t : array_like, shape (n,)
-        Times (s).
-    preset : str
-        Disturbance preset name (:data:`distfmu.presets.PRESETS`).
-
-    Returns
-    -------
-    ndarray, shape (n, 6)
-        Forces (N) then moments (N m).
-    """
+    """Wrench of the preset at the structure (``LOAD_SCALE`` applied), shape (n, 6):
+    forces (N) then moments (N m) at the times ``t`` (s)."""
     w = np.asarray(get_preset(preset).source.wrench(np.asarray(t)), float)
     return LOAD_SCALE * (w.T if w.shape[0] == 6 and w.shape[-1] != 6 else w)
 
 
-def simulate_linear(plant: Plant, law_=None, gain: float = 0.0, stop: float = 6.0,
+def simulate_linear(plant, law_=None, gain: float = 0.0, stop: float = 6.0,
                     preset="vnir_pointing") -> dict:
-    """Linear loop under the VNIR event; outputs by name, ``low:<name>`` (modes below
-    ``LOW_HZ``), ``rigid:<name>`` (rigid-body modes) and ``force_<leg>`` (N).
-
-    The ACS (pure functions of ``acsfmu.pid``) samples attitude and rate every 0.1 s; its
-    torque output at ``t_k`` acts over the next 0.1 s, as in the co-simulation.
-
-    Parameters
-    ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    law_ : ctrlfmu.law.DiscreteLaw, optional
-        The law of every leg; without one, or with ``gain = 0``, the legs are passive.
-    gain : float
-        Factor on the law's command (-), the same on all twelve legs.
-    stop : float
-        Simulated time (s), sampled every ``H``.
-    preset : str
-        Disturbance preset name.
+    """Linear loop under the VNIR event, the ACS in the loop at 10 Hz
+    (:func:`orchestrator.analysis.sampled.simulate_with_acs`); legs passive without a law
+    or with ``gain = 0``.
 
     Returns
     -------
     dict of str to ndarray, shape (n_t,)
-        ``"time"`` (s) and the columns above; angles in rad, rates in rad/s, strains
-        (-), elongations in m.
+        ``"time"`` (s), the outputs by name, ``low:<name>`` (modes below ``LOW_HZ``),
+        ``rigid:<name>`` (rigid-body modes) and ``force_<leg>`` (N).
     """
     if law_ is None or gain == 0.0:
-        A, Bw, C, Cl, Cr = plant.A, plant.Bw, plant.C, plant.C_low, plant.C_rigid
+        A, Bw, C = plant.A, plant.B[:, :W], plant.C
+        Cl, Cr = _parts(plant)
         Cf = np.zeros((len(LEGS), A.shape[0]))
     else:
         A, Bw, C, Cl, Cr, Cf = closed_loop(plant, law_, gain)
     n = int(round(stop / H)) + 1
     t = np.arange(n) * H
-    w = vnir_wrench(t, preset)
-    att, rate = plant.rows("att_", AXES), plant.rows("rate_", AXES)
-    cfg = acs_config()
-    st = initial_state(cfg)
-    x = np.zeros(A.shape[0])
-    Y, L, R = (np.empty((n, C.shape[0])) for _ in range(3))
-    F = np.empty((n, len(LEGS)))
-    u = np.zeros(9)
-    every = int(round(cfg.sample_time / H))
-    torque = np.zeros(3)
-    for k in range(n):
-        y = C @ x
-        Y[k], L[k], R[k], F[k] = y, Cl @ x, Cr @ x, Cf @ x
-        if k % every == 0:   # as the master: read the torque at t_k, then step the ACS
-            torque = acs_outputs(cfg, st)[0]
-            st = acs_advance(cfg, st, cfg.sample_time, y[att], y[rate])
-        u[:6], u[6:] = w[k], torque
-        x = A @ x + Bw @ u
+    Y, L, R, F = simulate_with_acs(A, Bw, vnir_wrench(t, preset), acs_config(),
+                                   plant.rows("att_", AXES), plant.rows("rate_", AXES), H,
+                                   (C, Cl, Cr, Cf))
     out = {"time": t}
     for i, name in enumerate(plant.outputs):
         out[name] = Y[:, i]
@@ -501,24 +292,9 @@ def simulate_linear(plant: Plant, law_=None, gain: float = 0.0, stop: float = 6.
 
 # -- jitter -----------------------------------------------------------------------------------
 def jitter(tab, inst, prefix="structure.") -> dict:
-    """Windowed peak-to-peak (arcsec) per axis after ``SKIP`` s.
-
-    Parameters
-    ----------
-    tab : dict of str to array_like, shape (n_t,)
-        Result table with ``"time"`` (s, evenly spaced) and the LOS columns (rad).
-    inst : str
-        Instrument, ``"swir"`` or ``"misr"``.
-    prefix : str
-        Prefix of the columns ``<prefix>los_<inst>_<axis>`` (``"structure."`` for a
-        co-simulation table, ``""``, ``"low:"`` or ``"rigid:"`` for
-        :func:`simulate_linear`).
-
-    Returns
-    -------
-    dict of str to float
-        Jitter per axis of ``AXES`` (arcsec), window ``WINDOW`` s.
-    """
+    """Windowed peak-to-peak (arcsec, window ``WINDOW``) per axis after ``SKIP`` s of the
+    columns ``<prefix>los_<inst>_<axis>`` (rad) of ``tab`` (``"structure."`` for a
+    co-simulation table; ``""``, ``"low:"`` or ``"rigid:"`` for :func:`simulate_linear`)."""
     t = np.asarray(tab["time"])
     m = t >= SKIP - 1e-9
     dt = float(t[1] - t[0])
@@ -536,28 +312,14 @@ def _norm_pct(off, on):
 
 
 def ceiling(lin_off: dict, lin_on: dict | None = None) -> dict:
-    """What of the isolation-off SWIR LOS no mount can remove, and the ceiling (linear).
+    """What of the isolation-off SWIR LOS no mount can remove (linear, %, arcsec).
 
     ``rigid_body_share_pct``: peak-to-peak of the rigid-body-mode part over the total.
-    Mount forces are self-equilibrated (zero resultant on the free body), so they cannot
-    excite those modes; only the ACS acts on them.  ``flexible_cancelled_pct`` = 100 - that
-    share: the reduction if every flexible mode were cancelled.  ``low_share_pct`` does the
-    same with every mode below ``LOW_HZ`` (rigid body, solar array, antenna); with
-    ``lin_on`` it is given isolation on too, because mount forces do move those modes.
-    Peak-to-peak is not additive, so a controller can beat either number where the
-    flexible part happens to cancel part of the rigid one.
-
-    Parameters
-    ----------
-    lin_off : dict of str to ndarray, shape (n_t,)
-        As returned by :func:`simulate_linear`, isolation off.
-    lin_on : dict of str to ndarray, shape (n_t,), optional
-        As returned by :func:`simulate_linear`, isolation on.
-
-    Returns
-    -------
-    dict
-        Shares (%) and parts (arcsec) per axis.
+    Mount forces are self-equilibrated, so they cannot excite those modes; only the ACS
+    acts on them.  ``flexible_cancelled_pct`` = 100 - that share.  ``low_share_pct`` does
+    the same with every mode below ``LOW_HZ``; with ``lin_on`` (isolation on) its part is
+    given too, because mount forces do move those modes.  Peak-to-peak is not additive,
+    so a controller can beat either number.
     """
     tot = jitter(lin_off, "swir", prefix="")
     rig = jitter(lin_off, "swir", prefix="rigid:")
@@ -573,99 +335,46 @@ def ceiling(lin_off: dict, lin_on: dict | None = None) -> dict:
     return out
 
 
-def force_response(plant: Plant, f_hz, rows) -> np.ndarray:
-    """Frequency response from the twelve stack forces to output ``rows``, (n_f, n_rows, 12).
-
-    Rigid-body states are dropped first: they are decoupled and the forces do not reach
-    them (their double pole at z = 1 would make the eigenvector basis defective).
-
-    Parameters
-    ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    f_hz : array_like, shape (n_f,)
-        Frequencies (Hz).
-    rows : sequence of int
-        Rows of ``plant.C`` (:meth:`Plant.rows`).
-
-    Returns
-    -------
-    ndarray of complex, shape (n_f, n_rows, 12)
-        Output per newton of stack force (e.g. rad/N, m/N), sampled system with ZOH.
-    """
-    keep = np.setdiff1d(np.arange(plant.A.shape[0]), plant.rigid_states)
-    lam, V = np.linalg.eig(plant.A[np.ix_(keep, keep)])
-    left = plant.C[np.ix_(rows, keep)] @ V
-    right = np.linalg.solve(V, plant.Bf[keep])
-    z = np.exp(2j * np.pi * np.asarray(f_hz) * H)
-    return np.einsum("on,fn,ni->foi", left, 1.0 / (z[:, None] - lam[None, :]), right)
-
-
-def ls_ceiling(plant: Plant, lin_off: dict, stroke_limit=5e-6,
+def ls_ceiling(plant, lin_off: dict, stroke_limit=5e-6,
                force_limit=15.0 * LBF / FULL_SCALE) -> dict:
-    """Per-frequency least-squares bound: the most any controller using the twelve stacks
-    could remove from the SWIR line of sight, with full knowledge of the disturbance.
+    """Least-squares bound: the most any controller using the twelve stacks could remove
+    from the SWIR line of sight, knowing the disturbance
+    (:func:`orchestrator.analysis.bounds.least_squares_records` on the isolation-off
+    record: non-causal, periodic, a least-squares, not a peak-to-peak, optimum).
 
-    On the DFT grid of the isolation-off record ``Y_d`` (SWIR roll, pitch, yaw; ACS
-    included) the stack forces are ``F = -(G^H G + rho I)^-1 G^H Y_d`` (``G``: forces to
-    SWIR LOS); ``rho = 0`` gives the minimum-norm forces that cancel the LOS exactly
-    (three outputs, twelve forces).  Per axis, the same with that axis alone, ``rho``
-    swept and the best reduction kept whose largest stroke (elongation of any leg, off
-    record plus the forces' share) and stack force fit the limits.  Non-causal, periodic,
-    a least-squares (not peak-to-peak) optimum: a bound to compare with, not a controller.
-
-    Parameters
-    ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    lin_off : dict of str to ndarray, shape (n_t,)
-        As returned by :func:`simulate_linear` with isolation off.
-    stroke_limit : float
-        Largest leg elongation allowed (m).
-    force_limit : float
-        Largest stack force allowed at testbed scale (N); default 15 lbf full scale.
+    ``rho = 0`` cancels the three axes exactly (minimum-norm forces); per axis, ``rho``
+    is swept and the best reduction kept whose largest leg elongation (``stroke_limit``,
+    m) and stack force (``force_limit``, N at testbed scale) fit.
 
     Returns
     -------
     dict
-        ``"unconstrained"`` (exact cancellation: reduction %, stroke um, force lbf),
-        ``"within_limits_pct"`` and ``"within_limits"`` per axis (None when no ``rho``
-        fits), and the ``"limits"`` (um, lbf full scale).
+        ``"unconstrained"`` (reduction %, stroke um, force lbf), ``"within_limits_pct"``
+        and ``"within_limits"`` per axis (None when no ``rho`` fits), ``"limits"``.
     """
     t = np.asarray(lin_off["time"])
-    n = t.size
-    los = plant.rows("los_swir_", AXES)
-    el = plant.rows("elong_", LEGS)
+    keep = np.setdiff1d(np.arange(plant.A.shape[0]), plant.rigid_states)
+    rows = plant.rows("los_swir_", AXES) + plant.rows("elong_", LEGS)
+
+    # forces to LOS and elongations; the rigid-body states are left out (the forces do
+    # not reach them; their Jordan blocks at z = 1 have no eigenvector basis)
+    G = modal_frequency_response(without_states(plant.A, plant.rigid_states),
+                                 plant.B[keep, W:], plant.C[np.ix_(rows, keep)],
+                                 np.fft.rfftfreq(t.size, H), H)
+
     yd = np.array([lin_off[f"los_swir_{a}"] for a in AXES])
     sd = np.array([lin_off[f"elong_{leg}"] for leg in LEGS])
-    f = np.fft.rfftfreq(n, H)
-    G = force_response(plant, f, los + el)
-    Gy, Gs = G[:, :3], G[:, 3:]
-    Yd, Sd = np.fft.rfft(yd, axis=1).T, np.fft.rfft(sd, axis=1).T      # (n_f, 3), (n_f, 12)
     m = t >= SKIP - 1e-9
     off = {a: float(peak_to_peak(yd[i, m], H, WINDOW)) for i, a in enumerate(AXES)}
+    rhos = [0.0] + list(np.geomspace(1e-6, 1e3, 28))
 
     def sweep(sel):
-        """Minimise the LOS axes ``sel``; one row per rho."""
-        A, Y = Gy[:, sel], Yd[:, sel]
-        AhA = np.einsum("fki,fkj->fij", A.conj(), A)
-        AhY = np.einsum("fki,fk->fi", A.conj(), Y)
-        scale = float(np.median(np.trace(AhA, axis1=1, axis2=2).real)) / 12
-        rows = []
-        for rho in [0.0] + list(np.geomspace(1e-6, 1e3, 28)):
-            if rho == 0.0:
-                F = -np.einsum("fij,fj->fi", np.linalg.pinv(A), Y)
-            else:
-                F = -np.linalg.solve(AhA + rho * scale * np.eye(12), AhY[..., None])[..., 0]
-            y = np.fft.irfft((Yd + np.einsum("fki,fi->fk", Gy, F)).T, n, axis=1)
-            st = np.fft.irfft((Sd + np.einsum("fki,fi->fk", Gs, F)).T, n, axis=1)
-            fo = np.fft.irfft(F.T, n, axis=1)
-            rows.append({"rho": float(rho),
-                         "reduction_pct": {a: 100.0 * (1 - float(
-                             peak_to_peak(y[i, m], H, WINDOW)) / off[a])
-                             for i, a in enumerate(AXES)},
-                         "max_stroke_um": float(np.abs(st).max() * 1e6),
-                         "max_force_lbf": float(np.abs(fo).max() * FULL_SCALE / LBF)})
+        rows = [{"rho": rho,
+                 "reduction_pct": {a: 100.0 * (1 - float(
+                     peak_to_peak(y[i, m], H, WINDOW)) / off[a]) for i, a in enumerate(AXES)},
+                 "max_stroke_um": float(np.abs(st).max() * 1e6),
+                 "max_force_lbf": float(np.abs(fo).max() * FULL_SCALE / LBF)}
+                for rho, y, st, fo in least_squares_records(G, yd, rhos, sel, sd)]
         ok = [r for r in rows if r["max_stroke_um"] < stroke_limit * 1e6
               and r["max_force_lbf"] < force_limit * FULL_SCALE / LBF]
         return rows[0], ok
@@ -687,162 +396,48 @@ def ls_ceiling(plant: Plant, lin_off: dict, stroke_limit=5e-6,
 
 
 # -- loop analysis ----------------------------------------------------------------------------
-def margins(plant: Plant, law_, gain: float = GAIN) -> dict:
-    """Per-leg SISO margins (other loops open) and the MIMO gain margins (dB).
-
-    Positive feedback (``u = K y``, ``ctrlfmu.analysis``): a leg's loop transfer is
-    ``L = G_ii K z^-1 c h``, and the margins are those of ``-L`` in the usual sense.
-
-    Parameters
-    ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    law_ : ctrlfmu.law.DiscreteLaw
-        The law of every leg (:func:`law`).
-    gain : float
-        Factor on the law's command (-), the same on all twelve legs.
-
-    Returns
-    -------
-    dict
-        ``"per_leg"`` gain margin (dB), phase margin (deg) and crossovers (Hz), and
-        their minima (None for one law on all legs); ``"mimo_gain_margin_db"`` and
-        ``"mimo_gain_reduction_margin_db"`` (:func:`mimo_gain_margin` up and down).
-    """
+def margins(plant, law_, gain: float = GAIN) -> dict:
+    """Per-leg SISO margins (other loops open,
+    :func:`orchestrator.analysis.margins.channel_margins`) and the MIMO gain margins
+    (:func:`mimo_gain_margin` up and down), dB and deg; no per-leg margins for one law
+    on all legs."""
     mimo = {"mimo_gain_margin_db": mimo_gain_margin(plant, law_, gain),
             "mimo_gain_reduction_margin_db": mimo_gain_margin(plant, law_, gain, down=True)}
     if law_.n_inputs != 1:      # one law for all legs: no loop of one leg alone
         return {"per_leg": None, "min_gain_margin_db": None, "min_phase_margin_deg": None,
                 **mimo}
-    f = np.geomspace(0.5, 499.0, 3000)
-    z = np.exp(2j * np.pi * f * H)
-    lam, V = np.linalg.eig(plant.A)
-    ce = plant.C[plant.rows("strain_", LEGS)]
-    left, right = ce @ V, np.linalg.solve(V, plant.Bf)          # (12, n), (n, 12)
-    k = frequency_response(law_.with_gain(gain), f)[0, 0] * force_per_volt() / z
-    legs = {}
-    for i, leg in enumerate(LEGS):
-        g = (left[i] * right[:, i]) @ (1.0 / (z[None, :] - lam[:, None]))
-        gm, pm, wgc, wpc = _margins(f, -(g * k))
-        legs[leg] = {"gain_margin_db": gm, "phase_margin_deg": pm,
-                     "phase_crossover_hz": wgc, "gain_crossover_hz": wpc}
+    per = channel_margins(plant.A, plant.B[:, W:], plant.C[plant.rows("strain_", LEGS)],
+                          law_, gain=gain, force_per_volt=stack_force_per_volt(STACK), dt=H,
+                          freqs_hz=np.geomspace(0.5, 499.0, 3000))
+    legs = {leg: {"gain_margin_db": gm, "phase_margin_deg": pm, "phase_crossover_hz": wgc,
+                  "gain_crossover_hz": wpc} for leg, (gm, pm, wgc, wpc) in zip(LEGS, per)}
     return {"per_leg": legs,
             "min_gain_margin_db": min(v["gain_margin_db"] for v in legs.values()),
             "min_phase_margin_deg": min(abs(v["phase_margin_deg"]) for v in legs.values()),
             **mimo}
 
 
-def _margins(f, h):
-    """Gain margin (dB) at the worst -180 deg crossing and phase margin (deg) of ``h``."""
-    mag, ph = np.abs(h), np.unwrap(np.angle(h))
-    gm, wgc = np.inf, None
-    r = np.floor((ph + np.pi) / (2 * np.pi))
-    for j in np.flatnonzero(r[1:] != r[:-1]):
-        g = -20 * np.log10(mag[j])
-        if g < gm:
-            gm, wgc = float(g), float(f[j])
-    pm, wpc = np.inf, None
-    for j in np.flatnonzero((mag[1:] - 1) * (mag[:-1] - 1) < 0):
-        p = (np.degrees(ph[j]) + 180.0) % 360.0
-        p = p - 360.0 if p > 180 else p
-        if abs(p) < abs(pm):
-            pm, wpc = float(p), float(f[j])
-    return gm, pm, wgc, wpc
-
-
 RIGID_TOL = 1e-9    # rigid-body poles sit at z = 1 (the loops neither see nor move them)
 
 
-def spectral_radius(A) -> float:
-    """Largest pole modulus of a discrete system matrix."""
-    return float(np.abs(np.linalg.eigvals(A)).max())
-
-
-def flexible(A: np.ndarray, plant: Plant) -> np.ndarray:
-    """A closed-loop matrix without the rigid-body states of ``plant``.
-
-    The rigid-body modes are double poles at z = 1 (Jordan blocks) that the loops neither
-    see nor move; round-off of 1e-16 in their coupling splits such a pole by its square
-    root, 1e-8, which a stability test would read as instability.
-
-    Parameters
-    ----------
-    A : ndarray, shape (n, n)
-        A matrix whose first states are the plant's (:func:`closed_loop`).
-    plant : Plant
-        Gives ``rigid_states``.
-
-    Returns
-    -------
-    ndarray, shape (n - len(rigid_states), n - len(rigid_states))
-    """
-    keep = np.setdiff1d(np.arange(A.shape[0]), plant.rigid_states)
-    return A[np.ix_(keep, keep)]
-
-
-def mimo_gain_margin(plant: Plant, law_, gain: float = GAIN, down: bool = False) -> float:
-    """Common factor on all twelve loops (dB over ``gain``) at which one pole leaves the unit
-    circle; bisection on the spectral radius of the closed loop.
-
-    Parameters
-    ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    law_ : ctrlfmu.law.DiscreteLaw
-        The law of every leg (:func:`law`), or one for all legs (:func:`central_law`).
-    gain : float
-        Factor on the law's command (-), the same on all twelve legs.
-    down : bool
-        The factor below ``gain`` instead (a law with unstable poles of its own, as an
-        LQG may have, loses stability when its gain falls); reported as a positive dB.
-
-    Returns
-    -------
-    float
-        Margin (dB); ``-inf`` if unstable at ``gain``, ``inf`` if stable up to
-        ``1e4 gain`` (down: to ``1e-4 gain``).
-    """
+def mimo_gain_margin(plant, law_, gain: float = GAIN, down: bool = False) -> float:
+    """Common factor on all twelve loops (dB over ``gain``) at which a flexible pole leaves
+    the unit circle (``down``: the factor below ``gain``, for a law with unstable poles of
+    its own, as an LQG may have; a positive dB); ``-inf`` if unstable at ``gain``,
+    ``inf`` if stable to ``1e4`` (down ``1e-4``) times ``gain``."""
     def stable(g):
-        return spectral_radius(flexible(closed_loop(plant, law_, g)[0], plant)) < 1.0 + RIGID_TOL
+        A = without_states(closed_loop(plant, law_, g)[0], plant.rigid_states)
+        return spectral_radius(A) < 1.0 + RIGID_TOL
 
     # 1.0002: twelve bisections of a factor-2 bracket
     return stability_margin_db(lambda f: stable(gain * f), 0.5 if down else 2.0, 1e4, 1.0002)
 
 
-def damping(plant: Plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
-    """Damping of the lightly damped poles (zeta < 0.5) in ``band`` (Hz), open and closed.
-
-    Parameters
-    ----------
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    law_ : ctrlfmu.law.DiscreteLaw
-        The law of every leg (:func:`law`).
-    gain : float
-        Factor on the law's command (-), the same on all twelve legs.
-    band : (float, float)
-        Pole frequency band (Hz).
-
-    Returns
-    -------
-    dict
-        Largest open-loop and smallest closed-loop damping ratio, the number of
-        closed-loop modes above 1 %, and the five most damped (Hz, ratio).
-    """
-    def poles(g):
-        A = plant.A if g == 0 else closed_loop(plant, law_, g)[0]
-        f, z = mode_damping(np.linalg.eigvals(A), H)
-        sel = (f >= band[0]) & (f <= band[1]) & (z < 0.5)
-        return f[sel], z[sel]
-
-    f0, z0 = poles(0.0)
-    f1, z1 = poles(gain)
-    top = np.argsort(z1)[::-1][:5]
-    return {"band_hz": list(band), "open_loop_max_damping": float(z0.max()),
-            "closed_loop_min_damping": float(z1.min()),
-            "n_modes_above_1pct": int((z1 > 0.01).sum()),
-            "closed_loop_most_damped": [{"f_hz": float(f1[i]), "zeta": float(z1[i])}
-                                        for i in top]}
+def damping(plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
+    """Damping of the lightly damped poles in ``band`` (Hz), legs passive and with the law
+    at ``gain`` (:func:`orchestrator.analysis.margins.band_damping`)."""
+    return band_damping(plant.A, plant.A if gain == 0 else closed_loop(plant, law_, gain)[0],
+                        H, band)
 
 
 # -- co-simulation ----------------------------------------------------------------------------
@@ -959,47 +554,17 @@ def _stroke_force(tab, prefix_elong="structure.elong_", prefix_force="piezo_"):
 
 
 # -- the experiment ---------------------------------------------------------------------------
-def modal_breakdown(model, plant: Plant, law_, axis="pitch", stop=3.5, top=4) -> list:
-    """The flexible modes carrying most of the isolation-off SWIR ``axis`` peak-to-peak.
-
-    Per mode: frequency, its own windowed peak-to-peak in the LOS (arcsec), the share of
-    its strain energy in the twelve active legs, and its damping open and closed loop.
-
-    Parameters
-    ----------
-    model : ReducedModel
-        The structure (:func:`structure_model`) ``plant`` was made from.
-    plant : Plant
-        The sampled structure (:func:`linear_plant`).
-    law_ : ctrlfmu.law.DiscreteLaw
-        The law of every leg (:func:`law`).
-    axis : str
-        ``"roll"``, ``"pitch"`` or ``"yaw"``.
-    stop : float
-        Simulated time (s).
-    top : int
-        Number of modes returned.
-
-    Returns
-    -------
-    list of dict
-        Mode number, ``f_hz`` (Hz), ``p2p_arcsec``, strain-energy share (%) and the
-        open- and closed-loop damping ratios, largest contribution first.
-    """
+def modal_breakdown(model, plant, law_, axis="pitch", stop=3.5, top=4) -> list:
+    """The ``top`` flexible modes carrying most of the isolation-off SWIR ``axis``
+    peak-to-peak: per mode its frequency (Hz), its own windowed peak-to-peak in the LOS
+    (arcsec), the share of its strain energy in the twelve legs (%), and its damping
+    open and closed loop (``law_`` at ``GAIN``); largest contribution first."""
     n = int(round(stop / H)) + 1
     t = np.arange(n) * H
-    w = vnir_wrench(t)
-    cfg = acs_config()
-    st, x, torque = initial_state(cfg), np.zeros(plant.A.shape[0]), np.zeros(3)
-    X = np.empty((n, x.size))
-    att, rate = plant.rows("att_", AXES), plant.rows("rate_", AXES)
-    for k in range(n):
-        X[k] = x
-        if k % 100 == 0:
-            y = plant.C @ x
-            torque = acs_outputs(cfg, st)[0]
-            st = acs_advance(cfg, st, cfg.sample_time, y[att], y[rate])
-        x = plant.A @ x + plant.Bw @ np.r_[w[k], torque]
+    nx = plant.A.shape[0]
+    _, X = simulate_with_acs(plant.A, plant.B[:, :W], vnir_wrench(t), acs_config(),
+                             plant.rows("att_", AXES), plant.rows("rate_", AXES), H,
+                             (plant.C, np.eye(nx)))
     r = plant.rows("los_swir_", [axis])[0]
     m = t >= SKIP - 1e-9
     flex = np.flatnonzero(model.omega > 0)

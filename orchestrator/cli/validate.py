@@ -21,8 +21,9 @@ def run(args: argparse.Namespace) -> int:
     # deferred: the parser imports every subcommand (orchestrator.cli)
     from fmutools.validate import check_fmu
 
-    bad = 0
+    bad = checked = warned = 0
     for path in _fmus(args.fmus):
+        checked += 1
         if isinstance(path, Exception):
             print(f"error: {path}")
             bad += 1
@@ -33,7 +34,15 @@ def run(args: argparse.Namespace) -> int:
         for problem in warnings:
             print(f"{'error' if args.strict else 'warning'}: {problem} "
                   "(a convention of this project, not of FMI 2.0)")
-        bad += bool(errors) or (args.strict and bool(warnings))
+        failed = bool(errors) or (args.strict and bool(warnings))
+        bad += failed
+        warned += bool(warnings) and not failed
+    noun = "FMU" if checked == 1 else "FMUs"
+    if bad:
+        if checked > 1:   # one FMU's error line says it all
+            print(f"{bad} of {checked} {noun} invalid")
+    else:
+        print(f"{checked} {noun} valid" + (f" ({warned} with warnings)" if warned else ""))
     return 1 if bad else 0
 
 

@@ -114,6 +114,9 @@ def test_validate_accepts_a_valid_fmi2_fmu_with_warnings_for_conventions(stair, 
     assert "warning: Stair.fmu: Real variable 'time' has no unit" in out
     assert "warning: Stair.fmu: output 'counter' has no dependencies attribute" in out
     assert "error:" not in out
+    assert out.splitlines()[-1] == "1 FMU valid (1 with warnings)"
+    assert main(["validate", str(stair), str(stair)]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == "2 FMUs valid (2 with warnings)"
 
 
 def test_validate_strict_makes_conventions_errors(stair, capsys):
@@ -136,6 +139,8 @@ def test_validate_still_fails_fmi_errors(stair, tmp_path, capsys):
     not_zip.write_bytes(b"x")
     assert main(["validate", str(not_zip)]) == 1
     assert "is not a zip archive" in capsys.readouterr().out
+    assert main(["validate", str(stair), str(not_zip)]) == 1
+    assert capsys.readouterr().out.splitlines()[-1] == "1 of 2 FMUs invalid"
 
 
 def test_library_validation_is_strict_by_default_as_for_the_build(stair):

@@ -33,6 +33,7 @@ import math
 from typing import ClassVar
 
 from fmukit.slave import FmuSlave
+from fmukit.timing import same_step
 from fmukit.units import MAX_STRAIN
 from piezofmu import actuator as ac
 from piezofmu.actuator import DEFAULT_BOUC_WEN, ActuatorState, PiezoActuator, StrainGauge
@@ -45,11 +46,6 @@ _FLAGS = ("sat_voltage", "sat_slew", "sat_stroke")
 
 class PiezoParameterError(ValueError):
     """An FMU parameter of the piezo slave is out of range."""
-
-
-#: Relative tolerance within which a communication step is ``hold_step`` (host time
-#: arithmetic: ``(k+1) h - k h`` or ``t += h``).
-HOLD_RTOL = 1e-9
 
 
 class PiezoSlave(FmuSlave):
@@ -271,7 +267,7 @@ class PiezoSlave(FmuSlave):
         act = self.actuator()
         if self._coupling() == 1:
             h = float(self.hold_step)
-            if abs(step_size - h) > HOLD_RTOL * h:
+            if not same_step(step_size, h):   # the host's rounding of the step
                 raise PiezoParameterError(
                     f"{self.instance_name!r} was stepped by {step_size!r} s, but its force "
                     f"is the mean over hold_step = {h!r} s; set hold_step to the "

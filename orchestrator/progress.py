@@ -1,19 +1,40 @@
-"""The one progress bar of the project (tqdm), for runs and for campaigns.
+"""The one progress report of the project, for runs, campaigns and experiments.
 
 A run reports the fraction of its simulated time; a campaign counts its cases and the
-failed ones.  The bar is drawn on stderr only when stderr is a terminal (unless forced),
-appears after ``delay`` seconds, and is erased when closed.
+failed ones.  On a terminal the report is a bar on stderr (tqdm) that appears after
+``delay`` seconds and is erased when closed.  When stderr is not a terminal (a log, a
+CI job) it is a line at most every :data:`LOG_EVERY` seconds with what is done and an
+estimate of the time left, so a long command is never silent.  :func:`stage` prints one
+line when a stage of a long command starts.
 """
 
 from __future__ import annotations
 
+import os
 import sys
+import time
 
 from tqdm import tqdm
 
+__all__ = ["LOG_EVERY", "ProgressBar", "stage"]
+
+#: Seconds between progress lines when stderr is not a terminal
+#: (env ``JITTERFMU_LOG_EVERY``).
+LOG_EVERY = 30.0
+
+
+def _is_terminal(stream) -> bool:
+    return bool(getattr(stream, "isatty", lambda: False)())
+
+
+def _clock(seconds: float) -> str:
+    s = int(round(seconds))
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}" if s >= 3600 else \
+        f"{s // 60}:{s % 60:02d}"
+
 
 class ProgressBar:
-    """A progress bar over ``total`` units, drawn on a terminal only.
+    """Progress over ``total`` units: a bar on a terminal, timed lines otherwise.
 
     Parameters
     ----------
@@ -24,20 +45,30 @@ class ProgressBar:
     unit : str
         Name of one unit (``"case"``); empty for a fraction.
     enabled : bool, optional
-        Force on or off; default: on when ``stream`` is a terminal.
+        True: the bar, even off a terminal; False: nothing; default: the bar on a
+        terminal, a line every ``every`` seconds elsewhere.
     delay : float
         Seconds before the bar first appears (s).
     stream : file, optional
         Default ``sys.stderr``.
+    every : float, optional
+        Seconds between lines off a terminal (default :data:`LOG_EVERY`).
     """
 
     def __init__(self, total: float, label: str = "", unit: str = "", *,
-                 enabled: bool | None = None, delay: float = 0.0, stream=None):
+                 enabled: bool | None = None, delay: float = 0.0, stream=None,
+                 every: float | None = None):
         stream = stream or sys.stderr
+        self._lines = enabled is None and not _is_terminal(stream)
         if enabled is None:
-            enabled = bool(getattr(stream, "isatty", lambda: False)())
+            enabled = _is_terminal(stream)
         fraction = not unit
         self.failed = 0
+        self._stream, self._label, self._unit, self._total = stream, label, unit, total
+        self._t0 = self._last = time.monotonic()
+        self._done = 0.0
+        self._every = float(os.environ.get("JITTERFMU_LOG_EVERY", LOG_EVERY)) \
+            if every is None else every
         self._bar = tqdm(total=total, desc=label or None, unit=unit or "it", file=stream,
                          disable=not enabled, delay=delay, leave=False, dynamic_ncols=True,
                          bar_format=("{desc} {bar} {percentage:5.1f}% eta {remaining}"
@@ -48,6 +79,8 @@ class ProgressBar:
         n = fraction * self._bar.total
         if n > self._bar.n:
             self._bar.update(n - self._bar.n)
+        self._done = max(self._done, n)
+        self._log()
 
     def update(self, status: str | None = None) -> None:
         """Count one unit done; ``status == "failed"`` counts it as failed too."""
@@ -55,7 +88,41 @@ class ProgressBar:
             self.failed += 1
             self._bar.set_postfix_str(f"{self.failed} failed", refresh=False)
         self._bar.update(1)
+        self._done += 1
+        self._log()
+
+    def _log(self) -> None:
+        """A line off a terminal, at most every ``every`` seconds."""
+        if not self._lines:
+            return
+        now = time.monotonic()
+        if now - self._last < self._every or not self._done:
+            return
+        self._last = now
+        elapsed = now - self._t0
+        left = elapsed * (self._total - self._done) / self._done
+        if self._unit:
+            done = f"{int(self._done)}/{int(self._total)} {self._unit}s"
+            if self.failed:
+                done += f", {self.failed} failed"
+        else:
+            done = f"{100 * self._done / self._total:.0f} %"
+        print(f"{self._label}: {done}, {_clock(elapsed)} elapsed, about {_clock(left)} left",
+              file=self._stream, flush=True)
 
     def close(self) -> None:
         """Erase the bar."""
         self._bar.close()
+
+
+def stage(message: str, stream=None) -> None:
+    """Say on stderr, in one line, that a stage of a long command starts.
+
+    Parameters
+    ----------
+    message : str
+        What starts, e.g. ``"testbed-isolation: designing the mount #3 gains"``.
+    stream : file, optional
+        Default ``sys.stderr``.
+    """
+    print(f"jitterfmu: {message}", file=stream or sys.stderr, flush=True)

@@ -44,11 +44,19 @@ def run(args) -> int:
     from orchestrator.experiments import EXPERIMENTS, _clean
     from orchestrator.experiments import run as run_experiment
 
+    import time
+
+    from orchestrator.progress import stage
+
     options = {k: v for k, v in (("workers", args.workers), ("campaign", args.campaign),
                                  ("variant", args.variant), ("fmu_kind", args.fmu_kind))
                if v is not None}
+    t0 = time.monotonic()
+    stage(f"reproduce {args.name} ({'quick' if args.quick else 'full length'}): FMUs in "
+          f"{args.fmu_dir or 'fmus'} (built if missing or stale), results into {args.out}")
     result = run_experiment(args.name, args.out, quick=args.quick, fmu_dir=args.fmu_dir,
                             **options)
+    stage(f"reproduce {args.name}: done in {time.monotonic() - t0:.0f} s")
     module = importlib.import_module(EXPERIMENTS[args.name])
     if hasattr(module, "summary"):
         print(module.summary(result))

@@ -25,6 +25,7 @@ from distfmu.excitation import sine_burst
 from fmukit.units import ARCSEC
 from fmutools.ensure import ensure_fmus
 from orchestrator import run_scenario
+from orchestrator.progress import stage
 from orchestrator.analysis import linearize
 
 from . import SCENARIOS
@@ -401,7 +402,9 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native") -> dict
         Damping, cycles to 90 % decay, peak voltage (V), the linear prediction and the
         paper's values.
     """
+    stage("truss-decay: co-simulating the free decay and the controlled decay")
     data = compute(fmu_dir, quick, fmu_kind)
+    stage("truss-decay: drawing the figures and the linear prediction")
     plot(data, Path(out_dir))
     cycles = data["closed_loop_cycles_to_90pct"]
     verdicts = [vd.below(f"Fig. 6: cycles to 90 % decay with control, {m}", 2.0, c,

@@ -66,7 +66,7 @@ def test_truss_decay_through_the_cosimulation(tmp_path, fmu_dir, monkeypatch):
 
 
 @pytest.mark.filterwarnings("ignore::orchestrator.cosim.UnconnectedInputWarning")
-def test_reproduce_runs_the_python_build_when_asked(tmp_path, fmu_dir):
+def test_reproduce_runs_the_python_build_when_asked(tmp_path, fmu_dir, capsys):
     """jitterfmu reproduce --python-fmus runs the experiment on the Python twins: the
     co-simulated decay agrees with the native build's to round-off."""
     import json
@@ -79,6 +79,14 @@ def test_reproduce_runs_the_python_build_when_asked(tmp_path, fmu_dir):
         assert main(["reproduce", "truss-decay", "--quick", "--out", str(out),
                      "--fmu-dir", str(fmu_dir), *flags]) == 0
         outs[kind] = json.loads((out / "truss-decay.json").read_text())
+        # it says what it is doing, stage by stage, and ends with its numbers
+        captured = capsys.readouterr()
+        err = captured.err.splitlines()
+        assert err[0].startswith("jitterfmu: reproduce truss-decay (quick): FMUs in ")
+        assert "jitterfmu: truss-decay: co-simulating the free decay and the controlled " \
+               "decay" in err
+        assert err[-1].startswith("jitterfmu: reproduce truss-decay: done in ")
+        assert '"closed_loop_cycles_to_90pct"' in captured.out
     for member in ("diagonal", "longeron"):
         a = outs["native"]["open_loop_damping"][member]
         b = outs["python"]["open_loop_damping"][member]

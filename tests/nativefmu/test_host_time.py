@@ -1,6 +1,7 @@
 """Every FMU gives the exact-step answer whatever the host's time arithmetic.
 
-Hosts pass a step's start and size in different ways (issue 22, items 16 and 17): the
+Every FMU of the registry (both builds) is checked.  Hosts pass a step's start and size
+in different ways (issue 22, items 16 and 17): the
 exact tick ``k / 1000`` and the period (the reference), ``(k + 1) h - k h`` (FMPy), an
 accumulated ``t += h``, and a host whose clock drifts by 1e-12 s over the run.  Each FMU
 is stepped for 8 s at 1 ms under each host with the same inputs per step, and its
@@ -56,7 +57,14 @@ CASES = {
     "eos_testbed_structure": ({}, lambda n_in: RNG.standard_normal((N, n_in))),
     "piezo_p845_37": ({}, lambda n_in: np.column_stack(
         [40 * np.sin(2 * np.pi * 22 * K * H), 1e-6 * np.sin(2 * np.pi * 30 * K * H)])),
+    "piezo_p243_30": ({}, lambda n_in: np.column_stack(
+        [400 * np.sin(2 * np.pi * 8.4 * K * H), 1e-6 * np.sin(2 * np.pi * 9.5 * K * H)])),
+    "piezo_p243_40": ({}, lambda n_in: np.column_stack(
+        [400 * np.sin(2 * np.pi * 9.5 * K * H), 1e-6 * np.sin(2 * np.pi * 8.4 * K * H)])),
     "controller_eos_isolation": ({}, lambda n_in: RNG.standard_normal((N, n_in))),
+    "controller_testbed_isolation": ({}, lambda n_in: RNG.standard_normal((N, n_in))),
+    "controller_truss10_strain_diag": ({}, lambda n_in: 1e-6 * RNG.standard_normal((N, n_in))),
+    "controller_truss10_strain_long": ({}, lambda n_in: 1e-6 * RNG.standard_normal((N, n_in))),
     "acs": ({}, lambda n_in: 1e-4 * np.sin(np.outer(K * H, 1.0 + np.arange(n_in)))),
     "disturbance": ({"preset": "swir_pointing", "start_time": 0.5, "stop_time": 4.5},
                     lambda n_in: np.zeros((N, n_in))),

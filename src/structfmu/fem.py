@@ -540,3 +540,58 @@ def output_matrix(truss: Truss) -> sp.csr_matrix:
     """Sensor matrix ``H`` on the free DOFs, shape (n_outputs, n_free)."""
     H = channel_matrix(truss.outputs, truss.n_dof).tocsc()
     return H[:, truss.free_dofs].tocsr()
+
+
+def member_strain_energy(truss: Truss, phi) -> np.ndarray:
+    """Share of each mode's strain energy stored in each member.
+
+    Member ``e`` of axial stiffness ``k_e`` stretched by ``delta_e = b_e^T u`` (``b_e``
+    its elongation row, :meth:`Truss.element_row`) stores ``k_e delta_e^2 / 2``; the
+    mode stores ``u^T K u / 2`` in all (members and springs).  The share is their ratio,
+    so it does not depend on how the mode shape is scaled.
+
+    Parameters
+    ----------
+    truss : Truss
+        The model whose free DOFs the shapes live on.
+    phi : array_like, shape (n_free,) or (n_free, n_modes)
+        Mode shapes (or any displacement shapes) on the free DOFs, as returned by
+        :func:`structfmu.reduce.eigenpairs` (m, any scale).
+
+    Returns
+    -------
+    ndarray, shape (n_el, n_modes)
+        Fraction of each shape's strain energy in each member (-).  Each column sums to
+        1 minus the share of the truss's scalar springs (exactly 1 without springs).
+
+    Raises
+    ------
+    DimensionError
+        If ``phi`` has not one row per free DOF.
+    ModelError
+        If a shape stores no strain energy (a rigid-body mode or a zero column).
+    """
+    phi = np.asarray(phi, float)
+    vector = phi.ndim == 1
+    shapes = phi[:, None] if vector else phi
+    free = truss.free_dofs
+    if shapes.ndim != 2 or shapes.shape[0] != len(free):
+        raise DimensionError(f"truss {truss.name!r}: mode shapes have shape {phi.shape}; "
+                             f"expected ({len(free)}, n_modes), one row per free DOF")
+    u = np.zeros((truss.n_dof, shapes.shape[1]))
+    u[free] = shapes
+    e, _ = truss.element_geometry()
+    el = truss.elements
+    # elongation of every member in every shape: (u_2 - u_1) . e
+    du = u.reshape(len(truss.nodes), 3, -1)
+    delta = np.einsum("nim,ni->nm", du[el[:, 1]] - du[el[:, 0]], e)
+    members = 0.5 * truss.axial_stiffness[:, None] * delta**2
+    K, _ = assemble(truss)
+    total = 0.5 * np.einsum("im,im->m", shapes, K @ shapes)
+    scale = max(float(np.max(np.abs(total), initial=0.0)), 1e-300)
+    weak = np.flatnonzero(total <= 1e-12 * scale) if total.size else []
+    if len(weak) or not np.all(total > 0):
+        raise ModelError(f"truss {truss.name!r}: shape {int(weak[0]) if len(weak) else 0} "
+                         "stores no strain energy (a rigid-body mode?); its shares are "
+                         "undefined")
+    return members / total

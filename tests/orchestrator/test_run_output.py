@@ -85,16 +85,22 @@ def test_killed_run_keeps_its_flushed_rows_and_never_says_ok(fmu_dir, tmp_path):
     assert len(read_table(out / PARTIAL_DIR)["time"]) == len(table["time"])
 
 
-def test_sigterm_ends_the_run_with_the_rows_so_far(fmu_dir, tmp_path):
+def interrupt_long_run(fmu_dir, tmp_path, sig):
+    """Start a long run, signal it once rows are flushed; (exit code, stderr, out)."""
     out = tmp_path / "o"
     proc = start_long_run(fmu_dir, tmp_path, out)
     try:
         wait_for_parts(out, n=1)
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
     finally:
         proc.kill()
-    assert proc.returncode == 1, err
+    return proc.returncode, err, out
+
+
+def test_sigterm_ends_the_run_with_the_rows_so_far(fmu_dir, tmp_path):
+    code, err, out = interrupt_long_run(fmu_dir, tmp_path, signal.SIGTERM)
+    assert code == 1, err
     assert "run interrupted by SIGTERM at t = " in err
     meta = json.loads((out / "run.json").read_text())
     assert meta["status"] == "interrupted" and "SIGTERM" in meta["error"]
@@ -105,15 +111,8 @@ def test_sigterm_ends_the_run_with_the_rows_so_far(fmu_dir, tmp_path):
 
 
 def test_sigint_says_where_the_kept_rows_are(fmu_dir, tmp_path):
-    out = tmp_path / "o"
-    proc = start_long_run(fmu_dir, tmp_path, out)
-    try:
-        wait_for_parts(out, n=1)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    assert proc.returncode == 130, err
+    code, err, out = interrupt_long_run(fmu_dir, tmp_path, signal.SIGINT)
+    assert code == 130, err
     meta = json.loads((out / "run.json").read_text())
     assert meta["status"] == "interrupted" and meta["rows"] > 0
     assert (f"jitterfmu: interrupted; the {meta['rows']} rows recorded so far are in "

@@ -15,8 +15,15 @@ from __future__ import annotations
 import heapq
 from dataclasses import dataclass
 
-__all__ = ["AlgebraicLoopError", "Loop", "feedthrough_edges", "strongly_connected",
-           "step_groups", "describe_cycle", "init_order"]
+__all__ = [
+    "AlgebraicLoopError",
+    "Loop",
+    "describe_cycle",
+    "feedthrough_edges",
+    "init_order",
+    "step_groups",
+    "strongly_connected",
+]
 
 
 class AlgebraicLoopError(RuntimeError):

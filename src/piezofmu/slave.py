@@ -234,6 +234,9 @@ class PiezoSlave(FmuSlave):
 
     def _fmu_state_restored(self):
         ActuatorState.from_array(self.x)   # a valid actuator state, or StateArrayError
+        if not {float(self.x[2]), float(self.x[3])} <= {0.0, 1.0}:
+            raise PiezoParameterError(f"saturation flags {self.x[2:4].tolist()} of the "
+                                      "actuator state are not 0 or 1")
         self._key = None  # parameters may have changed with the state
         self._ahead = None
         self._force_stale = False   # the state holds the force it was saved with

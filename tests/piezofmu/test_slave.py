@@ -168,3 +168,21 @@ def test_specs_one_fmu_per_preset():
     with pytest.raises(UnknownModelError, match="piezo_p999") as info:
         specs(["piezo_p999"])
     assert isinstance(info.value, KeyError)
+
+
+@pytest.mark.parametrize("index, value", [(5, 2.5), (2, 0.5), (5, -1.0)])
+def test_an_invalid_actuator_state_is_refused_and_changes_nothing(index, value):
+    """As the native kernel: a whole non-negative tick and 0/1 flags, else the previous
+    state is kept."""
+    from fmukit.state import FmuStateError
+
+    slave = make("P-243.30")
+    cmds, elong = signals(20)
+    drive(slave, cmds, elong, 1e-3)
+    state = slave._get_fmu_state()
+    before = slave.x.copy()
+    state["attrs"]["x"] = state["attrs"]["x"].copy()
+    state["attrs"]["x"][index] = value
+    with pytest.raises(FmuStateError, match="previous state is kept"):
+        slave._set_fmu_state(state)
+    np.testing.assert_array_equal(slave.x, before)

@@ -175,3 +175,19 @@ def test_model_file_keeps_the_sensor_lowpass(tmp_path):
     assert back.accel_lowpass == model.accel_lowpass and back.n_states == model.n_states
     with pytest.raises(ValueError, match="order"):
         filtered(small_model(), order=0)
+
+
+def test_stepper_takes_a_step_within_rounding_of_a_known_one_as_that_step():
+    """(k+1)h - kh for 1 ms over 8 s gives 12 values up to 5.5e-13 apart: one
+    discretisation (h's); a step 1e-6 apart is a new one; the cache keeps 8 steps."""
+    from structfmu.discrete import ZohStepper
+
+    st = ZohStepper(small_model())
+    h = 1e-3
+    assert st.discrete(h) is st.discrete((8000 * h) - (7999 * h))
+    assert st.discrete(h * (1 + 5e-10)).h == h
+    assert st.discrete(h * (1 + 1e-6)).h == h * (1 + 1e-6)
+    for j in range(20):
+        st.discrete(h * (2 + j))
+    assert len(st._cache) == ZohStepper.CACHE
+    assert st.discrete(h * 21).h == h * 21

@@ -17,10 +17,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "Python twins in its python/ subfolder")
     parser.add_argument("--model", action="append", metavar="NAME",
                         help="modelIdentifier to build (repeatable; default: all); with "
-                        "--structure, the identifier of that FMU")
-    parser.add_argument("--structure", metavar="MODEL.npz",
-                        help="build only a structure FMU from a reduced model file (e.g. from "
-                        "'jitterfmu import-nastran'), named <stem>_structure unless --model")
+                        "--structure or --controller, the identifier of that FMU")
+    one = parser.add_mutually_exclusive_group()
+    one.add_argument("--structure", metavar="MODEL.npz",
+                     help="build only a structure FMU from a reduced model file (e.g. from "
+                     "'jitterfmu import-nastran'), named <stem>_structure unless --model")
+    one.add_argument("--controller", metavar="LAW.npz",
+                     help="build only a controller FMU from a control law file (written by "
+                     "ctrlfmu.law.save_law), named controller_<law name> unless --model")
     only = parser.add_mutually_exclusive_group()
     only.add_argument("--native", action="store_true",
                       help="only the native (C99) FMUs, into --out itself "
@@ -40,9 +44,13 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     py_dir = out / PYTHON_SUBDIR
-    if args.structure and args.model and len(args.model) > 1:
-        raise ValueError("--structure builds one FMU; give at most one --model")
-    name = args.model[0] if (args.structure and args.model) else None
+    single = args.structure or args.controller
+    if single and args.model and len(args.model) > 1:
+        option = "--structure" if args.structure else "--controller"
+        raise ValueError(f"{option} builds one FMU; give at most one --model")
+    name = args.model[0] if (single and args.model) else None
+    if args.controller:
+        return _report(*_build_controller(args.controller, out, py_dir, name, args))
     problems, built, skipped = [], [], ()
     if not args.native:
         if args.structure:
@@ -67,9 +75,43 @@ def run(args: argparse.Namespace) -> int:
         problems += report.problems
         built += report.fmus
         skipped = report.skipped
-    for problem in problems:
-        print(problem, file=sys.stderr)
     if skipped:
         print(f"no native kernel for {', '.join(skipped)}; their Python FMUs are in "
               f"{py_dir}", file=sys.stderr)
+    return _report(problems, built)
+
+
+def _build_controller(path, out: Path, py_dir: Path, name, args) -> tuple[list, list]:
+    """``--controller``: the law file's Python FMU (in ``py_dir``) and native FMU (in
+    ``out``), each validated; returns (problems, built)."""
+    import tempfile
+
+    from ctrlfmu.fmuspec import build_controller_fmu, controller_identifier, law_spec
+    from ctrlfmu.law import load_law
+    from fmutools.validate import validate_fmu
+    from nativefmu.build import build_native
+
+    law = load_law(Path(path))
+    ident = controller_identifier(law, name)
+    problems, built = [], []
+    with tempfile.TemporaryDirectory(prefix="jitterfmu_ctrl_") as tmp:
+        report = build_controller_fmu(law, tmp if args.native else py_dir, ident)
+        twin = report.fmus[0]
+        if not args.native:
+            print(f"{twin} {'ok' if not report.problems else 'has problems'}")
+            problems += report.problems
+            built.append(twin)
+        if not args.python:
+            native = build_native(law_spec(law, ident), out, python_fmu=twin)
+            found = validate_fmu(native, strict=True)
+            print(f"{native} (native) {'ok' if not found else 'has problems'}")
+            problems += found
+            built.append(native)
+    return problems, built
+
+
+def _report(problems, built) -> int:
+    """Print the problems; 0 when every FMU built is valid."""
+    for problem in problems:
+        print(problem, file=sys.stderr)
     return 1 if problems or not built else 0

@@ -14,11 +14,15 @@ parameter; per-law FMUs keep each of them exact.
 
 from __future__ import annotations
 
-from ctrlfmu.designs import DESIGNS, design
-from ctrlfmu.law import DiscreteLaw, law_bytes
-from fmutools.build import FmuSpec
+import re
+from pathlib import Path
 
-__all__ = ["MODELS", "specs", "law_spec"]
+from ctrlfmu.designs import DESIGNS, design
+from ctrlfmu.law import DiscreteLaw, law_bytes, load_law
+from fmutools.build import BuildReport, FmuSpec, build_fmu
+from fmutools.validate import validate_fmu
+
+__all__ = ["MODELS", "specs", "law_spec", "controller_identifier", "build_controller_fmu"]
 
 PREFIX = "controller_"
 
@@ -75,3 +79,56 @@ def specs(models: list[str] | None = None) -> list[FmuSpec]:
     """
     names = list(MODELS) if models is None else [m for m in models if m in MODELS]
     return [law_spec(design(MODELS[name]), name) for name in names]
+
+
+def controller_identifier(law: DiscreteLaw, model_identifier: str | None = None) -> str:
+    """The modelIdentifier of a law's FMU: ``controller_<law name>`` unless given.
+
+    Parameters
+    ----------
+    law : DiscreteLaw
+        The law.
+    model_identifier : str, optional
+        Wanted identifier, used as is when given.
+
+    Returns
+    -------
+    str
+        A C identifier (characters other than letters, digits and ``_`` become ``_``).
+    """
+    if model_identifier:
+        return model_identifier
+    return PREFIX + re.sub(r"\W", "_", law.name)
+
+
+def build_controller_fmu(law, out_dir, model_identifier: str | None = None) -> BuildReport:
+    """Build and validate the (Python) controller FMU of a law or of a law file.
+
+    The controller twin of :func:`structfmu.fmuspec.build_structure_fmu`; ``jitterfmu
+    build --controller LAW.npz`` builds it and its native twin.
+
+    Parameters
+    ----------
+    law : DiscreteLaw or path-like
+        The law, or a file written by :func:`ctrlfmu.law.save_law`.
+    out_dir : path-like
+        Destination folder.
+    model_identifier : str, optional
+        FMI modelIdentifier and file stem; default ``controller_<law name>``.
+
+    Returns
+    -------
+    fmutools.build.BuildReport
+        The FMU path and its validation problems (one line each).
+
+    Raises
+    ------
+    ctrlfmu.law.LawFileError
+        If the file is not a control law file.
+    FileNotFoundError
+        If the file does not exist.
+    """
+    if not isinstance(law, DiscreteLaw):
+        law = load_law(Path(law))
+    path = build_fmu(law_spec(law, controller_identifier(law, model_identifier)), out_dir)
+    return BuildReport((path,), tuple(validate_fmu(path, strict=True)))

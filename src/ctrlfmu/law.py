@@ -582,7 +582,17 @@ def load_law(path) -> DiscreteLaw:
     DiscreteLaw
         The law, validated again.
     """
-    with np.load(path, allow_pickle=False) as f:
+    not_a_law = (f"{path} is not a control law file (an .npz archive written by "
+                 "ctrlfmu.law.save_law)")
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise
+    except (ValueError, OSError, EOFError):   # text, a pickle, a damaged archive
+        raise LawFileError(not_a_law) from None
+    if not hasattr(archive, "files"):   # a bare .npy array
+        raise LawFileError(not_a_law)
+    with archive as f:
         if "format" not in f.files or str(f["format"]) != _FORMAT:
             raise LawFileError(f"{path} is not a control law file (format {_FORMAT!r} expected)")
         try:

@@ -1,26 +1,27 @@
-"""Campaign reports: jitter budget charts, time histories, boresight scatter, FRFs, tables.
+"""Campaign reports: the verdict first, then the figures that explain it, then the tables.
 
 :func:`write_report` reads a campaign output folder (see :mod:`orchestrator.campaign`) and
 writes either one self-contained HTML file (figures embedded as base64 PNG) or a Markdown
-file with PNG figures next to it.  Contents:
+file with PNG figures next to it.  Contents, in reading order:
 
-1. Budget chart (Fig. 8 style), one figure for all configurations so that they compare
-   at a glance: the RSS total of every instrument and axis with one bar per
-   configuration side by side on a log axis and the requirement across each group;
-   below, a heat map of every event x instrument-axis in the first configuration (log
-   colours, values in the cells) and one of each further configuration's change against
-   it (%).  The budget metric is the metric and window of the first requirement (or the
-   first metric).
-2. Time histories of the dominant case of every instrument (the event with the largest
-   share of the RSS), all configurations overlaid.
-3. Boresight image-plane scatter (Fig. 16 style) of the dominant case of every instrument
-   with at least two axes (pitch against yaw when present), configurations overlaid.
-4. Frequency responses / transmissibilities found in ``DIR/frf/*.parquet`` or ``*.csv``:
-   a ``frequency`` column (Hz) and magnitude columns, or complex ones as ``NAME.re`` and
-   ``NAME.im`` pairs; plotted as magnitudes on log-log axes.
-5. The budget table (RSS rows with their change against the first configuration,
-   requirement, margin, margin %, pass and dominant event), the failed cases, and every
-   summary row.
+1. The verdict (:mod:`orchestrator.report_verdict`): one row per instrument and axis, the
+   RSS of every configuration side by side, the change, the requirement, margins,
+   pass/fail and the dominant event.  The budget metric is the metric and window of the
+   first requirement (or the first metric).
+2. Budget chart (Fig. 8 style, :mod:`orchestrator.report_budget`): RSS bars of every
+   configuration against the requirements; a heat map of every event x instrument-axis
+   in the first configuration and one of each further configuration's change against it.
+3. Time histories and spectra of the dominant event of each axis (axes sharing one
+   event in one figure), every configuration overlaid, with the worst window of the
+   budget metric and the requirement drawn (:mod:`orchestrator.report_figures`).
+4. Boresight image plane (Fig. 16 style): roll against pitch when both exist, with the
+   requirement box.
+5. Frequency responses found in ``DIR/frf/*.parquet`` or ``*.csv`` (a ``frequency``
+   column in Hz and magnitude columns, or complex ones as ``NAME.re``/``NAME.im``),
+   sweeps and the uncertainty distribution when the campaign has them.
+6. Folded below (HTML ``<details>``; Markdown: at the end): the budget per configuration
+   (RSS rows with change, margin % and dominant event), worst sweep points, cross-check,
+   failed cases, and every summary row.
 
 Figures are drawn with matplotlib's Agg canvas (no display needed, the global backend is
 left alone).
@@ -35,15 +36,16 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
-import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .campaign import ANGLE_UNITS, RSS_EVENT, slug
 from .report_budget import BudgetGrid, _budget_figure, _group_label, _groups, budget_grid
+from .report_figures import Marking, frf_figure, history_figure, scatter_axes, scatter_figure
 from .report_sweeps import WORST_HEAD, spectrum_figure, sweep_sections, uncertainty_sections
+from .report_verdict import axes_by_event, dominant_by_axis, verdict_table, verdicts
+from .report_verdict import same_window as _same_window
 
 UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
             "bootstrap 95 %", "converged", "requirement", "P(meet)"]
@@ -51,7 +53,6 @@ UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
 __all__ = ["BudgetGrid", "ReportError", "budget_grid", "write_report"]
 
 FORMATS = ("html", "md")
-_MAX_GROUPS = 8  # configuration x sweep groups drawn in one figure
 
 
 class ReportError(ValueError):
@@ -87,13 +88,6 @@ def _budget_metric(camp, summary):
     return None, None
 
 
-def _same_window(a, b) -> bool:
-    if a is None or b is None:
-        return a is None and b is None
-    return math.isclose(float(a), float(b))
-
-
-
 def png_bytes(fig: Figure) -> bytes:
     """A figure as PNG bytes (Agg canvas, 110 dpi)."""
     FigureCanvasAgg(fig)
@@ -102,74 +96,25 @@ def png_bytes(fig: Figure) -> bytes:
     return buf.getvalue()
 
 
-def _dominant(rows, inst):
-    """Dominant event of an instrument: the largest share summed over groups and axes."""
-    score: dict = {}
-    for r in rows:
-        if r["instrument"] == inst and r["event"] != RSS_EVENT:
-            score[r["event"]] = score.get(r["event"], 0.0) + (r.get("share") or 0.0)
-    return max(score, key=score.get) if score else None
-
-
-def _case_series(out_dir, camp, event, axes):
-    """(group label, time, {axis: values in rad}) for every case of an event."""
+def _case_series(out_dir, camp, event, axes, cache):
+    """(configuration label, time, {axis: values in rad}) for every case of an event."""
     out = []
     for c in camp["cases"]:
         if c["event"] != event:
             continue
         path = out_dir / "cases" / c["key"] / "results.parquet"
-        if not path.is_file():
+        if c["key"] not in cache:
+            cache[c["key"]] = pq.read_table(path) if path.is_file() else None
+        t = cache[c["key"]]
+        if t is None:
             continue
-        t = pq.read_table(path)
         names = t.column_names
         tcol = "time" if "time" in names else names[0]
         cols = {a: t.column(v).to_numpy() for a, v in axes.items() if v in names}
-        out.append((_group_label((c["configuration"], c["sweep"])) or event,
-                    t.column(tcol).to_numpy(), cols))
+        if cols:
+            out.append((_group_label((c["configuration"], c["sweep"])) or event,
+                        t.column(tcol).to_numpy(), cols))
     return out
-
-
-def _history_figure(series, inst, event, unit, scale):
-    axes = list(series[0][2])
-    fig = Figure(figsize=(9, 1.9 * len(axes) + 0.8))
-    axs = fig.subplots(len(axes), 1, squeeze=False, sharex=True)
-    for i, axis in enumerate(axes):
-        ax = axs[i][0]
-        for label, t, cols in series:
-            if axis in cols:
-                ax.plot(t, cols[axis] * scale, lw=0.8, label=label)
-        ax.set_ylabel(f"{axis} ({unit})")
-        ax.grid(alpha=0.3)
-        if i == 0:
-            ax.legend(fontsize=7, loc="upper right")
-    axs[-1][0].set_xlabel("time (s)")
-    fig.suptitle(f"{inst} line of sight, dominant event: {event}", fontsize=11)
-    fig.tight_layout()
-    return fig
-
-
-def _scatter_axes(axes):
-    names = list(axes)
-    if "yaw" in names and "pitch" in names:
-        return "yaw", "pitch"
-    return names[0], names[1]
-
-
-def _scatter_figure(series, inst, event, unit, scale, pair):
-    fig = Figure(figsize=(5.5, 5))
-    ax = fig.subplots()
-    for label, _, cols in series:
-        if pair[0] in cols and pair[1] in cols:
-            ax.plot(cols[pair[0]] * scale, cols[pair[1]] * scale, ".", ms=1.5, alpha=0.6,
-                    label=label)
-    ax.set_xlabel(f"{pair[0]} ({unit})")
-    ax.set_ylabel(f"{pair[1]} ({unit})")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, markerscale=6)
-    ax.set_title(f"{inst} boresight in the image plane — {event}", fontsize=10)
-    fig.tight_layout()
-    return fig
 
 
 def _frf_files(out_dir: Path):
@@ -179,31 +124,39 @@ def _frf_files(out_dir: Path):
     return sorted(p for p in d.iterdir() if p.suffix in (".parquet", ".csv"))
 
 
-def _frf_figure(path: Path):
-    t = pq.read_table(path) if path.suffix == ".parquet" else pacsv.read_csv(path)
-    cols = {n: t.column(n).to_numpy() for n in t.column_names}
-    fcol = next((n for n in cols if n.lower() in ("frequency", "frequency_hz", "f", "freq")),
-                None)
-    if fcol is None:
-        raise ReportError(f"FRF file {path.name} has no 'frequency' column (Hz)")
-    f = np.asarray(cols.pop(fcol), dtype=float)
-    curves = {}
-    for n in list(cols):
-        if n.endswith(".re") and n[:-3] + ".im" in cols:
-            curves[n[:-3]] = np.abs(cols[n] + 1j * cols[n[:-3] + ".im"])
-        elif not n.endswith(".im"):
-            curves[n] = np.abs(np.asarray(cols[n], dtype=float))
-    fig = Figure(figsize=(8, 4))
-    ax = fig.subplots()
-    for n, mag in curves.items():
-        ax.loglog(f[f > 0], mag[f > 0], lw=1, label=n)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("magnitude")
-    ax.grid(which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    ax.set_title(path.stem, fontsize=10)
-    fig.tight_layout()
-    return fig
+def _time_figures(out_dir, camp, summary, lines, metric, window, unit, scale):
+    """Per instrument: the history and spectrum of the dominant event of each axis (axes
+    sharing one event in one figure) and the boresight scatter of the image plane."""
+    figures, cache = [], {}
+    req = {(v.instrument, v.axis): v.requirement for v in lines}
+    for inst in dict.fromkeys(v.instrument for v in lines):
+        axes = camp["instruments"].get(inst, {})
+        dom = {a: d for a, d in dominant_by_axis(summary, metric, window, inst).items()
+               if a in axes}
+        marking = Marking(metric, window, {a: req.get((inst, a)) for a in axes},
+                          float(camp.get("skip", 0.0)))
+        for event, ev_axes in axes_by_event(dom).items():
+            series = _case_series(out_dir, camp, event, {a: axes[a] for a in ev_axes}, cache)
+            if not series:
+                continue
+            share = sum(dom[a][1] for a in ev_axes) / len(ev_axes)
+            what = ", ".join(ev_axes)
+            figures.append(("history", f"{inst} {what}: time history of {event}",
+                            history_figure(series, inst, event, ev_axes, unit, scale,
+                                           marking, share)))
+            figures.append(("spectrum", f"{inst} {what}: PSD and cumulative RMS, {event}",
+                            spectrum_figure(series, inst, event, unit, scale,
+                                            marking.skip)))
+        if len(axes) >= 2 and dom:
+            pair = scatter_axes(axes)
+            event = max((dom[a] for a in pair if a in dom), key=lambda d: d[1])[0]
+            series = _case_series(out_dir, camp, event, {a: axes[a] for a in pair}, cache)
+            if series:
+                figures.append(("scatter", f"{inst}: boresight {pair[0]}–{pair[1]}, {event}",
+                                scatter_figure(series, inst, event, unit, scale, pair,
+                                               marking)))
+    order = ("history", "spectrum", "scatter")
+    return sorted(figures, key=lambda f: order.index(f[0]))   # stable: instrument order
 
 
 # ----------------------------------------------------------------------------- tables
@@ -319,10 +272,150 @@ th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}
 th{background:#eee} td:first-child,th:first-child{text-align:left}
 td.fail{background:#f8d0d0;font-weight:bold} td.pass{background:#d6f0d6}
 img{max-width:100%;border:1px solid #ddd;margin:0.5em 0}
+h1{font-size:22px;margin:0.3em 0} h2{font-size:17px;margin:1.2em 0 0.4em}
+p{font-size:13px;margin:0.4em 0} p.key{font-size:11px;color:#555}
+details{margin:0.6em 0;font-size:13px} summary{cursor:pointer}
 """
 
 
 # ----------------------------------------------------------------------------- entry
+
+
+_SECTIONS = {"budget": "Budget chart",
+             "history": "Time histories: the dominant event of each axis",
+             "spectrum": "Spectra of the dominant events",
+             "scatter": "Boresight image plane", "frf": "Frequency responses",
+             "sweep": "Sweeps: jitter against the swept quantity",
+             "uncertainty": "Uncertainty: the budget as a distribution"}
+
+
+def _contents(out_dir: Path):
+    """Everything the report shows, format-free: texts, tables and figures."""
+    camp, summary, cases = _load(out_dir)
+    unit = camp.get("unit", "arcsec")
+    scale = ANGLE_UNITS.get(unit, 1.0)
+    instruments = camp["instruments"]
+    metric, window = _budget_metric(camp, summary)
+    budget_rows = [r for r in summary if r["metric"] == metric
+                   and _same_window(r["window"], window)]
+    configs, lines = verdicts(summary, metric, window)
+
+    figures = []  # (section, title, Figure)
+    if budget_rows:
+        figures.append(("budget", "Jitter budget",
+                        _budget_figure(budget_rows, instruments, unit, metric, window)))
+    figures += _time_figures(out_dir, camp, summary, lines, metric, window, unit, scale)
+    for p in _frf_files(out_dir):
+        figures.append(("frf", f"Frequency response: {p.stem}", frf_figure(p)))
+    sweep_figs, worst = sweep_sections(out_dir, summary, instruments, metric, window, unit,
+                                       RSS_EVENT)
+    figures += [("sweep", t, f) for t, f in sweep_figs]
+    unc_figs, unc_rows, unc_text = uncertainty_sections(out_dir, instruments, unit)
+    figures += [("uncertainty", t, f) for t, f in unc_figs]
+
+    failed = [[c["case"], c["error"]] for c in cases if c["status"] != "ok"]
+    n_ok = sum(c["status"] == "ok" for c in cases)
+    win = "" if window is None else f" over {window:g} s"
+    swept = any(v for line in lines for v in line.sweep)
+    engine_text, check_rows, flagged = _cross_check(out_dir, camp)
+    vhead, vrows = verdict_table(configs, lines)
+    n_fail = sum(row.count("FAIL") > 0 for row in vrows)
+    return {
+        "title": f"Jitter report: {camp.get('name', out_dir.name)}",
+        "intro": (f"{metric}{win} in {unit}, RSS over the events; {len(cases)} cases "
+                  f"({n_ok} finished, {len(failed)} failed); {len(vrows)} instrument axes, "
+                  f"{n_fail} failing in at least one configuration."
+                  + (" With sweeps, each configuration's worst sweep point." if swept
+                     else "")),
+        "verdict": (vhead, vrows),
+        "key": ("RSS = root-sum-square over the events of a configuration; change = (last "
+                "configuration − first) / first; requirements are the campaign file's "
+                "inputs; margin = requirement − RSS; dominant event: the largest share of "
+                "the RSS² (value² / RSS²). " + engine_text),
+        "figures": figures, "worst": worst, "unc": (unc_rows, unc_text),
+        "check": (check_rows, flagged), "failed": failed,
+        "budget": _budget_rows(summary, metric, window), "summary": _summary_rows(summary),
+    }
+
+
+def _folded_html(title, table, n):
+    return (f"<details><summary><b>{html.escape(title)}</b> ({n} rows)</summary>{table}"
+            "</details>")
+
+
+def _html(c) -> str:
+    vhead, vrows = c["verdict"]
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>"
+             f"{html.escape(c['title'])}</title><style>{_CSS}</style></head><body>",
+             f"<h1>{html.escape(c['title'])}</h1>",
+             f"<h2 id='verdict'>Verdict</h2><p>{html.escape(c['intro'])}</p>",
+             _html_table(vhead, vrows, "verdict"),
+             f"<p class='key'>{html.escape(c['key'])}</p>"]
+    if c["failed"]:
+        parts += ["<h2>Failed cases</h2>", _html_table(["case", "error"], c["failed"])]
+    section = None
+    for sec, ftitle, fig in c["figures"]:
+        if sec != section:
+            parts.append(f"<h2>{_SECTIONS[sec]}</h2>")
+            section = sec
+        b64 = base64.b64encode(png_bytes(fig)).decode("ascii")
+        parts.append(f"<figure><img alt='{html.escape(ftitle)}' "
+                     f"src='data:image/png;base64,{b64}'><figcaption>"
+                     f"{html.escape(ftitle)}</figcaption></figure>")
+    unc_rows, unc_text = c["unc"]
+    if unc_rows:
+        parts += ["<h2>Budget at confidence levels</h2>", f"<p>{html.escape(unc_text)}</p>",
+                  _html_table(UNC_HEAD, unc_rows)]
+    check_rows, flagged = c["check"]
+    if check_rows or flagged:
+        parts += ["<h2>Cross-check of the linear engine</h2>",
+                  _html_table(CHECK_HEAD, check_rows)]
+    if flagged:
+        parts += ["<p><b>Nonlinear in co-simulation</b> (the linear answer does not "
+                  "hold for these cases):</p>", _html_table(["case", "flags"], flagged)]
+    parts.append("<h2>Tables</h2>")
+    parts.append(_folded_html("Budget by configuration",
+                              _html_table(BUDGET_HEAD, c["budget"], "budget"),
+                              len(c["budget"])))
+    if c["worst"]:
+        parts.append(_folded_html("Worst points of the sweeps",
+                                  _html_table(WORST_HEAD, c["worst"]), len(c["worst"])))
+    parts.append(_folded_html("All results", _html_table(SUMMARY_HEAD, c["summary"],
+                                                         "summary"), len(c["summary"])))
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def _markdown(c, fig_dir: Path) -> str:
+    vhead, vrows = c["verdict"]
+    parts = [f"# {c['title']}", "", "## Verdict", "", c["intro"], "",
+             _md_table(vhead, vrows), "", c["key"], ""]
+    if c["failed"]:
+        parts += ["## Failed cases", "", _md_table(["case", "error"], c["failed"]), ""]
+    section = None
+    for i, (sec, ftitle, fig) in enumerate(c["figures"]):
+        if sec != section:
+            parts += [f"## {_SECTIONS[sec]}", ""]
+            section = sec
+        name = f"{i:02d}_{sec}_{slug(ftitle)[:40]}.png"
+        (fig_dir / name).write_bytes(png_bytes(fig))
+        parts += [f"### {ftitle}", "", f"![{ftitle}]({fig_dir.name}/{name})", ""]
+    unc_rows, unc_text = c["unc"]
+    if unc_rows:
+        parts += ["## Budget at confidence levels", "", unc_text, "",
+                  _md_table(UNC_HEAD, unc_rows), ""]
+    check_rows, flagged = c["check"]
+    if check_rows or flagged:
+        parts += ["## Cross-check of the linear engine", "", _md_table(CHECK_HEAD, check_rows),
+                  ""]
+    if flagged:
+        parts += ["**Nonlinear in co-simulation** (the linear answer does not hold for "
+                  "these cases):", "", _md_table(["case", "flags"], flagged), ""]
+    parts += ["## Budget by configuration", "", _md_table(BUDGET_HEAD, c["budget"]), ""]
+    if c["worst"]:
+        parts += ["## Worst points of the sweeps", "", _md_table(WORST_HEAD, c["worst"]), ""]
+    parts += ["## All results", "", _md_table(SUMMARY_HEAD, c["summary"]), ""]
+    return "\n".join(parts)
 
 
 def write_report(out_dir, fmt: str = "html", path=None) -> Path:
@@ -345,116 +438,13 @@ def write_report(out_dir, fmt: str = "html", path=None) -> Path:
     if fmt not in FORMATS:
         raise ReportError(f"report format {fmt!r} is unknown; expected one of {FORMATS}")
     out_dir = Path(out_dir)
-    camp, summary, cases = _load(out_dir)
-    unit = camp.get("unit", "arcsec")
-    scale = ANGLE_UNITS.get(unit, 1.0)
-    instruments = camp["instruments"]
-    metric, window = _budget_metric(camp, summary)
-    budget_rows = [r for r in summary if r["metric"] == metric
-                   and _same_window(r["window"], window)]
-
-    figures = []  # (section, title, Figure)
-    if budget_rows:
-        figures.append(("budget", "Jitter budget",
-                        _budget_figure(budget_rows, instruments, unit, metric, window)))
-    for inst, axes in instruments.items():
-        event = _dominant(budget_rows, inst)
-        if event is None:
-            continue
-        series = [s for s in _case_series(out_dir, camp, event, axes) if s[2]]
-        if not series:
-            continue
-        figures.append(("history", f"{inst}: time history of {event}",
-                        _history_figure(series, inst, event, unit, scale)))
-        figures.append(("spectrum", f"{inst}: PSD and cumulative RMS, {event}",
-                        spectrum_figure(series, inst, event, unit, scale,
-                                        float(camp.get("skip", 0.0)))))
-        if len(axes) >= 2:
-            pair = _scatter_axes(axes)
-            figures.append(("scatter", f"{inst}: boresight scatter, {event}",
-                            _scatter_figure(series, inst, event, unit, scale, pair)))
-    for p in _frf_files(out_dir):
-        figures.append(("frf", f"Frequency response: {p.stem}", _frf_figure(p)))
-    sweep_figs, worst = sweep_sections(out_dir, summary, instruments, metric, window, unit,
-                                       RSS_EVENT)
-    figures += [("sweep", t, f) for t, f in sweep_figs]
-    unc_figs, unc_rows, unc_text = uncertainty_sections(out_dir, instruments, unit)
-    figures += [("uncertainty", t, f) for t, f in unc_figs]
-
-    failed = [[c["case"], c["error"]] for c in cases if c["status"] != "ok"]
-    btab = _budget_rows(summary, metric, window)
-    stab = _summary_rows(summary)
-    n_ok = sum(c["status"] == "ok" for c in cases)
-    title = f"Jitter report: {camp.get('name', out_dir.name)}"
-    win = "" if window is None else f" over {window:g} s"
-    intro = (f"{len(cases)} cases ({n_ok} finished, {len(failed)} failed). Values in {unit}; "
-             f"budget metric: {metric}{win}. RSS = root-sum-square over the events of a "
-             "configuration; change = (value − first configuration's) / first "
-             "configuration's; requirements are the campaign file's inputs; margin = "
-             "requirement − value; margin % = margin / requirement.")
-    engine_text, check_rows, flagged = _cross_check(out_dir, camp)
-    intro += " " + engine_text
-
+    contents = _contents(out_dir)
     if fmt == "html":
-        parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
-                 f"</title><style>{_CSS}</style></head><body>",
-                 f"<h1>{html.escape(title)}</h1><p>{html.escape(intro)}</p>",
-                 "<h2>Budget</h2>", _html_table(BUDGET_HEAD, btab, "budget")]
-        section = None
-        names = {"budget": "Budget chart", "history": "Time histories of dominant cases",
-                 "scatter": "Boresight image plane", "frf": "Frequency responses",
-                 "sweep": "Sweeps: jitter against the swept quantity",
-                 "spectrum": "Spectra of dominant cases",
-                 "uncertainty": "Uncertainty: the budget as a distribution"}
-        for sec, ftitle, fig in figures:
-            if sec != section:
-                parts.append(f"<h2>{names[sec]}</h2>")
-                section = sec
-            b64 = base64.b64encode(png_bytes(fig)).decode("ascii")
-            parts.append(f"<figure><img alt='{html.escape(ftitle)}' "
-                         f"src='data:image/png;base64,{b64}'><figcaption>"
-                         f"{html.escape(ftitle)}</figcaption></figure>")
-        if worst:
-            parts += ["<h2>Worst points of the sweeps</h2>",
-                      _html_table(WORST_HEAD, worst)]
-        if unc_rows:
-            parts += ["<h2>Budget at confidence levels</h2>",
-                      f"<p>{html.escape(unc_text)}</p>", _html_table(UNC_HEAD, unc_rows)]
-        if check_rows or flagged:
-            parts += ["<h2>Cross-check of the linear engine</h2>",
-                      _html_table(CHECK_HEAD, check_rows)]
-        if flagged:
-            parts += ["<p><b>Nonlinear in co-simulation</b> (the linear answer does not "
-                      "hold for these cases):</p>", _html_table(["case", "flags"], flagged)]
-        if failed:
-            parts += ["<h2>Failed cases</h2>", _html_table(["case", "error"], failed)]
-        parts += ["<h2>All results</h2>", _html_table(SUMMARY_HEAD, stab, "summary"),
-                  "</body></html>"]
         target = Path(path) if path else out_dir / "report.html"
-        target.write_text("\n".join(parts), encoding="utf-8")
+        target.write_text(_html(contents), encoding="utf-8")
         return target
-
     target = Path(path) if path else out_dir / "report.md"
     fig_dir = target.parent / "report_files"
     fig_dir.mkdir(parents=True, exist_ok=True)
-    parts = [f"# {title}", "", intro, "", "## Budget", "", _md_table(BUDGET_HEAD, btab), ""]
-    for i, (sec, ftitle, fig) in enumerate(figures):
-        name = f"{i:02d}_{sec}_{slug(ftitle)[:40]}.png"
-        (fig_dir / name).write_bytes(png_bytes(fig))
-        parts += [f"### {ftitle}", "", f"![{ftitle}](report_files/{name})", ""]
-    if worst:
-        parts += ["## Worst points of the sweeps", "", _md_table(WORST_HEAD, worst), ""]
-    if unc_rows:
-        parts += ["## Budget at confidence levels", "", unc_text, "",
-                  _md_table(UNC_HEAD, unc_rows), ""]
-    if check_rows or flagged:
-        parts += ["## Cross-check of the linear engine", "", _md_table(CHECK_HEAD, check_rows),
-                  ""]
-    if flagged:
-        parts += ["**Nonlinear in co-simulation** (the linear answer does not hold for "
-                  "these cases):", "", _md_table(["case", "flags"], flagged), ""]
-    if failed:
-        parts += ["## Failed cases", "", _md_table(["case", "error"], failed), ""]
-    parts += ["## All results", "", _md_table(SUMMARY_HEAD, stab), ""]
-    target.write_text("\n".join(parts), encoding="utf-8")
+    target.write_text(_markdown(contents, fig_dir), encoding="utf-8")
     return target

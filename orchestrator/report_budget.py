@@ -151,10 +151,13 @@ def _plain_log_labels(axis, lo, hi, minor_decades=2.0):
     # deferred: plotting only
     from matplotlib.ticker import FuncFormatter, NullFormatter
 
+    def minor(v, _):
+        mantissa = round(v / 10 ** np.floor(np.log10(v)), 6) if v > 0 else 0
+        return f"{v:g}" if mantissa in (2.0, 5.0) else ""   # 1-2-5: labels never touch
+
     axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     few_decades = np.log10(hi / lo) < minor_decades if lo > 0 else False
-    axis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}") if few_decades
-                             else NullFormatter())
+    axis.set_minor_formatter(FuncFormatter(minor) if few_decades else NullFormatter())
 
 
 def _budget_figure(rows, instruments, unit, metric, window):
@@ -172,7 +175,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
 
     grid = budget_grid(rows, instruments)
     ng, ne, nc = grid.values.shape
-    n_change = min(ng - 1, 3)
+    n_change = ng - 1   # every further configuration (budget_grid keeps _MAX_GROUPS)
     width = max(10.0, 0.62 * nc + 3.5)
     hmap_h = 0.26 * ne + 1.3
     heights = [3.6] + [hmap_h] * (1 + n_change)
@@ -215,10 +218,12 @@ def _budget_figure(rows, instruments, unit, metric, window):
     ax.set_ylabel(f"RSS ({unit})")
     ax.grid(axis="y", which="both", alpha=0.25)
     _column_axis_labels(ax, grid.columns)
-    ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=ng + 1, fontsize=8,
-              frameon=False)
+    # above the bars, as many entries a row as fit the width (never cut at an edge)
+    entry = max(0.061 * len(t) + 0.6 for t in labels + ["requirement"])   # in, at 8 pt
     change_note = f"; % = {labels[-1]} vs {labels[0]}" if ng > 1 else ""
-    ax.set_title(f"RSS total{change_note}", fontsize=10, loc="left")
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), fontsize=8, frameon=False,
+              ncol=max(1, min(ng + 1, int(0.8 * width / entry))), alignment="left",
+              title=f"RSS total{change_note}", title_fontsize=10)
     # the same right margin as the heat maps' colour bars, so the columns line up
     spare, _ = matplotlib.colorbar.make_axes_gridspec(ax, fraction=0.03, pad=0.01)
     spare.set_axis_off()
@@ -248,7 +253,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
         fig.colorbar(im, ax=a, pad=0.01, fraction=0.03).set_label("%", fontsize=8)
 
     fig.suptitle(f"Jitter budget: {metric}{win}, {unit}", fontsize=12, x=0.01, ha="left")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.4 / fig.get_figheight()))   # room for the title
     return fig
 
 

@@ -42,32 +42,31 @@ _ORDER = {"roll": 0, "pitch": 1, "yaw": 2}
 def _figure(curves, inst, axes, xlabel, unit, title):
     """One panel per axis; ``curves[axis] = [(label, x, y, requirement)]``."""
     axes = sorted(axes, key=lambda a: _ORDER.get(a, 3))
-    fig = Figure(figsize=(9, 1.9 * len(axes) + 0.9))
+    fig = Figure(figsize=(10, 1.9 * len(axes) + 0.9), layout="constrained")
     axs = fig.subplots(len(axes), 1, squeeze=False, sharex=True)
     for i, axis in enumerate(axes):
         ax = axs[i][0]
         reqs = set()
         for label, x, y, req in curves.get(axis, []):
-            line, = ax.plot(x, y, lw=1.0, label=label)
             k = int(np.argmax(y))
+            line, = ax.plot(x, y, lw=1.0,
+                            label=f"{label}: worst {y[k]:.3g} {unit} at {x[k]:.4g}")
             ax.plot(x[k], y[k], "o", color=line.get_color(), ms=5)
-            ax.annotate(f"{y[k]:.3g} at {x[k]:.4g}", (x[k], y[k]), fontsize=7,
-                        xytext=(4, 4 + 9 * len(ax.texts)), textcoords="offset points")
             if not math.isnan(req):
                 reqs.add(req)
         for req in sorted(reqs):
-            ax.axhline(req, color="crimson", ls="--", lw=1.0, label=f"requirement {req:g}")
+            ax.axhline(req, color="crimson", ls="--", lw=1.0,
+                       label=f"requirement {req:g} {unit}")
         peak = max((float(np.max(y)) for _, _, y, _ in curves.get(axis, [])), default=0.0)
         if reqs and peak > 0 and max(reqs) > 10 * peak:
             ax.set_yscale("log")   # a requirement far above the curves: keep both visible
             ax.set_ylim(bottom=peak * 1e-3)
         ax.set_ylabel(f"{axis} ({unit})")
         ax.grid(alpha=0.3)
-        if i == 0:
-            ax.legend(fontsize=7, loc="upper left")
+        # beside the panel (worst points in the labels): nothing drawn over the curves
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.005, 1.0), frameon=False)
     axs[-1][0].set_xlabel(xlabel)
     fig.suptitle(f"{inst}: {title}", fontsize=11)
-    fig.tight_layout()
     return fig
 
 

@@ -1,0 +1,302 @@
+"""Time-domain figures of a campaign report: line-of-sight histories, boresight scatter, FRFs.
+
+The histories follow what dominates each axis: one figure per instrument and dominant
+event, a panel per axis it dominates, every configuration overlaid, the worst window of
+the budget metric shaded and the requirement drawn over it (a peak-to-peak requirement
+is a band of its height centred on the worst window's mid-range: the trace leaves the
+band where the window fails).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+
+from . import metrics as M
+
+__all__ = ["Marking", "worst_window", "history_figure", "scatter_axes", "scatter_figure",
+           "frf_figure", "legend_above"]
+
+_ORDER = {"roll": 0, "pitch": 1, "yaw": 2}
+_REQ = "crimson"
+_OFF_SCALE = 4.0   # a requirement this many times the trace's range is written, not drawn
+
+
+@dataclass(frozen=True)
+class Marking:
+    """What the figures mark: the budget metric, its window and the requirements.
+
+    Parameters
+    ----------
+    metric : str
+        Budget metric kind (the worst window is drawn for ``peak_to_peak``).
+    window : float or None
+        Its window (s).
+    requirement : dict
+        ``{axis: value}`` in the report unit (NaN or absent: none).
+    skip : float
+        Transient dropped from every record before the metric (s).
+    """
+
+    metric: str
+    window: float | None
+    requirement: dict = field(default_factory=dict)
+    skip: float = 0.0
+
+    @property
+    def windowed(self) -> bool:
+        return self.metric == "peak_to_peak" and bool(self.window)
+
+    def req(self, axis) -> float:
+        v = self.requirement.get(axis)
+        return float("nan") if v is None else float(v)
+
+
+def worst_window(t, x, window: float, skip: float = 0.0):
+    """Start, end and mid-range of the window with the largest peak-to-peak.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s), uniform.
+    x : ndarray, shape (n,)
+        The record (any unit).
+    window : float
+        Window duration (s).
+    skip : float
+        Transient dropped from the start (s).
+
+    Returns
+    -------
+    (t0, t1, mid, p2p) or None
+        Window start and end (s), ``(max + min) / 2`` and ``max − min`` inside it (unit of
+        ``x``); None when the record is shorter than the window.
+    """
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    if t.size < 3:
+        return None
+    dt = float(np.median(np.diff(t)))
+    keep = t >= t[0] + skip - 0.5 * dt
+    t, x = t[keep], x[keep]
+    n = M.window_samples(window, dt)
+    if x.size < n:
+        return None
+    ranges = M.peak_to_peak_series(x, dt, window)
+    i = int(np.argmax(ranges))
+    seg = x[i:i + n]
+    return float(t[i]), float(t[i + n - 1]), float((seg.max() + seg.min()) / 2), float(
+        ranges[i])
+
+
+def legend_above(ax, handles=None, fontsize=7.5):
+    """A legend in a row above the axes (outside them: it never hides data)."""
+    handles = handles if handles is not None else ax.get_legend_handles_labels()[0]
+    if handles:
+        ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.01),
+                  ncol=min(len(handles), 4), fontsize=fontsize, frameon=False,
+                  borderaxespad=0.2)
+
+
+def _off_scale_note(ax, req, unit):
+    ax.text(0.995, 0.97, f"requirement {req:g} {unit}: off this scale", ha="right",
+            va="top", transform=ax.transAxes, fontsize=7, color=_REQ)
+
+
+def history_figure(series, inst, event, axes, unit, scale, marking: Marking, share=None):
+    """Line of sight of one event on the axes it dominates, configurations overlaid.
+
+    Parameters
+    ----------
+    series : list of (str, ndarray, dict)
+        Configuration label, times (s) and ``{axis: values (rad)}`` per case.
+    inst, event : str
+        Instrument and event (campaign names).
+    axes : list of str
+        Axes drawn, one panel each.
+    unit : str
+        Report unit.
+    scale : float
+        Factor from rad to ``unit``.
+    marking : Marking
+        Metric, window, requirements and skip.
+    share : float, optional
+        The event's mean share of the RSS² of these axes (for the title).
+
+    Returns
+    -------
+    Figure
+    """
+    # deferred: plotting only
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    fig = Figure(figsize=(9, 1.9 * len(axes) + 1.3), layout="constrained")
+    axs = fig.subplots(len(axes), 1, squeeze=False, sharex=True)[:, 0]
+    t_end = max(float(t[-1]) for _, t, _ in series)
+    t_start = min(float(t[0]) for _, t, _ in series)
+    handles = [Line2D([], [], color=f"C{k}", lw=1.2, label=label)
+               for k, (label, _, _) in enumerate(series)]
+    drawn_req, shaded = set(), False
+    for ax, axis in zip(axs, axes):
+        req = marking.req(axis)
+        spans, lo_hi = [], []
+        for k, (label, t, cols) in enumerate(series):
+            if axis not in cols:
+                continue
+            y = cols[axis] * scale
+            # the first configuration underneath and wider: equal traces show both
+            ax.plot(t, y, lw=1.6 if k == 0 else 0.8, color=f"C{k}")
+            keep = t >= t[0] + marking.skip
+            lo_hi += [float(y[keep].min()), float(y[keep].max())]
+            if marking.windowed:
+                w = worst_window(t, y, marking.window, marking.skip)
+                if w is not None:
+                    spans.append((label, f"C{k}", w))
+        data_range = (max(lo_hi) - min(lo_hi)) if lo_hi else 0.0
+        draw_req = bool(np.isfinite(req)) and req <= _OFF_SCALE * max(data_range, 1e-300)
+        for _, color, (t0, t1, mid, _) in spans:
+            ax.axvspan(t0, t1, color=color, alpha=0.12, lw=0)
+            if draw_req:
+                ax.add_patch(Rectangle((t0, mid - req / 2), t1 - t0, req, fill=False,
+                                       ec=_REQ, lw=1.1, ls="--", zorder=5))
+        shaded |= bool(spans)
+        if draw_req and spans:
+            drawn_req.add(req)
+        if np.isfinite(req) and not draw_req:
+            _off_scale_note(ax, req, unit)
+        if spans:
+            ax.set_title(f"worst {marking.window:g} s window, peak-to-peak: " + ", ".join(
+                f"{label} {w[3]:.3g}" for label, _, w in spans) + f" {unit}", fontsize=8,
+                loc="left")
+        if marking.skip > 0:
+            ax.axvspan(t_start, t_start + marking.skip, color="0.85", alpha=0.5, lw=0)
+        ax.set_ylabel(f"{axis} ({unit})")
+        ax.grid(alpha=0.3)
+        ax.set_xlim(t_start, t_end)
+    if shaded:
+        handles.append(Patch(color="0.5", alpha=0.3,
+                             label=f"worst {marking.window:g} s window (its colour)"))
+    if drawn_req:
+        handles.append(Line2D([], [], color=_REQ, ls="--", lw=1.1,
+                              label="requirement " + ", ".join(f"{r:g}" for r in sorted(
+                                  drawn_req)) + f" {unit} p-p: band over the worst window"))
+    if marking.skip > 0:
+        handles.append(Patch(color="0.85", label="transient, not in the metric"))
+    fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 3),
+               fontsize=7.5, frameon=False)
+    axs[-1].set_xlabel("time (s)")
+    what = " and ".join(axes)
+    dom = "" if share is None else f" ({100 * share:.0f} % of the RSS²)"
+    fig.suptitle(f"{inst} {what}: dominant event {event}{dom}", fontsize=11)
+    return fig
+
+
+def scatter_axes(axes):
+    """The two axes of the boresight image plane: roll–pitch when both exist (the
+    paper's Fig. 16), else the first two."""
+    names = list(axes)
+    if "roll" in names and "pitch" in names:
+        return "roll", "pitch"
+    names.sort(key=lambda a: _ORDER.get(a, 3))
+    return names[0], names[1]
+
+
+def scatter_figure(series, inst, event, unit, scale, pair, marking: Marking):
+    """Boresight in the image plane (two axes), configurations overlaid, requirement box.
+
+    The box is a peak-to-peak requirement of each axis, centred on the mid-ranges of
+    the first configuration's worst windows.
+
+    Parameters
+    ----------
+    series : list of (str, ndarray, dict)
+        As :func:`history_figure`.
+    inst, event : str
+    unit : str
+    scale : float
+    pair : (str, str)
+        Horizontal and vertical axis.
+    marking : Marking
+
+    Returns
+    -------
+    Figure
+    """
+    fig = Figure(figsize=(6, 5.6), layout="constrained")
+    ax = fig.subplots()
+    centre, extent = [], []
+    for k, (label, t, cols) in enumerate(series):
+        if pair[0] not in cols or pair[1] not in cols:
+            continue
+        keep = t >= t[0] + marking.skip
+        xy = [cols[a][keep] * scale for a in pair]
+        ax.plot(xy[0], xy[1], ".", ms=1.5, alpha=0.6, label=label, color=f"C{k}")
+        extent.append(max(float(np.ptp(v)) for v in xy))
+        if not centre:
+            for a, v in zip(pair, xy):
+                w = (worst_window(t[keep], v, marking.window) if marking.windowed else None)
+                centre.append(w[2] if w else float((v.max() + v.min()) / 2))
+    reqs = [marking.req(a) for a in pair]
+    if centre and all(np.isfinite(reqs)):
+        if max(reqs) <= _OFF_SCALE * max(max(extent), 1e-300):
+            ax.add_patch(Rectangle((centre[0] - reqs[0] / 2, centre[1] - reqs[1] / 2),
+                                   reqs[0], reqs[1], fill=False, ec=_REQ, lw=1.2, ls="--",
+                                   label=f"requirement {reqs[0]:g} × {reqs[1]:g} {unit} p-p"))
+        else:
+            _off_scale_note(ax, max(reqs), unit)
+    ax.set_xlabel(f"{pair[0]} ({unit})")
+    ax.set_ylabel(f"{pair[1]} ({unit})")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=2,
+                  fontsize=7.5, frameon=False, markerscale=6)
+    fig.suptitle(f"{inst} boresight, {pair[0]}–{pair[1]} plane: {event}", fontsize=10)
+    return fig
+
+
+def frf_figure(path: Path):
+    """Magnitudes of the frequency responses in one ``frf/`` file (log-log).
+
+    Parameters
+    ----------
+    path : Path
+        Parquet or CSV with a ``frequency`` column (Hz) and magnitude columns, or complex
+        ones as ``NAME.re`` / ``NAME.im`` pairs.
+
+    Returns
+    -------
+    Figure
+    """
+    from .report import ReportError   # deferred: report imports this module
+
+    t = pq.read_table(path) if path.suffix == ".parquet" else pacsv.read_csv(path)
+    cols = {n: t.column(n).to_numpy() for n in t.column_names}
+    fcol = next((n for n in cols if n.lower() in ("frequency", "frequency_hz", "f", "freq")),
+                None)
+    if fcol is None:
+        raise ReportError(f"FRF file {path.name} has no 'frequency' column (Hz)")
+    f = np.asarray(cols.pop(fcol), dtype=float)
+    curves = {}
+    for n in list(cols):
+        if n.endswith(".re") and n[:-3] + ".im" in cols:
+            curves[n[:-3]] = np.abs(cols[n] + 1j * cols[n[:-3] + ".im"])
+        elif not n.endswith(".im"):
+            curves[n] = np.abs(np.asarray(cols[n], dtype=float))
+    fig = Figure(figsize=(8, 4), layout="constrained")
+    ax = fig.subplots()
+    for n, mag in curves.items():
+        ax.loglog(f[f > 0], mag[f > 0], lw=1, label=n)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("magnitude")
+    ax.grid(which="both", alpha=0.3)
+    legend_above(ax)
+    fig.suptitle(path.stem.replace("_", " "), fontsize=10)
+    return fig

@@ -1,0 +1,220 @@
+"""The verdict that opens a campaign report: one row per instrument and axis.
+
+:func:`verdicts` reads the RSS rows of the budget metric and gives, per instrument and
+axis, the RSS of every configuration side by side (with sweeps: its worst point), the
+requirement, the margins, pass or fail and the dominant event.  :func:`dominant_by_axis`
+names the event that dominates each axis, which the report's time histories follow.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .campaign import RSS_EVENT
+
+__all__ = ["AxisVerdict", "verdicts", "verdict_table", "dominant_by_axis", "axes_by_event"]
+
+
+def same_window(a, b) -> bool:
+    """Whether two metric windows (s, or None) are the same."""
+    if a is None or b is None:
+        return a is None and b is None
+    return math.isclose(float(a), float(b))
+
+
+def _finite(v) -> bool:
+    return v is not None and not math.isnan(v)
+
+
+@dataclass(frozen=True)
+class AxisVerdict:
+    """The budget of one instrument axis in every configuration.
+
+    Parameters
+    ----------
+    instrument, axis : str
+        The line of sight.
+    rss : tuple of float
+        RSS over the events per configuration (report unit; NaN where missing); with
+        sweeps, the largest over the configuration's sweep points.
+    sweep : tuple of str
+        Sweep point of each configuration's RSS ("" without sweeps).
+    requirement : float
+        Requirement (report unit; NaN without one).
+    passed : tuple of bool or None
+        RSS within the requirement, per configuration (None: no requirement, or an RSS
+        missing failed events).
+    dominant : tuple of (str, float) or None
+        Event with the largest share of the RSS² and that share, per configuration.
+    """
+
+    instrument: str
+    axis: str
+    rss: tuple
+    sweep: tuple
+    requirement: float
+    passed: tuple
+    dominant: tuple
+
+    @property
+    def margin(self) -> tuple:
+        """Requirement − RSS per configuration (report unit; NaN without requirement)."""
+        return tuple(self.requirement - v if _finite(self.requirement) else math.nan
+                     for v in self.rss)
+
+
+def _budget(rows, metric, window):
+    return [r for r in rows if r["metric"] == metric and same_window(r["window"], window)]
+
+
+def verdicts(rows, metric, window):
+    """Configurations and one :class:`AxisVerdict` per instrument and axis.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Summary rows (:data:`orchestrator.campaign.summary.SUMMARY_SCHEMA`).
+    metric : str
+        Budget metric kind.
+    window : float or None
+        Its window (s).
+
+    Returns
+    -------
+    configurations : list of str
+        In campaign order ("" for a campaign without configurations).
+    lines : list of AxisVerdict
+        Instruments and axes in campaign order.
+    """
+    rows = _budget(rows, metric, window)
+    rss = [r for r in rows if r["event"] == RSS_EVENT]
+    configs = list(dict.fromkeys(r["configuration"] for r in rss))
+    lines = list(dict.fromkeys((r["instrument"], r["axis"]) for r in rss))
+    events: dict = {}
+    for r in rows:
+        if r["event"] != RSS_EVENT:
+            key = (r["instrument"], r["axis"], r["configuration"], r["sweep"])
+            events.setdefault(key, []).append(r)
+    out = []
+    for inst, axis in lines:
+        vals, sweeps, passed, dom, req = [], [], [], [], math.nan
+        for cf in configs:
+            mine = [r for r in rss if (r["instrument"], r["axis"], r["configuration"])
+                    == (inst, axis, cf)]
+            worst = max(mine, key=lambda r: r["value"] if _finite(r["value"]) else -math.inf,
+                        default=None)
+            if worst is None:
+                vals.append(math.nan), sweeps.append(""), passed.append(None)
+                dom.append(None)
+                continue
+            vals.append(worst["value"] if _finite(worst["value"]) else math.nan)
+            sweeps.append(worst["sweep"] or "")
+            passed.append(worst["pass"])
+            if _finite(worst["requirement"]):
+                req = worst["requirement"]
+            contrib = events.get((inst, axis, cf, worst["sweep"]), [])
+            top = max(contrib, key=lambda r: r.get("share") or 0.0, default=None)
+            dom.append(None if top is None else (top["event"], top.get("share") or 0.0))
+        out.append(AxisVerdict(inst, axis, tuple(vals), tuple(sweeps), req, tuple(passed),
+                               tuple(dom)))
+    return configs, out
+
+
+def _num(v, digits=4):
+    return "" if not _finite(v) else f"{v:.{digits}g}"
+
+
+def _dominant_text(dom) -> str:
+    known = [d for d in dom if d is not None]
+    if not known:
+        return ""
+    shares = " | ".join("–" if d is None else f"{100 * d[1]:.0f} %" for d in dom)
+    if len({d[0] for d in known}) == 1:
+        return f"{known[0][0]} ({shares})"
+    return " | ".join("–" if d is None else f"{d[0]} ({100 * d[1]:.0f} %)" for d in dom)
+
+
+def verdict_table(configs, lines):
+    """Header and rows of the verdict table (strings; pass cells "pass" or "FAIL").
+
+    Columns: instrument, axis, the RSS of every configuration, the change of the last
+    configuration against the first (with two or more), requirement, the margin and the
+    verdict of every configuration, and the dominant event with its share of the RSS²
+    in each configuration.
+
+    Parameters
+    ----------
+    configs : list of str
+        Configuration names (:func:`verdicts`).
+    lines : list of AxisVerdict
+
+    Returns
+    -------
+    head : list of str
+    rows : list of list of str
+    """
+    names = [c or "all cases" for c in configs]
+    many = len(configs) > 1
+    head = (["instrument", "axis"] + [f"RSS {n}" for n in names]
+            + (["change"] if many else []) + ["requirement"]
+            + [f"margin {n}" for n in names] + [f"verdict {n}" for n in names]
+            + ["dominant event (share" + (" per configuration)" if many else ")")])
+    rows = []
+    for v in lines:
+        row = [v.instrument, v.axis] + [_num(x) for x in v.rss]
+        if many:
+            a, b = v.rss[0], v.rss[-1]
+            row.append(f"{100 * (b - a) / a:+.1f} %" if _finite(a) and _finite(b) and a > 0
+                       else "")
+        row.append(_num(v.requirement))
+        row += [_num(m) for m in v.margin]
+        row += ["" if p is None else ("pass" if p else "FAIL") for p in v.passed]
+        row.append(_dominant_text(v.dominant))
+        rows.append(row)
+    return head, rows
+
+
+def dominant_by_axis(rows, metric, window, instrument):
+    """The event that dominates each axis of an instrument.
+
+    The event whose share of the RSS² summed over the configurations (and sweep
+    points) is the largest.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Summary rows.
+    metric : str
+        Budget metric kind.
+    window : float or None
+        Its window (s).
+    instrument : str
+
+    Returns
+    -------
+    dict
+        ``{axis: (event, mean share)}`` in campaign order.
+    """
+    score: dict = {}
+    groups: dict = {}
+    for r in _budget(rows, metric, window):
+        if r["instrument"] != instrument or r["event"] == RSS_EVENT:
+            continue
+        s = score.setdefault(r["axis"], {})
+        s[r["event"]] = s.get(r["event"], 0.0) + (r.get("share") or 0.0)
+        groups.setdefault(r["axis"], set()).add((r["configuration"], r["sweep"]))
+    out = {}
+    for axis, s in score.items():
+        event = max(s, key=s.get)
+        out[axis] = (event, s[event] / len(groups[axis]))
+    return out
+
+
+def axes_by_event(dominant):
+    """``{event: [axes]}`` from :func:`dominant_by_axis`: the axes sharing a dominant
+    event, events in the order of their first axis."""
+    out: dict = {}
+    for axis, (event, _) in dominant.items():
+        out.setdefault(event, []).append(axis)
+    return out

@@ -12,14 +12,14 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD
+from fmutools.archive import short_repr
 
-from ..scenario import check_keys, closest
+from ..scenario import check_keys, closest, load_toml_file
 
 #: Factor from rad to each supported reporting unit.
 ANGLE_UNITS = {
@@ -187,7 +187,11 @@ def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> C
     unit = str(head.get("unit", "arcsec"))
     if unit not in ANGLE_UNITS:
         raise CampaignError(f"[campaign] unit is {unit!r}; expected one of {sorted(ANGLE_UNITS)}")
-    skip = float(head.get("skip", 0.0))
+    skip = head.get("skip", 0.0)
+    if isinstance(skip, bool) or not isinstance(skip, (int, float)):
+        raise CampaignError(f"[campaign] skip is {short_repr(skip)}; expected a time in s "
+                            "(a number >= 0), e.g. skip = 0.5")
+    skip = float(skip)
     if not skip >= 0:
         raise CampaignError(f"[campaign] skip is {skip!r} s; expected >= 0")
     record = _record_length(scenario["experiment"], skip)
@@ -234,12 +238,7 @@ def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> C
 def read_spec(path) -> CampaignSpec:
     """Read and check a campaign TOML file (see :mod:`orchestrator.campaign`)."""
     path = Path(path)
-    if not path.is_file():
-        raise CampaignError(f"campaign file {str(path)!r} does not exist")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise CampaignError(f"campaign file {str(path)!r} is not valid TOML: {exc}") from None
+    data = load_toml_file(path, "campaign file", CampaignError)
     source = f"campaign file {str(path)!r}"
     try:
         return parse_spec(data, path.parent, source)
@@ -262,7 +261,7 @@ def _base_scenario(head: dict, name: str, base_dir: Path) -> tuple[dict, Path]:
         path = (base_dir / scen).resolve()
         if not path.is_file():
             raise CampaignError(f"base scenario {str(path)!r} of campaign {name!r} does not exist")
-        scenario = tomllib.loads(path.read_text(encoding="utf-8"))
+        scenario = load_toml_file(path, "base scenario", CampaignError)
         scenario_dir = path.parent
     elif isinstance(scen, dict):
         scenario, scenario_dir = json.loads(json.dumps(scen)), base_dir
@@ -288,6 +287,9 @@ def _sweeps(items) -> tuple:
     for i, s in enumerate(items):
         if not isinstance(s, dict) or "parameter" not in s or not s.get("values"):
             raise CampaignError(f"sweep {i + 1} needs 'parameter' and a non-empty 'values'")
+        if not isinstance(s["values"], list):
+            raise CampaignError(f"sweep {i + 1} values is {short_repr(s['values'])}; expected "
+                                "a list, e.g. values = [0.1, 0.2]")
         parameter = str(s["parameter"])
         inst, _, var = parameter.partition(".")
         if not inst or not var:

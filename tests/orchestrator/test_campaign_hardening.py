@@ -310,3 +310,37 @@ def test_the_campaign_docstring_example_is_a_valid_campaign(tmp_path):
     path.write_text(text + "\n", encoding="utf-8")
     camp = load_campaign(path)
     assert camp.name == "truss10_quick" and len(camp.cases) == 2
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda text: text.replace("skip = 0.0", 'skip = "abc"'),
+     r"campaign file '.*c.toml': \[campaign\] skip is 'abc'; expected a time in s"),
+    (lambda text: text + '\n[[sweeps]]\nparameter = "ctrl_diag.gain"\nvalues = 5\n',
+     r"campaign file '.*c.toml': sweep 1 values is 5; expected a list"),
+])
+def test_campaign_values_of_the_wrong_type_are_one_sentence(tmp_path, edit, message):
+    from orchestrator.campaign import CampaignError, load_campaign
+
+    root = Path(__file__).resolve().parents[2] / "campaigns"
+    text = (root / "truss10_quick.toml").read_text(encoding="utf-8")
+    text = text.replace('"../scenarios/', f'"{(root.parent / "scenarios").as_posix()}/')
+    path = tmp_path / "c.toml"
+    path.write_text(edit(text), encoding="utf-8")
+    with pytest.raises(CampaignError, match=message) as info:
+        load_campaign(path)
+    assert "\n" not in str(info.value)
+
+
+def test_a_broken_base_scenario_or_campaign_file_is_named(tmp_path):
+    from orchestrator.campaign import CampaignError, load_campaign
+
+    base = tmp_path / "base.toml"
+    base.write_text("[experiment\nstop = 1\n", encoding="utf-8")
+    camp = tmp_path / "c.toml"
+    camp.write_text('[campaign]\nname = "x"\nscenario = "base.toml"\n', encoding="utf-8")
+    with pytest.raises(CampaignError, match=r"base scenario '.*base.toml' is not valid TOML"):
+        load_campaign(camp)
+    camp.write_bytes(b'[campaign]\nname = "\xff"\n')
+    with pytest.raises(CampaignError, match=r"campaign file '.*c.toml' is not text "
+                       r"\(not UTF-8\) from byte 19 on line 2"):
+        load_campaign(camp)

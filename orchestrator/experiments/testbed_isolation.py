@@ -54,13 +54,18 @@ from distfmu.presets import get_preset
 from fmukit.units import ARCSEC_PER_RAD
 from fmutools import PYTHON_SUBDIR
 from fmutools.ensure import ensure_fmus as _ensure
-from piezofmu.amplifier import amplifier_preset
 from structfmu.fmuspec import spec_from_model
 from structfmu.models import eos_testbed
 from structfmu.reduced import ReducedModel
 from structfmu.statespace import first_order
 
 from ..analysis import stability_margin_db
+from ..analysis.bounds import best_real_gain, harmonic_ceiling, harmonic_reduction_pct
+from ..analysis.frf import (closed_loop_frf, isolation_bandwidth, modal_frequency_response,
+                            statespace_response, transmissibility_bands)
+from ..analysis.margins import (best_direction, is_stable, loop_gain_margins_db,
+                                poles_outside, scaled_to_margins)
+from ..analysis.sampled import amplified, amplifier_step, feedback_channels, zoh
 from ..run import run_scenario
 from . import eos
 from . import verdicts as vd
@@ -163,15 +168,11 @@ def linear_model(fmu_dir="fmus", variant="stiff"):
 def linear_plant(model, coupling=1):
     """Sampled structure + amplifier, inputs strut commands (V) and SWIR force (N).
 
-    Parameters
-    ----------
-    model : ReducedModel
-        :func:`linear_model`.
-    coupling : {1, 0}
-        The piezo FMUs' coupling: 1 (their default), the structure holds the amplifier's
-        mean force over the step for the command of that step (the trapezoidal mean of
-        ``piezofmu.actuator.step_mean``); 0, the force at the end of the last step, one
-        step later.
+    The FMU's structure (all its outputs, accelerometer low-pass included) sampled
+    exactly (:func:`orchestrator.analysis.sampled.zoh`), the P-865.10 in series with
+    each strut (:func:`~orchestrator.analysis.sampled.amplified`; ``coupling`` 1, the
+    piezo FMUs' default: the structure holds the amplifier's mean force over the step
+    for the command of that step; 0: the force at the end of the last step).
 
     Returns
     -------
@@ -182,29 +183,15 @@ def linear_plant(model, coupling=1):
     """
     # deferred: python-control takes about 1 s to load
     import control
-    from scipy.linalg import expm
-
-    from piezofmu.amplifier import linear_map
 
     A, B, C, D = first_order(model)
     ins, outs = list(model.input_names), list(model.output_names)
     ii = [ins.index(n) for n in _IN]
     oo = [outs.index(n) for n in _OUT]
-    n, m = A.shape[0], len(ii)
-    E = expm(np.block([[A, B[:, ii]], [np.zeros((m, n + m))]]) * DT)
-    G = control.ss(E[:n, :n], E[:n, n:], C[oo], D[np.ix_(oo, ii)], DT)
-    amp = amplifier_preset("P-865.10")
-    Aa, _, cx, cu = linear_map(amp, DT)
-    a = float(Aa[0, 0])
-    acts = []
-    for k in (1, 2, 3):
-        ch = model.meta["actuators"][f"iso{k}"]["ch"]
-        if coupling == 1:
-            acts.append(control.ss([[a]], [[1 - a]], [[ch * cx[0]]], [[ch * cu]], DT))
-        else:
-            acts.append(control.ss([[a]], [[1 - a]], [[ch]], [[0.0]], DT))
-    acts.append(control.ss([], [], [], [[1.0]], DT))
-    return control.series(control.append(*acts), G)
+    Ad, Bd = zoh(A, B[:, ii], DT)
+    G = control.ss(Ad, Bd, C[oo], D[np.ix_(oo, ii)], DT)
+    ch = [model.meta["actuators"][f"iso{k}"]["ch"] for k in (1, 2, 3)]
+    return amplified(G, ch, amplifier_step("P-865.10", DT, coupling))
 
 
 def _law(gain):
@@ -217,18 +204,7 @@ def _law(gain):
 
 def per_mount(gain) -> tuple:
     """``gain`` as one factor per mount (iso1, iso2, iso3): a number is the same factor at
-    every mount, a sequence of three is one factor each (each mount independent).
-
-    Parameters
-    ----------
-    gain : float or sequence of 3 floats
-        Factor(s) on the law's design gains (dimensionless).
-
-    Returns
-    -------
-    tuple of 3 floats
-        The factor of each mount.
-    """
+    every mount, a sequence of three is one factor each (each mount independent)."""
     g = tuple(float(x) for x in np.atleast_1d(gain))
     if len(g) == 1:
         return g * 3
@@ -246,410 +222,136 @@ def _laws(gain, law):
 
 
 def closed_loop(plant, mounts, gain=1.0, law=None):
-    """Plant with the isolation law (times ``gain``) closed on the ``mounts`` struts.
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`: discrete (``DT``), inputs the three strut commands (V) and
-        ``swir_fz`` (N), nine outputs.
-    mounts : sequence of int
-        Mounts (1, 2, 3 for ``iso1..3``) whose loops are closed; the others stay open.
-    gain : float or sequence of 3 floats
-        Factor on the law's design gains (dimensionless), the same at every mount or one
-        per mount (:func:`per_mount`); ignored when ``law`` is given.
-    law : control.StateSpace or sequence of 3, optional
-        Discrete law (``DT``) used at each closed mount (or one per mount): inputs
-        payload and bus acceleration (m/s^2), output strut command (V).  Default: the
-        design law (``ctrlfmu.designs.testbed_isolation``, with its Eq. (11) delay) times
-        ``gain``.
-
-    Returns
-    -------
-    control.StateSpace
-        Closed loop (positive feedback, ``u = r + K y``), inputs and outputs as ``plant``.
-    """
-    # deferred: python-control takes about 1 s to load
-    import control
-
-    laws = _laws(gain, law)
-    off = control.ss([], [], [], np.zeros((1, 2)), DT)
-    K = control.append(*[laws[k - 1] if k in mounts else off for k in (1, 2, 3)],
-                       control.ss([], [], [], np.zeros((1, 3)), DT))
-    return control.feedback(plant, K, sign=+1)
-
-
-def is_stable(sys) -> bool:
-    """All poles inside the unit circle, the free-free rigid-body poles at 1 excepted."""
-    ev = np.linalg.eigvals(np.asarray(sys.A))
-    return bool(np.all(np.abs(ev[np.abs(ev - 1) > 1e-6]) < 1.0))
+    """:func:`linear_plant` with the isolation law closed on the ``mounts`` (1, 2, 3)
+    struts, payload and bus acceleration in, strut command out (positive feedback,
+    :func:`orchestrator.analysis.sampled.feedback_channels`): ``law`` (a discrete
+    python-control system, or one per mount), by default the design law (Eq. 11 delay
+    included) times ``gain`` (one factor, or one per mount: :func:`per_mount`)."""
+    return feedback_channels(plant, _laws(gain, law), mounts)
 
 
 def gain_margin_db(plant, mounts, gain=1.0, law=None, max_factor=64.0) -> float:
-    """Gain margin (dB) of the isolation loops on ``mounts``, all scaled together.
-
-    The largest factor ``g`` (bisection to 0.5 %) such that ``g`` times the loops is still
-    stable; ``-inf`` when the nominal loop is unstable.
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    mounts : sequence of int
-        Mounts (1, 2, 3) whose loops are closed and scaled together.
-    gain : float or sequence of 3 floats
-        Factor(s) on the law's design gains, as in :func:`closed_loop`; ignored when
-        ``law`` is given.
-    law : control.StateSpace or sequence of 3, optional
-        Law(s) as in :func:`closed_loop`; default the design law times ``gain``.
-    max_factor : float
-        Upper end of the search (factors doubled from 1): once the loops are stable at a
-        factor whose double exceeds it, ``20 log10(max_factor)`` is returned.
-
-    Returns
-    -------
-    float
-        Gain margin (dB); ``-inf`` if the nominal loop is unstable.
-    """
+    """Gain margin (dB) of the loops on ``mounts``, scaled together: the largest factor
+    (doubled from 1 up to ``max_factor``, then bisection to 0.5 %) at which the sampled
+    closed loop is still stable (``20 log10(max_factor)`` past it, ``-inf`` if the
+    nominal loop is unstable); ``gain``, ``law`` as in :func:`closed_loop`."""
     base = _laws(gain, law)
 
     def stable(g):
         # deferred: python-control takes about 1 s to load
         import control
         scaled = [control.ss(b.A, b.B, g * b.C, g * b.D, DT) for b in base]
-        return is_stable(closed_loop(plant, mounts, law=scaled))
+        return is_stable(closed_loop(plant, mounts, law=scaled).A)
 
-    return _margin(stable, max_factor)
-
-
-def loop_margins_db(plant, mounts, gain=1.0) -> dict:
-    """Gain margins (dB) of the closed ``mounts``: all loops scaled together (``"all"``) and
-    each loop scaled alone with the others closed at their gains (``"iso<k>"``).
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    mounts : sequence of int
-        Mounts (1, 2, 3) whose loops are closed.
-    gain : float or sequence of 3 floats
-        Factor(s) on the law's design gains, as in :func:`closed_loop`.
-
-    Returns
-    -------
-    dict of str to float
-        ``"all"`` and one ``"iso<k>"`` per closed mount (dB; ``-inf`` if unstable); a
-        single mount gives only ``"all"`` (the same thing).
-    """
-    g = per_mount(gain)
-    out = {"all": gain_margin_db(plant, mounts, g)}
-    if len(mounts) > 1:
-        for k in mounts:
-            def alone(f, k=k):
-                scaled = [x * f if j == k else x for j, x in enumerate(g, 1)]
-                return is_stable(closed_loop(plant, mounts, scaled))
-
-            out[f"iso{k}"] = _margin(alone)
-    return out
-
-
-def limiting_modes(plant, mounts, gain=1.0, margin_db=None) -> list:
-    """The closed-loop poles that leave the unit circle first when the gains rise.
-
-    With every closed loop scaled by its gain margin plus 0.1 dB (just unstable), the
-    poles outside the unit circle: the modes that set the margin.
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    mounts : sequence of int
-        Mounts (1, 2, 3) whose loops are closed.
-    gain : float or sequence of 3 floats
-        Factor(s) on the law's design gains, as in :func:`closed_loop`.
-    margin_db : float, optional
-        The margin of the loops scaled together (:func:`gain_margin_db`); computed if
-        not given.
-
-    Returns
-    -------
-    list of dict
-        ``freq_hz`` and ``abs_z`` of each unstable pole (upper half plane), largest
-        ``|z|`` first.
-    """
-    gm = gain_margin_db(plant, mounts, gain) if margin_db is None else margin_db
-    f = 10 ** ((gm + 0.1) / 20)
-    ev = np.linalg.eigvals(np.asarray(closed_loop(plant, mounts,
-                                                  [f * x for x in per_mount(gain)]).A))
-    bad = ev[(np.abs(ev) >= 1.0) & (np.abs(ev - 1) > 1e-6) & (ev.imag >= 0)]
-    return [{"freq_hz": float(abs(np.angle(z)) / (2 * np.pi * DT)), "abs_z": float(abs(z))}
-            for z in sorted(bad, key=lambda z: -abs(z))]
-
-
-def _margin(stable, max_factor=64.0) -> float:
-    """dB of the largest factor ``f >= 1`` with ``stable(f)`` (bisection to 0.5 %);
-    ``20 log10(max_factor)`` when still stable past it."""
     return stability_margin_db(stable, 2.0, max_factor, 1.005, 20 * np.log10(max_factor))
 
 
-def _at(sys, f):
-    return np.asarray(sys(np.exp(2j * np.pi * f * DT)))
+def loop_margins_db(plant, mounts, gain=1.0) -> dict:
+    """Gain margins (dB) of the closed ``mounts``: all loops scaled together (``"all"``)
+    and, with more than one, each scaled alone with the others closed (``"iso<k>"``)
+    (:func:`orchestrator.analysis.margins.loop_gain_margins_db`)."""
+    return loop_gain_margins_db(lambda g: is_stable(closed_loop(plant, mounts, g).A),
+                                per_mount(gain), mounts, prefix="iso")
+
+
+def limiting_modes(plant, mounts, gain=1.0, margin_db=None) -> list:
+    """The closed-loop poles outside the unit circle with every loop scaled by its gain
+    margin plus 0.1 dB (:func:`orchestrator.analysis.margins.poles_outside`): the modes
+    that set the margin."""
+    gm = gain_margin_db(plant, mounts, gain) if margin_db is None else margin_db
+    f = 10 ** ((gm + 0.1) / 20)
+    return poles_outside(closed_loop(plant, mounts, [f * x for x in per_mount(gain)]).A, DT)
 
 
 def plant_frf(plant, freqs) -> np.ndarray:
-    """Frequency response of :func:`linear_plant`, shape (n_freq, 9, 4) complex.
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    freqs : float or array_like, shape (n_freq,)
-        Frequencies (Hz).
-
-    Returns
-    -------
-    ndarray of complex, shape (n_freq, 9, 4)
-        Outputs (m/s^2, rad; order of :func:`linear_plant`) per input (V, N).
-    """
-    return np.stack([_at(plant, f) for f in np.atleast_1d(freqs)])
+    """Frequency response of :func:`linear_plant` at ``freqs`` (Hz), shape (n_freq, 9, 4):
+    outputs (m/s^2, rad) per input (V, N)."""
+    return statespace_response(plant, freqs)
 
 
 def accel_frf(plant, freqs) -> np.ndarray:
-    """Acceleration rows of :func:`plant_frf` at many frequencies, fast (modal form).
-
-    One eigendecomposition instead of a solve per frequency.  The free-free rigid-body
-    modes sample to Jordan blocks at ``z = 1``, so the modal form is ill-conditioned for
-    the boresight angles; the accelerations do not see rigid-body displacement and
-    agree with :func:`plant_frf` to about 1e-8 relative.  The angle rows are
-    NaN.  Shape (n_freq, 9, 4) complex.
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    freqs : array_like, shape (n_freq,)
-        Frequencies (Hz).
-
-    Returns
-    -------
-    ndarray of complex, shape (n_freq, 9, 4)
-        As :func:`plant_frf`, with rows 6 and 7 (``los_misr_roll``, ``los_misr_pitch``)
-        NaN.
-    """
-    A, B, C, D = (np.asarray(m) for m in (plant.A, plant.B, plant.C, plant.D))
-    lam, V = np.linalg.eig(A)
-    Bv, Cv = np.linalg.solve(V, B), C @ V
-    z = np.exp(2j * np.pi * np.asarray(freqs, float) * DT)
-    H = np.einsum("oi,fi,ij->foj", Cv, 1.0 / (z[:, None] - lam[None, :]), Bv) + D
+    """:func:`plant_frf` from one eigendecomposition, the angle rows NaN, shape
+    (n_freq, 9, 4) (:func:`orchestrator.analysis.frf.modal_frequency_response`: the
+    rigid-body Jordan blocks spoil the angles; the accelerations agree to 1e-8)."""
+    H = modal_frequency_response(*(np.asarray(m) for m in (plant.A, plant.B, plant.C)),
+                                 freqs, DT, np.asarray(plant.D))
     H[:, 6:8] = np.nan
     return H
 
 
 def closed_frf(Gf, law_f, mounts) -> np.ndarray:
-    """Closed-loop response to ``swir_fz`` from open-loop responses, shape (n_freq, 9).
-
-    With ``u = K s`` (the law on each mount's payload and bus accelerometers ``s``, the
-    first six outputs), ``s = (I - G_su K)^-1 G_sd d`` and ``y = G_yd d + G_yu u``.
-
-    Parameters
-    ----------
-    Gf : ndarray, shape (n_freq, 9, 4)
-        :func:`plant_frf`.
-    law_f : ndarray, shape (n_freq, 1, 2) or (n_freq, 3, 2)
-        Law response (V per m/s^2), delay included: the same at every mount, or row
-        ``k - 1`` at mount ``k`` (:func:`law_frf`).
-    mounts : sequence of int
-        Mounts (1, 2, 3) whose loops are closed.
-
-    Returns
-    -------
-    ndarray of complex, shape (n_freq, 9)
-        The nine outputs (m/s^2, rad) per N of ``swir_fz``, loops closed.
-    """
-    out = []
-    for g, k in zip(Gf, law_f):
-        K = np.zeros((3, 6), complex)
-        for m in mounts:
-            K[m - 1, 2 * (m - 1):2 * m] = k[(m - 1) % len(k)]
-        sens = np.linalg.solve(np.eye(6) - g[:6, :3] @ K, g[:6, 3])
-        out.append(g[:, 3] + g[:, :3] @ (K @ sens))
-    return np.array(out)
+    """Closed-loop response to ``swir_fz`` (n_freq, 9) from :func:`plant_frf` ``Gf`` and
+    the law's response ``law_f`` (n_freq, 1 or 3, 2: the same at every mount, or row
+    ``k - 1`` at mount ``k``; :func:`law_frf`) on the ``mounts``
+    (:func:`orchestrator.analysis.frf.closed_loop_frf`)."""
+    K = np.zeros((len(Gf), 3, 6), complex)
+    for m in mounts:
+        K[:, m - 1, 2 * (m - 1):2 * m] = law_f[:, (m - 1) % law_f.shape[1]]
+    return closed_loop_frf(Gf, K, 6, 3, 3)
 
 
 def law_frf(freqs, gain=1.0, law=None) -> np.ndarray:
-    """Response of the isolation law (times ``gain``) at each mount, shape (n_freq, 3, 2).
-
-    Parameters
-    ----------
-    freqs : float or array_like, shape (n_freq,)
-        Frequencies (Hz).
-    gain : float or sequence of 3 floats
-        Factor(s) on the law's design gains, as in :func:`closed_loop`; ignored when
-        ``law`` is given.
-    law : control.StateSpace or sequence of 3, optional
-        Law(s) as in :func:`closed_loop`; default the design law times ``gain``.
-
-    Returns
-    -------
-    ndarray of complex, shape (n_freq, 3, 2)
-        Strut command of mount ``k`` (row ``k - 1``) per payload and per bus acceleration
-        (V per m/s^2).
-    """
-    laws = _laws(gain, law)
-    return np.stack([np.concatenate([_at(w, f) for w in laws])
-                     for f in np.atleast_1d(freqs)])
+    """Response of the isolation law at each mount (``gain``, ``law`` as in
+    :func:`closed_loop`), shape (n_freq, 3, 2): strut command of mount ``k`` (row
+    ``k - 1``) per payload and per bus acceleration (V per m/s^2)."""
+    return np.concatenate([statespace_response(w, freqs) for w in _laws(gain, law)], axis=1)
 
 
 def boresight_reduction(plant, mounts, gain=1.0, law=None, Gh=None) -> float:
-    """Steady-state reduction (%) of the boresight RMS (roll, pitch) over the harmonics.
-
-    ``Gh``: :func:`plant_frf` at ``HARMONICS`` (computed if not given).
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    mounts : sequence of int
-        Mounts (1, 2, 3) whose loops are closed.
-    gain : float or sequence of 3 floats
-        Factor(s) on the law's design gains, as in :func:`closed_loop`; ignored when
-        ``law`` is given.
-    law : control.StateSpace or sequence of 3, optional
-        Law(s) as in :func:`closed_loop`; default the design law times ``gain``.
-    Gh : ndarray of complex, shape (3, 9, 4), optional
-        :func:`plant_frf` at the ``HARMONICS`` frequencies (22, 44, 66 Hz), in that order.
-
-    Returns
-    -------
-    float
-        ``100 (1 - rms_closed / rms_open)`` (%) of the linear model's boresight (roll and
-        pitch), the harmonics weighted by their ``HARMONICS`` amplitudes (N).
-    """
+    """Steady-state reduction (%) of the boresight RMS (roll, pitch) over ``HARMONICS``,
+    weighted by their amplitudes (:func:`orchestrator.analysis.bounds.
+    harmonic_reduction_pct`); ``Gh``: :func:`plant_frf` at ``HARMONICS``."""
     f = np.array(list(HARMONICS))
-    a = np.array(list(HARMONICS.values()))
     Gh = plant_frf(plant, f) if Gh is None else Gh
     yc = closed_frf(Gh, law_frf(f, gain, law), mounts)
-    num = np.sum(a[:, None] ** 2 * np.abs(yc[:, 6:8]) ** 2)
-    den = np.sum(a[:, None] ** 2 * np.abs(Gh[:, 6:8, 3]) ** 2)
-    return float(100 * (1 - np.sqrt(num / den)))
+    return harmonic_reduction_pct(Gh[:, 6:8, 3], yc[:, 6:8], list(HARMONICS.values()))
 
 
 def ideal_ceiling(plant, mounts, Gh=None) -> dict:
-    """Most any controller at the ``mounts`` struts could remove from the boresight (%).
-
-    ``accel_null``: the payload accelerometers of those mounts held at exactly zero at
-    each harmonic (perfect cancellation of the fed-back signals); ``optimal``: the
-    least-squares best strut commands at each harmonic (a bound for any controller).
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    mounts : sequence of int
-        Mounts (1, 2, 3) whose struts may act.
-    Gh : ndarray of complex, shape (3, 9, 4), optional
-        :func:`plant_frf` at the ``HARMONICS`` frequencies; computed if not given.
-
-    Returns
-    -------
-    dict of str to float
-        ``accel_null`` and ``optimal``: reduction of the boresight RMS (%), the harmonics
-        weighted by their ``HARMONICS`` amplitudes (N).
-    """
+    """Most any controller at the ``mounts`` struts could remove from the boresight (%,
+    :func:`orchestrator.analysis.bounds.harmonic_ceiling` at ``HARMONICS``):
+    ``accel_null`` holds their payload accelerometers at zero, ``optimal`` is the
+    least-squares best strut commands."""
     cols = [k - 1 for k in mounts]
     rows = [2 * (k - 1) for k in mounts]
     Gh = plant_frf(plant, list(HARMONICS)) if Gh is None else Gh
-    den = null = opt = 0.0
-    for H, a in zip(Gh, HARMONICS.values()):
-        b, Hb = H[6:8, 3], H[6:8][:, cols]
-        v = -np.linalg.solve(H[np.ix_(rows, cols)], H[rows, 3])
-        w = np.linalg.lstsq(Hb, -b, rcond=None)[0]
-        den += a**2 * np.sum(np.abs(b) ** 2)
-        null += a**2 * np.sum(np.abs(b + Hb @ v) ** 2)
-        opt += a**2 * np.sum(np.abs(b + Hb @ w) ** 2)
-    return {"accel_null": float(100 * (1 - np.sqrt(null / den))),
-            "optimal": float(100 * (1 - np.sqrt(opt / den)))}
+    c = harmonic_ceiling(Gh[:, 6:8, 3], Gh[:, 6:8][:, :, cols], list(HARMONICS.values()),
+                         Gh[:, rows, 3], Gh[:, rows][:, :, cols])
+    return {"accel_null": c["cancel"], "optimal": c["optimal"]}
+
+
+def _design_law(kp, kb, delayed=True):
+    return to_statespace(design("testbed_isolation", payload_gain=kp, bus_gain=kb,
+                                delayed=delayed))
 
 
 def design_gains(plant, mounts, n_dir=36, margin_db=6.0, delayed=True):
-    """Best (payload, bus) gains at ``margin_db`` gain margin (slow: ~n_dir x 12 eigs).
-
-    For each direction ``(cos t, sin t)`` the stability limit is found by bisection and
-    the gains are set ``margin_db`` below it; returns ``(reduction %, payload, bus)`` of
-    the best direction.  ``delayed=False``: the law without its Eq. (11) sample.
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    mounts : sequence of int
-        Mounts (1, 2, 3) closed, all with the same gains.
-    n_dir : int
-        Number of directions ``t`` scanned, evenly spaced over [0, 2 pi).
-    margin_db : float
-        Gain margin kept below each direction's stability limit (dB).
-    delayed : bool
-        Law with the one-sample delay of Eq. (11) (default) or acting on the current
-        sample.
-
-    Returns
-    -------
-    (reduction, payload_gain, bus_gain) : tuple of float
-        Boresight reduction (%, :func:`boresight_reduction`) and the gains of the best
-        direction (V per m/s^2 at the band centre); ``(-inf, 0, 0)`` if every direction
-        is unstable at unit gains.
-    """
-    best = (-np.inf, 0.0, 0.0)
-    for t in np.linspace(0, 2 * np.pi, n_dir, endpoint=False):
-        # unit gains: 100 V per m/s^2 is already unstable in every direction on the
-        # stiff model (gain_margin_db then gives -inf and the scan returned zeros)
-        kp, kb = np.cos(t), np.sin(t)
-        law = to_statespace(design("testbed_isolation", payload_gain=kp, bus_gain=kb,
-                                   delayed=delayed))
-        gm = gain_margin_db(plant, mounts, law=law, max_factor=1e6)
-        if not np.isfinite(gm):
-            continue
-        g = 10 ** ((gm - margin_db) / 20)
-        law = to_statespace(design("testbed_isolation", payload_gain=g * kp,
-                                   bus_gain=g * kb, delayed=delayed))
-        best = max(best, (boresight_reduction(plant, mounts, law=law), g * kp, g * kb))
-    return best
+    """Best (payload, bus) gains at ``margin_db`` gain margin over ``n_dir`` directions
+    (:func:`orchestrator.analysis.margins.best_direction`; slow: ~n_dir x 12 eigs);
+    ``(reduction %, payload, bus)``, ``delayed=False``: the law without its Eq. (11)
+    sample."""
+    # unit gains: 100 V per m/s^2 is already unstable in every direction on the stiff
+    # model (gain_margin_db then gives -inf and the scan returned zeros)
+    return best_direction(
+        lambda kp, kb: gain_margin_db(plant, mounts, law=_design_law(kp, kb, delayed),
+                                      max_factor=1e6),
+        lambda kp, kb: boresight_reduction(plant, mounts, law=_design_law(kp, kb, delayed)),
+        n_dir, margin_db)
 
 
 def feedforward_bound(plant, mount=3, Gh=None) -> float:
-    """Most the stated law could remove as pure feedforward of the bus-side accelerometer.
-
-    The law's shape (band-pass, zeros, poles, delay) on the *open-loop* bus-side
-    acceleration of ``mount`` (as if the strut's own force did not reach that
-    accelerometer), times the best real gain of either sign: a bound on what the bus path
-    of the stated compensator can do at the harmonics, whatever the gain margin.
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    mount : int
-        Mount (1, 2, 3) whose strut acts.
-    Gh : ndarray of complex, shape (3, 9, 4), optional
-        :func:`plant_frf` at the ``HARMONICS`` frequencies; computed if not given.
-
-    Returns
-    -------
-    float
-        Reduction of the boresight RMS (%), the harmonics weighted as in
-        :func:`boresight_reduction`.
-    """
+    """Most the stated law could remove (%) as pure feedforward of the bus-side
+    accelerometer of ``mount``: its shape on the *open-loop* bus acceleration times the
+    best real gain of either sign (:func:`orchestrator.analysis.bounds.best_real_gain`),
+    the harmonics weighted as in :func:`boresight_reduction`; whatever the margin."""
     f = np.array(list(HARMONICS))
     a = np.array(list(HARMONICS.values()))
     Gh = plant_frf(plant, f) if Gh is None else Gh
-    law = to_statespace(design("testbed_isolation", payload_gain=0.0, bus_gain=1.0))
-    c = np.array([_at(law, x)[0, 1] for x in f])
-    # boresight with gain k: b + k e, e = G_yu c a_bus; best real k by least squares
+    c = statespace_response(_design_law(0.0, 1.0), f)[:, 0, 1]
+    # boresight with gain k: b + k e, e = G_yu c a_bus
     b = (a[:, None] * Gh[:, 6:8, 3]).ravel()
     e = (a[:, None] * Gh[:, 6:8, mount - 1] * (c * Gh[:, 2 * mount - 1, 3])[:, None]).ravel()
-    er = np.concatenate([e.real, e.imag])
-    k = -np.dot(np.concatenate([b.real, b.imag]), er) / np.dot(er, er)
-    return float(100 * (1 - np.linalg.norm(b + k * e) / np.linalg.norm(b)))
+    return best_real_gain(b, e)[1]
 
 
 #: Relative factors of iso1 and iso2 (to mount #3's) that :func:`design_mount_gains` scans;
@@ -658,54 +360,23 @@ MOUNT_RATIOS = (-1.0, -0.5, -0.25, -0.1, 0.1, 0.25, 0.5, 1.0)
 
 
 def design_mount_gains(plant, gain3=1.0, ratios=MOUNT_RATIOS, margin_db=6.0, Gh=None):
-    """Per-mount factors for all three loops closed, each mount independent (slow: some
-    minutes; :func:`loop_margins_db` for every pair of ``ratios``).
+    """Per-mount factors for all three loops closed, each mount independent (slow).
 
-    The paper controls the three isolator mounts independently, so each gets its own
-    factor on the design law.  For every pair ``(r1, r2)`` of ``ratios`` the factors
-    ``(r1, r2, 1) gain3`` are scaled together until every margin of
-    :func:`loop_margins_db` (the three loops scaled together, and each scaled alone with
-    the others closed) is at least ``margin_db``; the pair whose scaled factors remove the
-    most boresight jitter wins.
-
-    Parameters
-    ----------
-    plant : control.StateSpace
-        :func:`linear_plant`.
-    gain3 : float
-        Mount #3's factor the ratios refer to (dimensionless; its sign is kept).
-    ratios : sequence of float
-        Factors of iso1 and iso2 relative to mount #3's.
-    margin_db : float
-        Smallest gain margin allowed (dB).
-    Gh : ndarray of complex, shape (3, 9, 4), optional
-        :func:`plant_frf` at the ``HARMONICS`` frequencies; computed if not given.
-
-    Returns
-    -------
-    (reduction, factors) : tuple of float and tuple of 3 floats
-        Boresight reduction (%, :func:`boresight_reduction`) and the factors of iso1,
-        iso2 and iso3; ``(-inf, (0, 0, 0))`` if every pair is unstable.
+    For every pair ``(r1, r2)`` of ``ratios`` the factors ``(r1, r2, 1) gain3`` are
+    scaled until every margin of :func:`loop_margins_db` is at least ``margin_db``
+    (:func:`orchestrator.analysis.margins.scaled_to_margins`); the pair removing the most
+    boresight jitter wins: ``(reduction %, factors)``, ``(-inf, (0, 0, 0))`` if none.
     """
     Gh = plant_frf(plant, list(HARMONICS)) if Gh is None else Gh
     best = (-np.inf, (0.0, 0.0, 0.0))
     for r1 in ratios:
         for r2 in ratios:
-            g = np.array([r1, r2, 1.0]) * gain3
-            # the joint limit first, then down until each loop alone keeps margin_db
-            gm = gain_margin_db(plant, (1, 2, 3), g, max_factor=1e6)
-            if not np.isfinite(gm):
-                continue
-            g = g * 10 ** ((gm - margin_db) / 20)
-            for _ in range(8):
-                worst = min(loop_margins_db(plant, (1, 2, 3), g).values())
-                if worst >= margin_db:
-                    break
-                g = g * 10 ** ((worst - margin_db - 0.05) / 20)
-            else:
-                continue
-            g = tuple(float(x) for x in g)
-            best = max(best, (boresight_reduction(plant, (1, 2, 3), g, Gh=Gh), g))
+            g = scaled_to_margins(
+                np.array([r1, r2, 1.0]) * gain3,
+                lambda g: gain_margin_db(plant, (1, 2, 3), g, max_factor=1e6),
+                lambda g: loop_margins_db(plant, (1, 2, 3), g), margin_db)
+            if g is not None:
+                best = max(best, (boresight_reduction(plant, (1, 2, 3), g, Gh=Gh), g))
     return best
 
 
@@ -716,27 +387,12 @@ def loop_shape(Gf, freqs=FREQS, mount=3) -> dict:
     the other mounts open; positive-feedback convention, ``L = -|L|`` attenuates) at
     22 Hz, the first frequency above 30 Hz where its phase crosses 0 (there ``|L| = 1`` is
     the stability limit), ``|L|`` there, their ratio, and ``|L(22 Hz)|`` at 6 dB gain
-    margin (``0.5 / ratio``: the most this loop can have at 22 Hz).
-
-    Parameters
-    ----------
-    Gf : ndarray, shape (n_freq, 9, 4)
-        :func:`plant_frf` or :func:`accel_frf` at ``freqs`` (Hz).
-    freqs : ndarray, shape (n_freq,)
-        Frequencies of ``Gf``, ascending (Hz); default ``FREQS``.
-    mount : int
-        Mount (1, 2, 3) whose payload loop is examined.
-
-    Returns
-    -------
-    dict
-        ``loop_phase_22hz_deg`` (deg) and ``phase_crossover_hz`` (Hz; None when the phase
-        does not cross 0 above 30 Hz, and then no other keys), ``crossover_to_22hz_ratio``
-        and ``max_loop_gain_22hz_at_6db`` (dimensionless).
+    margin (``0.5 / ratio``).  ``Gf``: :func:`plant_frf` or :func:`accel_frf` at
+    ``freqs`` (Hz, ascending).
     """
-    law = to_statespace(design("testbed_isolation", payload_gain=1.0, bus_gain=0.0))
     rows = [2 * (mount - 1), 2 * (mount - 1) + 1]
-    vals = np.array([(_at(law, f) @ g[rows, mount - 1])[0] for f, g in zip(freqs, Gf)])
+    lf = statespace_response(_design_law(1.0, 0.0), freqs)
+    vals = np.array([(k @ g[rows, mount - 1])[0] for k, g in zip(lf, Gf)])
     l22 = np.interp(22.0, freqs, vals.real) + 1j * np.interp(22.0, freqs, vals.imag)
     cross = np.flatnonzero((freqs > 30.0)[1:] & (np.sign(vals.imag[1:]) != np.sign(vals.imag[:-1]))
                            & (vals.real[1:] > 0))
@@ -750,53 +406,12 @@ def loop_shape(Gf, freqs=FREQS, mount=3) -> dict:
             "crossover_to_22hz_ratio": ratio, "max_loop_gain_22hz_at_6db": 0.5 / ratio}
 
 
-def isolation_bandwidth(ratio, freqs=FREQS):
-    """Upper end (Hz) of the band around 22 Hz where open/closed > 1; None if 22 Hz is not
-    isolated.
-
-    Parameters
-    ----------
-    ratio : ndarray, shape (n_freq,)
-        Open- over closed-loop magnitude at ``freqs`` (dimensionless), e.g. of
-        accelerometer #6 (:func:`frequency_responses`).
-    freqs : ndarray, shape (n_freq,)
-        Frequencies, ascending (Hz); default ``FREQS``.
-
-    Returns
-    -------
-    float or None
-        The highest frequency of ``freqs`` (Hz) up to which ``ratio`` stays above 1 from
-        the one nearest 22 Hz (``freqs[-1]`` if it never falls to 1).
-    """
-    k = int(np.argmin(np.abs(freqs - 22.0)))
-    if ratio[k] <= 1.0:
-        return None
-    above = np.flatnonzero(ratio[k:] <= 1.0)
-    return float(freqs[k + above[0] - 1]) if above.size else float(freqs[-1])
-
-
 def frequency_responses(Gf, mounts, gain, freqs=FREQS):
-    """Accelerometer #6 (payload side of mount #3) per SWIR vertical force, open and
-    closed loop (m/s^2 per N), shape (2, n_freq) complex; ``Gf`` from :func:`plant_frf`
-    or :func:`accel_frf` (the loops read accelerations only).
-
-    Parameters
-    ----------
-    Gf : ndarray of complex, shape (n_freq, 9, 4)
-        :func:`plant_frf` or :func:`accel_frf` at ``freqs``.
-    mounts : sequence of int
-        Mounts (1, 2, 3) closed for the closed-loop response.
-    gain : float or sequence of 3 floats
-        Factor(s) on the law's design gains, as in :func:`closed_loop`.
-    freqs : array_like, shape (n_freq,)
-        Frequencies (Hz); default ``FREQS``.
-
-    Returns
-    -------
-    ndarray of complex, shape (2, n_freq)
-        Open loop (row 0) and closed loop (row 1), (m/s^2)/N.
-    """
+    """Accelerometer #6 (payload side of mount #3) per SWIR vertical force, open (row 0)
+    and closed loop (row 1), (m/s^2)/N, shape (2, n_freq) complex; ``Gf`` from
+    :func:`plant_frf` or :func:`accel_frf` at ``freqs``."""
     return np.array([Gf[:, 8, 3], closed_frf(Gf, law_frf(freqs, gain), mounts)[:, 8]])
+
 
 
 # -- co-simulation -----------------------------------------------------------------------
@@ -854,31 +469,6 @@ def _off_rms(Gh):
     a = np.array(list(HARMONICS.values()))
     return float(np.sqrt(np.sum(a[:, None] ** 2 * np.abs(Gh[:, 6:8, 3]) ** 2) / 2)
                  * ARCSEC_PER_RAD)
-
-
-def transmissibility_bands(freqs, ratio) -> dict:
-    """Where the isolation attenuates and where it amplifies (Fig. 14's claim).
-
-    Parameters
-    ----------
-    freqs : ndarray, shape (n,)
-        Frequencies (Hz).
-    ratio : ndarray, shape (n,)
-        Open-loop over closed-loop accelerometer #6 (the figure's y axis).
-
-    Returns
-    -------
-    dict
-        ``below_1_hz``: the frequency intervals where the transmissibility (closed over
-        open) is below 1; ``max``, ``max_hz``: its largest value and where.
-    """
-    freqs = np.asarray(freqs, float)
-    t = 1.0 / np.asarray(ratio, float)
-    below = np.r_[False, t < 1.0, False]
-    edges = np.flatnonzero(np.diff(below.astype(int)))   # starts, then ends, alternating
-    bands = [[float(freqs[a]), float(freqs[b - 1])] for a, b in zip(edges[::2], edges[1::2])]
-    k = int(np.argmax(t))
-    return {"below_1_hz": bands, "max": float(t[k]), "max_hz": float(freqs[k])}
 
 
 def testbed_verdicts(data) -> list:
@@ -954,7 +544,7 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
     Gf = accel_frf(plant, FREQS)
     frf = {k: frequency_responses(Gf, MOUNTS[k], gains[k]) for k in MOUNTS}
     ratio = np.abs(frf["mount3"][0]) / np.abs(frf["mount3"][1])
-    bw = isolation_bandwidth(ratio)
+    bw = isolation_bandwidth(FREQS, ratio, 22.0)
     shape = loop_shape(Gf)
     ff = feedforward_bound(plant, 3, Gh)
     stop = 6.0 if quick else 9.6

@@ -112,19 +112,42 @@ def cycles_to_fraction(t, y, f_hz, t0=T_EXC, fraction=0.1):
     float or None
         Cycles of ``f_hz`` from ``t0`` to the first time below the threshold.
     """
+    peak, ref = envelope(t, y, f_hz, t0)
+    after = np.flatnonzero((t >= t0) & (peak < fraction * ref))
+    if not after.size:
+        return None
+    return float((t[after[0]] - t0) * f_hz)
+
+
+def envelope(t, y, f_hz, t0=T_EXC):
+    """Forward-looking one-period running peak of ``|y|`` and its reference value.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s), evenly spaced.
+    y : ndarray, shape (n,)
+        The signal (any unit).
+    f_hz : float
+        Mode frequency (Hz): the running window is one period.
+    t0 : float
+        End of the excitation (s).
+
+    Returns
+    -------
+    peak : ndarray, shape (n,)
+        ``max |y|`` over the period starting at each sample (unit of ``y``).
+    ref : float
+        ``max |y|`` over the last period before ``t0``.
+    """
     # deferred: scipy takes about 1 s to load
     from scipy.ndimage import maximum_filter1d
 
     dt = t[1] - t[0]
     n = max(1, int(round(1.0 / (f_hz * dt))))
     a = np.abs(y)
-    ref = a[(t > t0 - 1.0 / f_hz) & (t <= t0)].max()
-    # forward-looking running max over one period
-    peak = maximum_filter1d(a, size=n, origin=-(n // 2))
-    after = np.flatnonzero((t >= t0) & (peak < fraction * ref))
-    if not after.size:
-        return None
-    return float((t[after[0]] - t0) * f_hz)
+    ref = float(a[(t > t0 - 1.0 / f_hz) & (t <= t0)].max())
+    return maximum_filter1d(a, size=n, origin=-(n // 2)), ref
 
 
 CONTROLLERS = ("ctrl_diag", "ctrl_long")
@@ -348,8 +371,72 @@ def compute(fmu_dir="fmus", quick=False, fmu_kind="native"):
             "peak_voltage_v": float(volts), "saturated": bool(sat)}
 
 
+FIGURES = {"ol": ("open loop (Fig. 5)", "truss-decay-open-loop.png"),
+           "cl": ("250 Hz strain feedback from 4.5 s (Fig. 6)", "truss-decay-closed-loop.png")}
+
+
+def figures(data):
+    """The gauge strains of both runs (Figs. 5 and 6), as Figures.
+
+    Each panel draws the strain, its one-period envelope (:func:`envelope`), the 10 %
+    level of the last excitation period's peak and where the envelope stays below it
+    ("cycles to 90 %").  The controlled decay is drawn over its first cycles only (two
+    periods before the switch-on to twice the decay, at least four cycles): on the
+    whole record it would hide in a sliver of the axis.
+
+    Parameters
+    ----------
+    data : dict
+        The result of :func:`compute`.
+
+    Returns
+    -------
+    dict
+        ``{file name: Figure}``.
+    """
+    # deferred: plotting only
+    from matplotlib.figure import Figure
+
+    out = {}
+    for key, (title, fname) in FIGURES.items():
+        tab = data[key]
+        t = np.asarray(tab["time"], float)
+        cycles = data["closed_loop_cycles_to_90pct" if key == "cl"
+                      else "open_loop_cycles_to_90pct"]
+        fig = Figure(figsize=(8, 5.5), layout="constrained")
+        axes = fig.subplots(2, 1, sharex=key == "ol")
+        for ax, (member, (ref_var, f0)) in zip(axes, MODES.items()):
+            y = np.asarray(tab[ref_var], float) * 1e6
+            peak, ref = envelope(t, y, f0)
+            c = cycles.get(member)
+            ax.plot(t, y, lw=0.7, color="C0", label="strain")
+            ax.plot(t[t >= T_EXC], peak[t >= T_EXC], lw=1.2, color="C1",
+                    label="envelope (one-period peak)")
+            ax.axhline(0.1 * ref, color="crimson", ls="--", lw=0.9, label="10 % level")
+            ax.axhline(-0.1 * ref, color="crimson", ls="--", lw=0.9)
+            ax.axvline(T_EXC, color="0.5", lw=0.8, ls="--")
+            if c is not None:
+                ax.axvline(T_EXC + c / f0, color="crimson", lw=0.8)
+                ax.annotate(f"90 % decay: {c:.2f} cycles", (T_EXC + c / f0, 1.0),
+                            xycoords=("data", "axes fraction"), xytext=(4, -12),
+                            textcoords="offset points", fontsize=8, color="crimson")
+            if key == "cl":
+                span = max(4.0, 2 * (c or 2.0)) / f0
+                ax.set_xlim(T_EXC - 2 / f0, T_EXC + span)
+                ax.xaxis.set_major_formatter(lambda v, _: f"{v - T_EXC:+.2f}")
+            ax.set_ylabel(f"{member} strain (µε)")
+            ax.grid(alpha=0.3)
+        axes[0].legend(fontsize=7.5, loc="lower left", bbox_to_anchor=(0, 1.0), ncol=3,
+                       frameon=False)
+        fig.suptitle(f"Ten-bay truss, {title}", fontsize=11)
+        axes[-1].set_xlabel("time after the switch-on at 4.5 s (s)" if key == "cl"
+                            else "time (s)")
+        out[fname] = fig
+    return out
+
+
 def plot(data, out_dir):
-    """Draw the gauge strains of both runs (Figs. 5 and 6).
+    """Draw :func:`figures` into ``out_dir`` (PNG).
 
     Parameters
     ----------
@@ -359,27 +446,11 @@ def plot(data, out_dir):
         Folder for ``truss-decay-open-loop.png`` and ``truss-decay-closed-loop.png``.
     """
     # deferred: plotting only
-    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    matplotlib.use("Agg")
-    # deferred: plotting only
-    import matplotlib.pyplot as plt
-
-    for key, title, fname in (("ol", "open loop (Fig. 5)", "truss-decay-open-loop.png"),
-                              ("cl", "250 Hz strain feedback from 4.5 s (Fig. 6)",
-                               "truss-decay-closed-loop.png")):
-        tab = data[key]
-        fig, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
-        for ax, (member, (ref, _)) in zip(axes, MODES.items()):
-            ax.plot(tab["time"], tab[ref] * 1e6, lw=0.6)
-            ax.axvline(T_EXC, color="0.5", lw=0.8, ls="--")
-            ax.set_ylabel(f"{member} strain (µε)")
-            ax.grid(alpha=0.3)
-        axes[0].set_title(f"Ten-bay truss, {title}")
-        axes[-1].set_xlabel("time (s)")
-        fig.tight_layout()
-        fig.savefig(out_dir / fname, dpi=110)
-        plt.close(fig)
+    for fname, fig in figures(data).items():
+        FigureCanvasAgg(fig)
+        fig.savefig(Path(out_dir) / fname, dpi=110)
 
 
 def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native") -> dict:

@@ -78,8 +78,56 @@ def compute(n_freq: int = 3000):
     }
 
 
+def phase_deg(H):
+    """Unwrapped phase of a frequency response (deg): no jump of 360° between neighbours.
+
+    Parameters
+    ----------
+    H : array_like of complex, shape (n_f,)
+
+    Returns
+    -------
+    ndarray, shape (n_f,)
+    """
+    return np.degrees(np.unwrap(np.angle(np.asarray(H))))
+
+
+def figure(data):
+    """Magnitude and unwrapped phase of the three FRFs (Fig. 4), as a Figure.
+
+    Parameters
+    ----------
+    data : dict
+        The result of :func:`compute`.
+    """
+    # deferred: plotting only
+    from matplotlib.figure import Figure
+
+    f = data["freqs_hz"]
+    fig = Figure(figsize=(7.5, 6), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    for key, label, style in (("H_full", "full FEM", "k-"),
+                              ("H_modal", "6 modes", "C3--"),
+                              ("H_ritz", "6 modes + 2 Ritz vectors", "C0:")):
+        ax1.loglog(f, np.abs(data[key]) * 1e6, style, label=label, lw=1.4)
+        ax2.semilogx(f, phase_deg(data[key]), style, lw=1.2, label=label)
+    if data["zero_hz_full"]:
+        ax1.axvline(data["zero_hz_full"], color="0.6", lw=0.8)
+        ax1.annotate(f"zero {data['zero_hz_full']:.2f} Hz", (data["zero_hz_full"], 0),
+                     xycoords=("data", "axes fraction"), xytext=(4, 8),
+                     textcoords="offset points", fontsize=8)
+    ax1.set_ylabel("|strain / voltage| (µε/V)")
+    ax2.set_ylabel("phase, unwrapped (deg)")
+    ax2.set_xlabel("frequency (Hz)")
+    ax1.set_title("Ten-bay truss: diagonal voltage → diagonal strain gauge (Fig. 4)")
+    ax1.legend(fontsize=8)
+    ax1.grid(True, which="both", alpha=0.3)
+    ax2.grid(True, which="both", alpha=0.3)
+    return fig
+
+
 def plot(data, path):
-    """Draw magnitude and phase of the three FRFs (Fig. 4).
+    """Draw :func:`figure` into a PNG file.
 
     Parameters
     ----------
@@ -89,34 +137,11 @@ def plot(data, path):
         PNG file to write.
     """
     # deferred: plotting only
-    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    matplotlib.use("Agg")
-    # deferred: plotting only
-    import matplotlib.pyplot as plt
-
-    f = data["freqs_hz"]
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.5, 6), sharex=True)
-    for key, label, style in (("H_full", "full FEM", "k-"),
-                              ("H_modal", "6 modes", "C3--"),
-                              ("H_ritz", "6 modes + 2 Ritz vectors", "C0:")):
-        ax1.loglog(f, np.abs(data[key]) * 1e6, style, label=label, lw=1.4)
-        ax2.semilogx(f, np.degrees(np.angle(data[key])), style, lw=1.2)
-    if data["zero_hz_full"]:
-        ax1.axvline(data["zero_hz_full"], color="0.6", lw=0.8)
-        ax1.annotate(f"zero {data['zero_hz_full']:.2f} Hz", (data["zero_hz_full"], 0),
-                     xycoords=("data", "axes fraction"), xytext=(4, 8),
-                     textcoords="offset points", fontsize=8)
-    ax1.set_ylabel("|strain / voltage| (µε/V)")
-    ax2.set_ylabel("phase (deg)")
-    ax2.set_xlabel("frequency (Hz)")
-    ax1.set_title("Ten-bay truss: diagonal voltage → diagonal strain gauge (Fig. 4)")
-    ax1.legend(fontsize=8)
-    ax1.grid(True, which="both", alpha=0.3)
-    ax2.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
+    fig = figure(data)
+    FigureCanvasAgg(fig)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native") -> dict:

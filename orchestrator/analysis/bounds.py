@@ -11,7 +11,8 @@ responses a design study computes itself (:mod:`orchestrator.analysis.frf`):
   feedforward path of a given shape could do);
 * :func:`least_squares_inputs` and :func:`least_squares_records` -- per-frequency
   regularised least-squares inputs that cancel a recorded response, and the records
-  they give (a non-causal, periodic bound, swept over the regularisation).
+  they give (a non-causal, periodic bound, swept over the regularisation), and
+  :func:`record_ceiling` the best of them, exact and within limits.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["harmonic_reduction_pct", "harmonic_ceiling", "best_real_gain",
-           "least_squares_inputs", "least_squares_records"]
+           "least_squares_inputs", "least_squares_records", "record_ceiling"]
 
 
 def harmonic_reduction_pct(open_loop, closed_loop, amplitudes) -> float:
@@ -185,3 +186,53 @@ def least_squares_records(G, y, rhos, minimise=None, others=()):
         oo = (None if Od is None
               else np.fft.irfft((Od + np.einsum("fki,fi->fk", Go, F)).T, n, axis=1))
         yield rho, yy, oo, np.fft.irfft(F.T, n, axis=1)
+
+
+def record_ceiling(G, y, rhos, metric, others=(), fits=None) -> dict:
+    """The least-squares ceiling of a record: exact cancellation, and the best within limits.
+
+    With every output minimised and ``rho = rhos[0]`` (0: exact, minimum-norm inputs),
+    and for each output alone over all ``rhos`` (:func:`least_squares_records`), the
+    reduction of ``metric`` per output, the largest ``|others|`` and the largest
+    ``|inputs|``; per output the regularisation whose row ``fits`` and reduces that
+    output most.
+
+    Parameters
+    ----------
+    G : ndarray of complex, shape (n // 2 + 1, n_y + n_o, n_in)
+        As :func:`least_squares_records`.
+    y : ndarray, shape (n_y, n)
+        Records of the outputs, equally spaced.
+    rhos : sequence of float
+        Relative regularisations, the first used for the exact row (0 normally).
+    metric : callable
+        ``metric(record) -> float`` of one output's record, shape (n,) (e.g. a windowed
+        peak-to-peak).
+    others : ndarray, shape (n_o, n), optional
+        Records of constrained outputs (e.g. strokes).
+    fits : callable, optional
+        ``fits(row) -> bool`` on a row (below); default every row fits.
+
+    Returns
+    -------
+    dict
+        ``"exact"``: the row of all outputs minimised at ``rhos[0]``; ``"best"``: per
+        output its best fitting row, minimising it alone (None when none fits).  A row is
+        a dict of ``rho``, ``reduction_pct`` (list per output, %), ``others_max`` and
+        ``inputs_max`` (largest magnitudes, their units).
+    """
+    off = [float(metric(r)) for r in y]
+
+    def rows(sel, rhos):
+        return [{"rho": rho,
+                 "reduction_pct": [100.0 * (1 - float(metric(r)) / o) for r, o in zip(yy, off)],
+                 "others_max": None if oo is None else float(np.abs(oo).max()),
+                 "inputs_max": float(np.abs(F).max())}
+                for rho, yy, oo, F in least_squares_records(G, y, rhos, sel, others)]
+
+    exact = rows(None, list(rhos)[:1])[0]
+    best = []
+    for i in range(len(y)):
+        ok = [r for r in rows([i], rhos) if fits is None or fits(r)]
+        best.append(max(ok, key=lambda r: r["reduction_pct"][i]) if ok else None)
+    return {"exact": exact, "best": best}

@@ -53,7 +53,7 @@ from fmukit.units import ARCSEC, LBF
 from fmutools.ensure import ensure_fmus as _ensure
 from orchestrator import UnconnectedInputWarning, run_scenario
 from orchestrator.analysis import stability_margin_db
-from orchestrator.analysis.bounds import least_squares_records
+from orchestrator.analysis.bounds import record_ceiling
 from orchestrator.analysis.frf import modal_frequency_response
 from orchestrator.analysis.lqg import lqg_law, stack_lqg
 from orchestrator.analysis.margins import (band_damping, channel_margins, spectral_radius,
@@ -67,6 +67,7 @@ from structfmu.models import eos_testbed
 
 from . import eos
 from . import verdicts as vd
+from .figures import swir_figure
 from .eos import mounts_structure_model as structure_model
 
 NAME = "swir-isolation"
@@ -96,21 +97,9 @@ TARGET = {"pitch": 50.0, "yaw": 50.0, "roll": 30.0, "misr": 10.0,
 
 
 def swir_verdicts(red, misr_red, stroke_um, force_lbf) -> list:
-    """One verdict per Fig. 9 target (:mod:`orchestrator.experiments.verdicts`).
-
-    Parameters
-    ----------
-    red : dict of str to float
-        SWIR reduction per axis (%).
-    misr_red : float
-        MISR reduction (%).
-    stroke_um, force_lbf : float
-        Largest stack stroke (um) and force (lbf, full scale).
-
-    Returns
-    -------
-    list of dict
-    """
+    """One verdict per Fig. 9 target (:mod:`orchestrator.experiments.verdicts`) from the
+    SWIR reduction per axis ``red`` and MISR's ``misr_red`` (%), the largest stack stroke
+    (um) and force (lbf, full scale)."""
     return [
         vd.about("SWIR roll reduction", TARGET["roll"], red["roll"]),
         vd.at_least("SWIR pitch reduction", TARGET["pitch"], red["pitch"],
@@ -339,60 +328,41 @@ def ls_ceiling(plant, lin_off: dict, stroke_limit=5e-6,
                force_limit=15.0 * LBF / FULL_SCALE) -> dict:
     """Least-squares bound: the most any controller using the twelve stacks could remove
     from the SWIR line of sight, knowing the disturbance
-    (:func:`orchestrator.analysis.bounds.least_squares_records` on the isolation-off
-    record: non-causal, periodic, a least-squares, not a peak-to-peak, optimum).
-
-    ``rho = 0`` cancels the three axes exactly (minimum-norm forces); per axis, ``rho``
-    is swept and the best reduction kept whose largest leg elongation (``stroke_limit``,
-    m) and stack force (``force_limit``, N at testbed scale) fit.
-
-    Returns
-    -------
-    dict
-        ``"unconstrained"`` (reduction %, stroke um, force lbf), ``"within_limits_pct"``
-        and ``"within_limits"`` per axis (None when no ``rho`` fits), ``"limits"``.
+    (:func:`orchestrator.analysis.bounds.record_ceiling` on the isolation-off record:
+    non-causal, periodic, a least-squares, not a peak-to-peak, optimum): exact
+    cancellation of the three axes (``"unconstrained"``: reduction %, stroke um, force
+    lbf), and per axis the best within a leg elongation of ``stroke_limit`` (m) and a
+    stack force of ``force_limit`` (N, testbed scale) (None when none fits).
     """
     t = np.asarray(lin_off["time"])
     keep = np.setdiff1d(np.arange(plant.A.shape[0]), plant.rigid_states)
     rows = plant.rows("los_swir_", AXES) + plant.rows("elong_", LEGS)
-
     # forces to LOS and elongations; the rigid-body states are left out (the forces do
     # not reach them; their Jordan blocks at z = 1 have no eigenvector basis)
     G = modal_frequency_response(without_states(plant.A, plant.rigid_states),
                                  plant.B[keep, W:], plant.C[np.ix_(rows, keep)],
                                  np.fft.rfftfreq(t.size, H), H)
-
-    yd = np.array([lin_off[f"los_swir_{a}"] for a in AXES])
-    sd = np.array([lin_off[f"elong_{leg}"] for leg in LEGS])
     m = t >= SKIP - 1e-9
-    off = {a: float(peak_to_peak(yd[i, m], H, WINDOW)) for i, a in enumerate(AXES)}
-    rhos = [0.0] + list(np.geomspace(1e-6, 1e3, 28))
+    lim = {"stroke_um": stroke_limit * 1e6, "force_lbf": force_limit * FULL_SCALE / LBF}
 
-    def sweep(sel):
-        rows = [{"rho": rho,
-                 "reduction_pct": {a: 100.0 * (1 - float(
-                     peak_to_peak(y[i, m], H, WINDOW)) / off[a]) for i, a in enumerate(AXES)},
-                 "max_stroke_um": float(np.abs(st).max() * 1e6),
-                 "max_force_lbf": float(np.abs(fo).max() * FULL_SCALE / LBF)}
-                for rho, y, st, fo in least_squares_records(G, yd, rhos, sel, sd)]
-        ok = [r for r in rows if r["max_stroke_um"] < stroke_limit * 1e6
-              and r["max_force_lbf"] < force_limit * FULL_SCALE / LBF]
-        return rows[0], ok
+    def units(r):
+        return {"rho": r["rho"], "reduction_pct": dict(zip(AXES, r["reduction_pct"])),
+                "max_stroke_um": r["others_max"] * 1e6,
+                "max_force_lbf": r["inputs_max"] * FULL_SCALE / LBF}
 
-    unconstrained, _ = sweep([0, 1, 2])
-    per_axis = {}
-    for i, a in enumerate(AXES):
-        _, ok = sweep([i])
-        best = max(ok, key=lambda r: r["reduction_pct"][a]) if ok else None
-        per_axis[a] = None if best is None else {
-            "reduction_pct": best["reduction_pct"][a], "max_stroke_um": best["max_stroke_um"],
-            "max_force_lbf": best["max_force_lbf"]}
-    return {"unconstrained": unconstrained,
+    c = record_ceiling(G, np.array([lin_off[f"los_swir_{a}"] for a in AXES]),
+                       [0.0] + list(np.geomspace(1e-6, 1e3, 28)),
+                       lambda r: peak_to_peak(r[m], H, WINDOW),
+                       np.array([lin_off[f"elong_{leg}"] for leg in LEGS]),
+                       lambda r: (units(r)["max_stroke_um"] < lim["stroke_um"]
+                                  and units(r)["max_force_lbf"] < lim["force_lbf"]))
+    per_axis = {a: None if b is None else {
+        "reduction_pct": b["reduction_pct"][i], "max_stroke_um": units(b)["max_stroke_um"],
+        "max_force_lbf": units(b)["max_force_lbf"]} for i, (a, b) in enumerate(zip(AXES, c["best"]))}
+    return {"unconstrained": units(c["exact"]),
             "within_limits_pct": {a: (None if v is None else v["reduction_pct"])
                                   for a, v in per_axis.items()},
-            "within_limits": per_axis,
-            "limits": {"stroke_um": stroke_limit * 1e6,
-                       "force_lbf": force_limit * FULL_SCALE / LBF}}
+            "within_limits": per_axis, "limits": lim}
 
 
 # -- loop analysis ----------------------------------------------------------------------------
@@ -442,23 +412,9 @@ def damping(plant, law_, gain: float = GAIN, band=(5.0, 200.0)) -> dict:
 
 # -- co-simulation ----------------------------------------------------------------------------
 def ensure_fmus(fmu_dir="fmus", kind="native", central=None) -> Path:
-    """Build the FMUs this experiment runs into ``fmu_dir`` (the structure with all legs
-    active under ``STRUCTURE``); the folder to pass to the master.
-
-    Parameters
-    ----------
-    fmu_dir : path-like
-        FMU folder (native FMUs in it, Python twins in its ``python/``).
-    kind : {"native", "python"}
-        Which build (the Python twins are built for either).
-    central : ctrlfmu.law.DiscreteLaw, optional
-        Also build it as the controller FMU ``CENTRAL_FMU`` (:func:`central_law`); an
-        existing one holding another law is rebuilt.
-
-    Returns
-    -------
-    Path
-    """
+    """Build the FMUs this experiment runs (``kind`` "native" or "python"; the structure
+    with all legs active, ``STRUCTURE``; with a ``central`` law also the controller FMU
+    ``CENTRAL_FMU`` holding it) into ``fmu_dir``; the folder to pass to the master."""
     fdir = eos.ensure_fmus(fmu_dir, OTHER_FMUS, kind)
     if central is not None:     # a ready spec: another law is another stamp, so a rebuild
         _ensure([CENTRAL_FMU], fdir, extra={CENTRAL_FMU: law_spec(central, CENTRAL_FMU)},
@@ -467,23 +423,11 @@ def ensure_fmus(fmu_dir="fmus", kind="native", central=None) -> Path:
 
 
 def scenario(stop: float, variant: str = "decentralized") -> dict:
-    """Scenario dict: ``scenarios/eos_budget.toml``'s structure rate, ACS and VNIR
-    disturbance, the structure with all mount legs active, one stack per leg and one law
-    per leg (``variant="decentralized"``) or one ``CENTRAL_FMU`` law for all twelve
-    (``"central"``).
-
-    Parameters
-    ----------
-    stop : float
-        Stop time (s).
-    variant : {"decentralized", "central"}
-        Which controllers.
-
-    Returns
-    -------
-    dict
-        The scenario, as a scenario TOML file would give it.
-    """
+    """The scenario (a dict, as a TOML file gives it) stopping at ``stop`` (s):
+    ``scenarios/eos_budget.toml``'s structure rate, ACS and VNIR disturbance, the
+    structure with all mount legs active, one stack per leg and one law per leg
+    (``variant="decentralized"``) or one ``CENTRAL_FMU`` law for all twelve
+    (``"central"``)."""
     base = tomllib.loads(eos.SCENARIO.read_text())
     fmus = {"structure": {**base["fmus"]["structure"], "fmu": STRUCTURE},
             "acs": base["fmus"]["acs"],
@@ -516,27 +460,9 @@ def scenario(stop: float, variant: str = "decentralized") -> dict:
 
 def cosim(fmu_dir, gain: float, stop: float, fmu_kind="native",
           variant: str = "decentralized") -> dict:
-    """Co-simulate with every leg's law (or the central law) at ``gain``; the recorded
-    table.
-
-    Parameters
-    ----------
-    fmu_dir : path-like
-        Folder holding the built FMUs (:func:`ensure_fmus`).
-    gain : float
-        Factor on every leg's law (-); 0 for isolation off.
-    stop : float
-        Stop time (s).
-    fmu_kind : {"native", "python"}
-        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
-    variant : {"decentralized", "central"}
-        Which controllers (:func:`scenario`).
-
-    Returns
-    -------
-    dict of str to ndarray, shape (n_t,)
-        ``"time"`` (s) and the recorded ``instance.variable`` columns.
-    """
+    """Co-simulate :func:`scenario` with every leg's law (or the central law) at ``gain``
+    (0: isolation off) for ``stop`` s with the FMUs of ``fmu_dir`` (``fmu_kind``); the
+    recorded table: ``"time"`` (s) and the ``instance.variable`` columns."""
     names = ["ctrl_central"] if variant == "central" else [f"ctrl_{leg}" for leg in LEGS]
     ov = {f"{n}.gain": gain for n in names}
     with warnings.catch_warnings():
@@ -588,27 +514,12 @@ def modal_breakdown(model, plant, law_, axis="pitch", stop=3.5, top=4) -> list:
 
 def reduction_with_damping(model, zeta: float = 0.05, above_hz: float = 20.0,
                            stop: float = 3.5) -> dict:
-    """SWIR reduction (%) if every mode above ``above_hz`` had damping ``zeta`` (no control).
+    """SWIR reduction per axis (%, linear, ``stop`` s) if every mode of ``model`` above
+    ``above_hz`` (Hz) had the damping ratio ``zeta``, no control.
 
     A collocated leg damper adds at most about ``nu / 4`` to a mode with a fraction ``nu``
     of its strain energy in that leg (the largest in the twelve legs is 17 %: about 4 %),
     so this is more damping than any strain/strain-rate loop on the legs can add.
-
-    Parameters
-    ----------
-    model : ReducedModel
-        The structure (:func:`structure_model`).
-    zeta : float
-        Damping ratio given to the modes above ``above_hz`` (-).
-    above_hz : float
-        Frequency above which modes get ``zeta`` (Hz).
-    stop : float
-        Simulated time (s).
-
-    Returns
-    -------
-    dict of str to float
-        SWIR jitter reduction per axis (%).
     """
     base = jitter(simulate_linear(linear_plant(model), stop=stop), "swir", "")
     f = model.omega / (2 * np.pi)
@@ -621,21 +532,11 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native",
         variant: str = "decentralized") -> dict:
     """Linear design figures, then the co-simulation off/on; the JSON dict.
 
-    Parameters
-    ----------
-    out_dir : path-like
-        Folder for the figure (``swir-isolation.png``; the central variant
-        ``swir-isolation-central.png``).
-    quick : bool
-        3.5 s instead of 6 s.
-    fmu_dir : path-like
-        Folder the FMUs are built into (default ``fmus``; a private folder avoids racing
-        other builds).
-    fmu_kind : {"native", "python"}
-        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
-    variant : {"decentralized", "central"}
-        The paper's law on each leg (default), or one controller on all twelve strains
-        (:func:`central_law`).
+    The figure goes to ``out_dir`` (``swir-isolation.png``, the central variant
+    ``swir-isolation-central.png``); ``quick``: 3.5 s instead of 6 s; the FMUs are built
+    into ``fmu_dir`` and run as ``fmu_kind`` ("native" or "python", ``--python-fmus``);
+    ``variant``: the paper's law on each leg ("decentralized"), or one controller on all
+    twelve strains ("central", :func:`central_law`).
     """
     if variant not in VARIANTS:
         raise ValueError(f"variant is {variant!r}; swir-isolation takes one of "
@@ -675,10 +576,10 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native",
     stroke, force = _stroke_force(on)
     stroke_um, force_lbf = stroke * 1e6, force * FULL_SCALE / LBF
     if variant == "central":
-        plot(off, on, out_dir, "swir-isolation-central",
+        swir_figure(off, on, out_dir, "swir-isolation-central",
              "one controller on the twelve stack strains (central_law)")
     else:
-        plot(off, on, out_dir, label="SWIR/VNIR mounts active, one strain loop per leg")
+        swir_figure(off, on, out_dir, label="SWIR/VNIR mounts active, one strain loop per leg")
 
     verdicts = swir_verdicts(red, misr_red, stroke_um, force_lbf)
     checks = {"off_about_1arcsec": all(0.5 <= v <= 2.0 for v in sw_off.values()),
@@ -769,42 +670,3 @@ def _note_central(red, misr_red, mar):
             f"strain + strain-rate loop per leg (the default variant); this variant "
             f"measures what the same sensors and stacks can do when their signals are "
             f"combined (docs/eos_experiments.md).")
-
-
-
-
-
-def plot(off, on, out_dir, stem="swir-isolation", label="SWIR/VNIR mounts active"):
-    """Draw the SWIR line of sight, mounts off and on (Fig. 9).
-
-    Parameters
-    ----------
-    off, on : dict of str to ndarray
-        Co-simulation tables (:func:`cosim`) with isolation off and on.
-    out_dir : path-like
-        Folder for the figure.
-    stem : str
-        File name without ``.png``.
-    label : str
-        Legend of the isolation-on curve.
-    """
-    # deferred: plotting only
-    import matplotlib
-
-    matplotlib.use("Agg")
-    # deferred: plotting only
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
-    for ax, a in zip(axes, AXES):
-        for tab, lab in ((off, "mounts passive"), (on, label)):
-            ax.plot(tab["time"], np.asarray(tab[f"structure.los_swir_{a}"]) / ARCSEC, lw=0.6,
-                    label=lab)
-        ax.set_ylabel(f"SWIR {a} (arcsec)")
-        ax.grid(alpha=0.3)
-    axes[0].legend()
-    axes[0].set_title("SWIR line of sight, VNIR pointing disturbance (paper Fig. 9)")
-    axes[-1].set_xlabel("time (s)")
-    fig.tight_layout()
-    fig.savefig(Path(out_dir) / f"{stem}.png", dpi=110)
-    plt.close(fig)

@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test reproduce build bench clean native-deps
+.PHONY: setup demo test reproduce build bench clean native-deps browser-deps
 
 setup: $(STAMP)
 
@@ -15,6 +15,8 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q --no-deps 'pyNastran==1.4.1'  # declares numpy<2; see pyproject
 	@command -v x86_64-w64-mingw32-gcc >/dev/null 2>&1 || $(MAKE) --no-print-directory native-deps \
 	  || echo "note: no mingw-w64 cross compiler (needs root and apt-get): native FMUs get no win64 binaries and their test says so"
+	@command -v chromium >/dev/null 2>&1 || $(MAKE) --no-print-directory browser-deps \
+	  || echo "note: no chromium (needs root and apt-get): the report's browser test skips and says so"
 	touch $(STAMP)
 
 # The win64 binaries of the native FMUs need the mingw-w64 cross compiler (Debian package,
@@ -23,6 +25,12 @@ $(STAMP): pyproject.toml
 native-deps:
 	apt-get install -y -q gcc-mingw-w64-x86-64 \
 	  || { apt-get update -q && apt-get install -y -q gcc-mingw-w64-x86-64; }
+
+# The report is checked in a real browser (tests/orchestrator/browser.py): headless
+# Chromium, a Debian package (root needed); `make setup` runs this when it is missing.
+browser-deps:
+	apt-get install -y -q chromium \
+	  || { apt-get update -q && apt-get install -y -q chromium; }
 
 demo: setup
 	$(VENV)/bin/jitterfmu reproduce truss-frf --out out/demo

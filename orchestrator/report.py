@@ -249,7 +249,8 @@ def _html_table(head, rows, cls=""):
     for row in rows:
         cells = []
         for c in row:
-            style = ' class="fail"' if c == "FAIL" else (' class="pass"' if c == "pass" else "")
+            style = {"FAIL": ' class="fail"', "pass": ' class="pass"',
+                     "incomplete": ' class="incomplete"'}.get(c, "")
             cells.append(f"<td{style}>{html.escape(str(c))}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     return f'<table class="{cls}"><thead><tr>{h}</tr></thead><tbody>{"".join(body)}</tbody></table>'
@@ -271,6 +272,7 @@ table{border-collapse:collapse;font-size:12px;margin:1em 0}
 th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}
 th{background:#eee} td:first-child,th:first-child{text-align:left}
 td.fail{background:#f8d0d0;font-weight:bold} td.pass{background:#d6f0d6}
+td.incomplete{background:#f6ecc8} table.text td{text-align:left}
 img{max-width:100%;border:1px solid #ddd;margin:0.5em 0}
 h1{font-size:22px;margin:0.3em 0} h2{font-size:17px;margin:1.2em 0 0.4em}
 p{font-size:13px;margin:0.4em 0} p.key{font-size:11px;color:#555}
@@ -352,7 +354,8 @@ def _html(c) -> str:
              _html_table(vhead, vrows, "verdict"),
              f"<p class='key'>{html.escape(c['key'])}</p>"]
     if c["failed"]:
-        parts += ["<h2>Failed cases</h2>", _html_table(["case", "error"], c["failed"])]
+        parts += ["<h2>Failed cases</h2>",
+                  _html_table(["case", "error"], c["failed"], "text")]
     section = None
     for sec, ftitle, fig in c["figures"]:
         if sec != section:

@@ -42,9 +42,10 @@ class AxisVerdict:
         Sweep point of each configuration's RSS ("" without sweeps).
     requirement : float
         Requirement (report unit; NaN without one).
-    passed : tuple of bool or None
-        RSS within the requirement, per configuration (None: no requirement, or an RSS
-        missing failed events).
+    passed : tuple of bool, None or "incomplete"
+        RSS within the requirement, per configuration (None: no requirement;
+        "incomplete": an RSS missing failed events and still within the requirement;
+        one already above it fails).
     dominant : tuple of (str, float) or None
         Event with the largest share of the RSS² and that share, per configuration.
     """
@@ -110,9 +111,12 @@ def verdicts(rows, metric, window):
                 continue
             vals.append(worst["value"] if _finite(worst["value"]) else math.nan)
             sweeps.append(worst["sweep"] or "")
-            passed.append(worst["pass"])
             if _finite(worst["requirement"]):
                 req = worst["requirement"]
+            ok = worst["pass"]
+            if ok is None and worst.get("note") and _finite(req) and vals[-1] > req:
+                ok = False   # failed events only add to an RSS already above it
+            passed.append("incomplete" if ok is None and worst.get("note") else ok)
             contrib = events.get((inst, axis, cf, worst["sweep"]), [])
             top = max(contrib, key=lambda r: r.get("share") or 0.0, default=None)
             dom.append(None if top is None else (top["event"], top.get("share") or 0.0))
@@ -169,7 +173,8 @@ def verdict_table(configs, lines):
                        else "")
         row.append(_num(v.requirement))
         row += [_num(m) for m in v.margin]
-        row += ["" if p is None else ("pass" if p else "FAIL") for p in v.passed]
+        row += [{None: "", "incomplete": "incomplete", True: "pass", False: "FAIL"}[p]
+                for p in v.passed]
         row.append(_dominant_text(v.dominant))
         rows.append(row)
     return head, rows

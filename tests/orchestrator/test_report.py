@@ -26,13 +26,16 @@ def sine_runner(scenario, out_dir):
     a = p["amplitude"] / (1 + scenario["fmus"]["ctrl"]["parameters"]["gain"])
     t = np.arange(1001) * 1e-3
     w = 2 * np.pi * p["frequency"]
+    yaw = 0.0 if p.get("pitch_only") else 1.0   # an event that moves pitch alone
     path = Path(out_dir) / "results.parquet"
     pq.write_table(pa.table({"time": t, "sc.pitch": a * np.sin(w * t),
-                             "sc.yaw": a * np.cos(w * t)}), path)
+                             "sc.yaw": yaw * a * np.cos(w * t)}), path)
     return path
 
 
-def make_campaign(tmp_path, with_frf=True):
+def make_campaign(tmp_path, with_frf=True, sad_pitch=False):
+    """The synthetic campaign; ``sad_pitch``: the SAD moves pitch alone, 6x as much, so
+    that it dominates pitch while VNIR pointing dominates yaw."""
     base = {"experiment": {"stop": 1.0, "output_interval": 1e-3},
             "fmus": {"dist": {"fmu": "d", "period": 1e-3, "parameters": {}},
                      "ctrl": {"fmu": "c", "period": 1e-3, "parameters": {"gain": 0.0}},
@@ -52,6 +55,9 @@ def make_campaign(tmp_path, with_frf=True):
         "requirements": [{"instrument": "SWIR", "metric": "peak_to_peak", "window": 0.2,
                           "value": 1.2}],
     }
+    if sad_pitch:
+        data["events"][1]["overrides"].update({"dist.amplitude": 6e-6,
+                                               "dist.pitch_only": True})
     out = tmp_path / "camp"
     run_campaign(campaign_from_dict(data), out, sine_runner, workers=0, progress=False)
     if with_frf:
@@ -178,3 +184,138 @@ def test_report_cli_and_errors(campaign_dir, tmp_path, capsys):
         write_report(campaign_dir, "pdf")
     assert cli_main(["report", str(tmp_path / "none")]) == 2
     assert "run 'jitterfmu campaign' first" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- verdict first
+
+
+def _drawn(fig):
+    """The figure laid out and drawn as the report draws it (Agg canvas)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    return fig
+
+
+def test_report_opens_with_the_verdict_one_row_per_instrument_axis(campaign_dir):
+    text = write_report(campaign_dir, "html").read_text(encoding="utf-8")
+    tables = re.findall(r"<table class=\"(\w*)\"><thead><tr>(.*?)</tr></thead><tbody>(.*?)"
+                        r"</tbody>", text)
+    cls, head, body = tables[0]
+    assert cls == "verdict"
+    heads = re.findall(r"<th>(.*?)</th>", head)
+    assert heads[:4] == ["instrument", "axis", "RSS isolation off", "RSS isolation on"]
+    assert "requirement" in heads and heads[-1].startswith("dominant event")
+    rows = [re.findall(r"<td[^>]*>(.*?)</td>", r) for r in body.split("</tr>") if r]
+    assert [r[:2] for r in rows] == [["SWIR", "pitch"], ["SWIR", "yaw"]]
+    # off: 2e-6 sqrt(17) rad = 1.70 arcsec > 1.2 fails; on: a fifth of it passes
+    rss = 2e-6 * np.sqrt(17) * ANGLE_UNITS["arcsec"]
+    for r in rows:
+        assert r[2:5] == [f"{rss:.4g}", f"{rss / 5:.4g}", "-80.0 %"]
+        assert r[heads.index("verdict isolation off")] == "FAIL"
+        # the failed cryocooler case is missing: above the requirement already fails,
+        # below it cannot pass
+        assert r[heads.index("verdict isolation on")] == "incomplete"
+        assert r[-1] == "VNIR pointing (94 % | 94 %)"
+    # the per-configuration table and every row come after the verdict and the figures,
+    # folded
+    first_img, first_details = text.index("<img"), text.index("<details>")
+    assert text.index("<table") < first_img < first_details
+    for title in ("Budget by configuration", "All results"):
+        assert text.index(f"<summary><b>{title}</b>") > first_details
+    assert text.count("<details>") == text.count("</details>") == 2
+
+
+def test_markdown_has_the_verdict_first_and_the_long_tables_at_the_end(campaign_dir,
+                                                                        tmp_path):
+    text = write_report(campaign_dir, "md", tmp_path / "r.md").read_text(encoding="utf-8")
+    first_table = text.index("\n| ")
+    assert text[first_table:].startswith("\n| instrument | axis | RSS isolation off |")
+    last_image = text.rindex("![")
+    assert text.index("## Verdict") < first_table < last_image
+    assert last_image < text.index("## Budget by configuration") < text.index("## All results")
+
+
+def test_figures_follow_the_dominant_event_of_each_axis(tmp_path):
+    """SAD dominates pitch, VNIR pointing yaw: one history per event, each with its worst
+    window shaded and the requirement band (1.2 arcsec p-p) over that window."""
+    from orchestrator.report import _contents
+    from orchestrator.report_figures import scatter_axes
+
+    out = make_campaign(tmp_path, with_frf=False, sad_pitch=True)
+    figures = {title: fig for sec, title, fig in _contents(out)["figures"]}
+    assert "SWIR pitch: time history of SAD" in figures
+    assert "SWIR yaw: time history of VNIR pointing" in figures
+    assert not any("pitch, yaw" in t for t in figures)
+    (ax,) = figures["SWIR pitch: time history of SAD"].axes
+    boxes = [p for p in ax.patches if not p.get_fill()]
+    shaded = [p for p in ax.patches if p.get_fill()]
+    assert len(boxes) == 2 and len(shaded) == 2          # one per configuration
+    arcsec = ANGLE_UNITS["arcsec"]
+    for box in boxes:
+        assert box.get_height() == pytest.approx(1.2)
+        assert box.get_width() == pytest.approx(0.2)      # the metric's window
+        # centred on the window's mid-range: 0 for a sine over whole periods
+        assert box.get_y() + box.get_height() / 2 == pytest.approx(0.0, abs=1e-3 * arcsec)
+    # the legend below the panels, inside the figure
+    _drawn(figures["SWIR pitch: time history of SAD"])
+    (legend,) = figures["SWIR pitch: time history of SAD"].legends
+    assert {"isolation off", "isolation on"} <= {t.get_text() for t in legend.get_texts()}
+    fig_box = figures["SWIR pitch: time history of SAD"].bbox
+    lb = legend.get_window_extent()
+    assert lb.x0 >= fig_box.x0 and lb.x1 <= fig_box.x1 and lb.y0 >= fig_box.y0
+    # the scatter: the image plane with the requirement box
+    scatter = next(f for t, f in figures.items() if "boresight" in t)
+    (sax,) = scatter.axes
+    assert (sax.get_xlabel(), sax.get_ylabel()) == ("pitch (arcsec)", "yaw (arcsec)")
+    (box,) = [p for p in sax.patches if not p.get_fill()]
+    assert (box.get_width(), box.get_height()) == pytest.approx((1.2, 1.2))
+    assert scatter_axes({"yaw": 0, "pitch": 0, "roll": 0}) == ("roll", "pitch")  # Fig. 16
+
+
+def test_every_configuration_has_a_change_heat_map(campaign_dir):
+    """Five configurations: the baseline heat map and four of change, each named by its
+    configuration; the legend above the bars stays inside the figure."""
+    rows = _budget_rows(campaign_dir)
+    names = ["isolation off", "isolation on", "isolation on, soft mounts",
+             "isolation on, stiff mounts", "isolation on, gain 2"]
+    many = [r for r in rows if r["configuration"] == "isolation off"]
+    many += [dict(r, configuration=n) for n in names[1:] for r in rows
+             if r["configuration"] == "isolation on"]
+    inst = {"SWIR": {"pitch": "", "yaw": ""}}
+    fig = _budget_figure(many, inst, "arcsec", "peak_to_peak", 0.2)
+    labels = {ax.get_label() for ax in fig.axes}
+    assert {f"change:{n}" for n in names[1:]} <= labels
+    rss = next(ax for ax in fig.axes if ax.get_label() == "rss")
+    _drawn(fig)
+    lb, fb = rss.get_legend().get_window_extent(), fig.bbox
+    assert lb.x0 >= fb.x0 and lb.x1 <= fb.x1 and lb.y1 <= fb.y1
+
+
+def test_sweep_legends_stay_inside_the_figure():
+    from orchestrator.report_sweeps import _figure
+
+    x = np.linspace(0, 6000, 50)
+    curves = {a: [("isolation off", x, 1 + np.sin(x / 900), 1.5),
+                  ("isolation on", x, 0.5 + np.sin(x / 900) / 2, 1.5)] for a in ("roll",
+                                                                                   "yaw")}
+    fig = _drawn(_figure(curves, "VNIR", ["roll", "yaw"], "wheel speed (rpm)", "arcsec",
+                         "RWA"))
+    for ax in fig.axes:
+        lb = ax.get_legend().get_window_extent()
+        assert lb.x0 >= fig.bbox.x0 and lb.x1 <= fig.bbox.x1
+        assert not lb.overlaps(ax.get_window_extent())    # beside the panel, not on it
+        texts = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert texts[0].startswith("isolation off: worst 2 arcsec at ")
+
+
+def test_report_in_a_browser_shows_the_verdict_in_the_first_screen(campaign_dir, tmp_path):
+    """Headless Chromium renders report.html: its DOM's first table is the verdict, and
+    the 1280x900 screenshot (tmp_path/shot/report.png) is not blank and shows both
+    verdict rows' pass/FAIL cells."""
+    from .browser import ink, render, verdict_bands
+
+    dom, png = render(write_report(campaign_dir, "html"), tmp_path / "shot")
+    assert dom.index('<table class="verdict">') == dom.index("<table")
+    assert ink(png) > 0.02
+    assert verdict_bands(png) == 2

@@ -96,3 +96,47 @@ def test_reproduce_runs_the_python_build_when_asked(tmp_path, fmu_dir, capsys):
     # and they are two builds: libm and numpy round differently in the last digits
     assert json.dumps(outs["native"], sort_keys=True) != json.dumps(outs["python"],
                                                                      sort_keys=True)
+
+
+def test_fig4_phase_is_unwrapped():
+    """Fig. 4's phase curves never jump by 180° or more between neighbouring
+    frequencies (the FRF passes through resonances and zeros: wrapped, it jumps 360°)."""
+    from orchestrator.experiments import truss_frf
+
+    data = truss_frf.compute(400)
+    fig = truss_frf.figure(data)
+    phase_ax = fig.axes[1]
+    lines = phase_ax.get_lines()
+    assert len(lines) == 3
+    wrapped = np.degrees(np.angle(data["H_full"]))
+    assert np.abs(np.diff(wrapped)).max() > 180   # the raw phase does wrap here
+    for line in lines:
+        y = line.get_ydata()
+        assert np.abs(np.diff(y)).max() < 180
+        assert np.ptp(y) > 90                       # and the curve is no flat line
+
+
+def test_controlled_decay_figure_shows_its_first_cycles_with_the_10_percent_level():
+    """A synthetic decay (1.2 cycles to 10 %): the closed-loop figure's time axis spans
+    at most a few cycles around the switch-on, and it draws the 10 % level and the
+    envelope."""
+    from orchestrator.experiments import truss_decay as td
+
+    t = np.arange(0, 8, 1e-3)
+    tab = {"time": t}
+    for name, (var, f) in td.MODES.items():
+        decay = np.exp(-0.3 * 2 * np.pi * f * np.clip(t - td.T_EXC, 0, None))
+        tab[var] = 2e-5 * decay * np.sin(2 * np.pi * f * t)
+    cycles = {m: td.cycles_to_fraction(t, tab[v], f) for m, (v, f) in td.MODES.items()}
+    data = {"ol": tab, "cl": tab, "closed_loop_cycles_to_90pct": cycles,
+            "open_loop_cycles_to_90pct": cycles}
+    fig = td.figures(data)["truss-decay-closed-loop.png"]
+    for ax, (member, (var, f)) in zip(fig.axes, td.MODES.items()):
+        lo, hi = ax.get_xlim()
+        assert lo < td.T_EXC < td.T_EXC + cycles[member] / f < hi
+        assert (hi - lo) * f <= 6.5                 # a few cycles, not the 8 s record
+        _, ref = td.envelope(t, tab[var], f)
+        levels = [ln.get_ydata()[0] for ln in ax.get_lines()
+                  if ln.get_linestyle() == "--" and ln.get_color() == "crimson"]
+        assert sorted(levels) == pytest.approx([-0.1 * ref * 1e6, 0.1 * ref * 1e6])
+        assert any(ln.get_label().startswith("envelope") for ln in ax.get_lines())

@@ -11,6 +11,9 @@ are the paper's:
    modes.  The tower puts its stacks in the first bay's corner longerons; the ranking
    shows that this is where the energy is (checked: its top member is the corner
    longeron that becomes stack ``a1``, and its top two are both first-bay corners).
+   The four corners do not rank alike: the face diagonals all lean the same way, so at
+   corner ``(3, 2)`` two diagonals from the base share the longeron's load (element 11
+   ranks 15th) while at corner ``(0, 0)`` none does.
 2. **Reduce and save** the tower with stack ``a1`` and its gauge (``strain_a1``):
    6 modes + 1 static Ritz vector (:func:`structfmu.reduce.reduce`), ``tower.npz``.
 3. **Design** a positive-position-feedback filter on the strain with python-control,

@@ -26,8 +26,9 @@ are the paper's:
    --controller law.npz``).
 5. **Check and tune on the linear engine** before any co-simulation
    (:func:`orchestrator.analysis.linearize`, what ``jitterfmu analyze`` prints): the
-   open-loop damping, then absorber frequency and loop gain chosen for the slowest
-   decay of the two bending modes, keeping 6 dB of gain margin.
+   open-loop damping and the first guess (PPF at the mode, zeta 0.3, loop gain 0.5:
+   unstable), then filter frequency, damping and loop gain chosen on a grid for the
+   slowest decay of the two bending modes, keeping 6 dB of gain margin.
 6. **Scenario, campaign, report**: ``scenario.toml`` (structure 1 kHz, stack 1 kHz,
    controller 500 Hz, disturbances), ``campaign.toml`` (each disturbance alone x control
    off / on), :func:`orchestrator.campaign.run_campaign`,
@@ -41,9 +42,9 @@ Run::
 Golden values checked at the end (``tests/test_own_spacecraft.py`` runs ``--quick``): the
 ranking's top members (an energy property of the model: exact); control on lowers the
 RSS peak-to-peak jitter of the tip line of sight below control off on every axis the
-disturbances drive, by at least :data:`MIN_REDUCTION_PCT` (a regression pin: today's
-measured reductions are printed, and the pin sits below the smallest of them); the report
-exists.
+disturbances drive, by at least :data:`MIN_REDUCTION_PCT` = 70 % (a regression pin, not
+a requirement: today ``--quick`` measures 76.6 / 81.2 / 80.0 % on roll / pitch / yaw and
+the full run 90.7 / 91.2 / 90.9 %; the pin sits below the smallest); the report exists.
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ ZETA = 0.005             # structural damping of every mode (-)
 RATE_HZ = 500.0          # controller rate (Hz)
 FORCE = 0.2              # tip disturbance amplitude (N)
 MIN_MARGIN_DB = 6.0       # gain margin kept while tuning (dB)
-MIN_REDUCTION_PCT = 25.0  # regression pin on the jitter reduction (see the docstring)
+MIN_REDUCTION_PCT = 70.0  # regression pin on the jitter reduction (see the docstring)
 STRUCTURE, CONTROLLER = "tower_structure", "controller_tower_ppf"
 DIST = {"y": "tower_tip_dist_y", "x": "tower_tip_dist_x"}   # drive f_tip_y / f_tip_x
 
@@ -218,11 +219,12 @@ def campaign(stop: float) -> dict:
 
 def tune(path: Path, fmu_dir, freqs, gain0: float, quick: bool):
     """Step 5: the linear closed loop, before and while tuning."""
-    lin = linearize(path, fmu_dir=fmu_dir)
-    open_ = lin.with_gain("ctrl", 0.0)
-    print("linear engine, control off: " + ", ".join(
-        f"{d.pole.freq_hz:.2f} Hz zeta {d.pole.zeta:.4f}"
-        for d in (open_.decay(f) for f in freqs[:2])))
+    lin = linearize(path, fmu_dir=fmu_dir)      # the FMUs' own models, first design in
+    for what, loop in (("control off", lin.with_gain("ctrl", 0.0)), ("first design", lin)):
+        print(f"linear engine, {what}: " + ", ".join(
+            f"{d.pole.freq_hz:.2f} Hz zeta {d.pole.zeta:.4f}"
+            for d in (loop.decay(f) for f in freqs[:2]))
+            + ("" if loop.is_stable() else " (unstable)"))
     best = None
     tunings = (0.9, 1.0) if quick else (0.6, 0.7, 0.8, 0.9, 1.0, 1.1)
     zetas = (0.3, 0.6) if quick else (0.2, 0.3, 0.45, 0.6, 0.8, 1.0)

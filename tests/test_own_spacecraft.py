@@ -31,8 +31,9 @@ def test_own_spacecraft_quick(tmp_path, suite_fmus, suite_fmu_dir):
     assert res["ranking"].elements[:2].tolist() == [0, 8]
     assert res["ranking"].modes.tolist() == [0, 1]
 
-    # regression pin (today's values, --quick: 76.6 %, 81.2 %, 80.0 % on roll, pitch,
-    # yaw): control on lowers the RSS tip jitter on every axis by MIN_REDUCTION_PCT
+    # regression pin, not a requirement (today, --quick: 76.6 %, 81.2 %, 80.0 % on roll,
+    # pitch, yaw): control on lowers the RSS tip jitter on every axis by at least
+    # MIN_REDUCTION_PCT (70 %)
     for axis in ("roll", "pitch", "yaw"):
         off, on = res["rss"][("control off", axis)], res["rss"][("control on", axis)]
         assert off > 0.5                           # the disturbances do drive each axis

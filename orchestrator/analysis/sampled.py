@@ -3,6 +3,7 @@
 The building blocks a design study needs before any co-simulation, for a structure of
 the user's own (a :class:`structfmu.reduced.ReducedModel`):
 
+* :func:`packed_model` -- the reduced structure a structure FMU packs;
 * :func:`zoh` -- exact zero-order-hold discretisation of ``(A, B)``;
 * :func:`sample_structure` -- the structure restricted to some inputs and outputs,
   sampled exactly (:class:`SampledStructure`, with the output matrices of mode subsets:
@@ -26,9 +27,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SampledStructure", "zoh", "sample_structure", "amplifier_step",
+__all__ = ["SampledStructure", "packed_model", "zoh", "sample_structure", "amplifier_step",
            "stack_force_per_volt", "stack_loop", "amplified", "feedback_channels",
            "simulate_with_acs"]
+
+
+def packed_model(fmu):
+    """The reduced structure packed in a structure FMU's ``resources/model.npz``.
+
+    Parameters
+    ----------
+    fmu : path-like
+        A Python-build structure FMU (the native twin packs its model in another form).
+
+    Returns
+    -------
+    structfmu.reduced.ReducedModel
+    """
+    import tempfile
+    import zipfile
+    from pathlib import Path
+
+    from structfmu.reduced import ReducedModel
+
+    with zipfile.ZipFile(fmu) as z, tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "model.npz"
+        path.write_bytes(z.read("resources/model.npz"))
+        return ReducedModel.load(path)
 
 
 def zoh(A, B, dt: float):

@@ -10,20 +10,26 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
+from acsfmu.design import pid_gains_for
+from acsfmu.pid import AcsConfig, PidGains
+from distfmu.presets import get_preset
 from fmutools.ensure import ensure_fmus as _ensure
 from structfmu.fmuspec import spec_from_model
 from structfmu.models import eos_testbed
 
 from . import CAMPAIGNS, SCENARIOS
 
-__all__ = ["SCENARIO", "CAMPAIGN", "STRUCTURE", "MOUNTS_STRUCTURE", "FMUS",
-           "mounts_structure_model", "ensure_fmus"]
+__all__ = ["SCENARIO", "CAMPAIGN", "STRUCTURE", "MOUNTS_STRUCTURE", "FMUS", "ACS_INERTIA",
+           "mounts_structure_model", "ensure_fmus", "acs_config", "wrench", "leg_loops"]
 
 SCENARIO = SCENARIOS / "eos_budget.toml"
 CAMPAIGN = CAMPAIGNS / "eos_budget.toml"
 STRUCTURE = "eos_testbed_structure"
 MOUNTS_STRUCTURE = "eos_testbed_mounts_structure"
 #: What the budget campaign runs (the all-legs structure is built besides).
+ACS_INERTIA = (378.0, 827.0, 1123.0)   # as scenarios/eos_budget.toml (kg m^2)
 FMUS = ("eos_testbed_structure", "disturbance", "acs", "piezo_p845_37",
         "controller_testbed_isolation", "controller_eos_isolation")
 
@@ -52,3 +58,72 @@ def ensure_fmus(fmu_dir="fmus", names=FMUS, kind="native") -> Path:
             mounts_structure_model(), MOUNTS_STRUCTURE,
             "EOS testbed, every SWIR/VNIR mount leg active")}, kind=kind)
     return fmu_dir.resolve()
+
+
+def acs_config():
+    """The ACS of the scenario (0.1 Hz PID per axis at 10 Hz, inertias ``ACS_INERTIA``)."""
+    g = [pid_gains_for(j, 0.1, 50.0, 0.1) for j in ACS_INERTIA]
+    kp, ki, kd = (list(x) for x in zip(*g))
+    return AcsConfig(PidGains(kp, ki, kd), sample_time=0.1)
+
+
+def wrench(t, preset: str, scale: float = 1.0):
+    """A disturbance preset's wrench at the times ``t`` (s), times ``scale``.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Times (s).
+    preset : str
+        Disturbance preset name (:data:`distfmu.presets.PRESETS`).
+    scale : float
+        Load factor, e.g. 0.1 for the 1/10-scale testbed (-).
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        Forces (N) then moments (N m).
+    """
+    w = np.asarray(get_preset(preset).source.wrench(np.asarray(t)), float)
+    return scale * (w.T if w.shape[0] == 6 and w.shape[-1] != 6 else w)
+
+
+def leg_loops(legs, period: float, central_fmu=None):
+    """The mount legs' loops of the all-legs scenarios: instances and connections.
+
+    Per leg a ``piezo_p845_37`` stack in series with it (its force into
+    ``structure.fc_<leg>``, the leg's elongation back) and a ``controller_eos_isolation``
+    law on the leg's strain (``ctrl_<leg>``, gain 0), or one law ``ctrl_central`` of the
+    FMU ``central_fmu`` for all legs (inputs and outputs in ``legs`` order).
+
+    Parameters
+    ----------
+    legs : sequence of str
+        Leg names (``structfmu.models.eos_testbed``), e.g. ``swir_mount1``.
+    period : float
+        Stack and law period (s).
+    central_fmu : str, optional
+        The FMU of one law for all legs.
+
+    Returns
+    -------
+    (fmus, connections) : dict and list of dict
+        As a scenario TOML file gives them.
+    """
+    fmus, conns = {}, []
+    if central_fmu is not None:
+        fmus["ctrl_central"] = {"fmu": central_fmu, "period": period,
+                                "parameters": {"gain": 0.0}}
+    for i, leg in enumerate(legs, 1):
+        fmus[f"piezo_{leg}"] = {"fmu": "piezo_p845_37", "period": period}
+        if central_fmu is not None:
+            conns += [{"from": f"structure.strain_{leg}", "to": f"ctrl_central.y{i}"},
+                      {"from": f"ctrl_central.u{i}", "to": f"piezo_{leg}.v_cmd"}]
+        else:
+            fmus[f"ctrl_{leg}"] = {"fmu": "controller_eos_isolation", "period": period,
+                                   "parameters": {"gain": 0.0}}
+            conns += [{"from": f"structure.strain_{leg}", "to": f"ctrl_{leg}.y1"},
+                      {"from": f"ctrl_{leg}.u1", "to": f"piezo_{leg}.v_cmd"}]
+        conns += [{"from": f"piezo_{leg}.force", "to": f"structure.fc_{leg}"},
+                  {"from": f"structure.elong_{leg}", "to": f"piezo_{leg}.elongation"}]
+    return fmus, conns

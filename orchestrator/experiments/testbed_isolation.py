@@ -41,9 +41,7 @@ its own gains (docs/eos_experiments.md).
 
 from __future__ import annotations
 
-import tempfile
 import tomllib
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +54,6 @@ from fmutools import PYTHON_SUBDIR
 from fmutools.ensure import ensure_fmus as _ensure
 from structfmu.fmuspec import spec_from_model
 from structfmu.models import eos_testbed
-from structfmu.reduced import ReducedModel
 from structfmu.statespace import first_order
 
 from ..analysis import stability_margin_db
@@ -65,7 +62,8 @@ from ..analysis.frf import (closed_loop_frf, isolation_bandwidth, modal_frequenc
                             statespace_response, transmissibility_bands)
 from ..analysis.margins import (best_direction, is_stable, loop_gain_margins_db,
                                 poles_outside, scaled_to_margins)
-from ..analysis.sampled import amplified, amplifier_step, feedback_channels, zoh
+from ..analysis.sampled import (amplified, amplifier_step, feedback_channels, packed_model,
+                                zoh)
 from ..run import run_scenario
 from . import eos
 from . import verdicts as vd
@@ -112,23 +110,9 @@ def hybrid_model():
 
 
 def ensure_fmus(fmu_dir="fmus", variant="stiff", kind="native") -> Path:
-    """Build the FMUs of the experiment into ``fmu_dir`` (for ``variant="hybrid"`` also
-    the structure with the hybrid mount #3, ``HYBRID_STRUCTURE``); the folder, resolved.
-
-    Parameters
-    ----------
-    fmu_dir : path-like
-        FMU folder (native FMUs in it, Python twins in its ``python/``).
-    variant : {"stiff", "hybrid"}
-        Mount #3 as the paper describes it, or the hybrid isolator.
-    kind : {"native", "python"}
-        Which build (the Python twins are built for either).
-
-    Returns
-    -------
-    Path
-        The FMU folder, resolved.
-    """
+    """Build the FMUs of the experiment (``kind`` "native" or "python"; for
+    ``variant="hybrid"`` also the structure with the hybrid mount #3,
+    ``HYBRID_STRUCTURE``) into ``fmu_dir``; the folder, resolved."""
     if variant not in VARIANTS:
         raise ValueError(f"variant is {variant!r}; testbed-isolation takes one of "
                          f"{', '.join(VARIANTS)}")
@@ -143,27 +127,11 @@ def ensure_fmus(fmu_dir="fmus", variant="stiff", kind="native") -> Path:
 
 
 def linear_model(fmu_dir="fmus", variant="stiff"):
-    """The reduced structure packed in the structure FMU (a ReducedModel), read from its
-    Python build (``fmu_dir/python/``: the native twin packs it in another form).
-
-    Parameters
-    ----------
-    fmu_dir : path-like
-        FMU folder; the FMUs are built there first if needed (:func:`ensure_fmus`).
-    variant : {"stiff", "hybrid"}
-        Structure FMU ``eos.STRUCTURE`` or, with the hybrid mount #3, ``HYBRID_STRUCTURE``.
-
-    Returns
-    -------
-    ReducedModel
-        The model in the FMU's ``resources/model.npz``.
-    """
+    """The reduced structure the structure FMU of ``variant`` (``eos.STRUCTURE``, or
+    ``HYBRID_STRUCTURE``) packs, built into ``fmu_dir`` first if needed
+    (:func:`orchestrator.analysis.sampled.packed_model` of its Python build)."""
     name = HYBRID_STRUCTURE if variant == "hybrid" else eos.STRUCTURE
-    fmu = ensure_fmus(fmu_dir, variant) / PYTHON_SUBDIR / f"{name}.fmu"
-    with zipfile.ZipFile(fmu) as z, tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "model.npz"
-        path.write_bytes(z.read("resources/model.npz"))
-        return ReducedModel.load(path)
+    return packed_model(ensure_fmus(fmu_dir, variant) / PYTHON_SUBDIR / f"{name}.fmu")
 
 
 def linear_plant(model, coupling=1):
@@ -443,23 +411,9 @@ def _highpassed(t, x):
 
 
 def boresight_rms(t, roll, pitch, t0, t1):
-    """RMS of the high-passed boresight (roll, pitch) over [t0, t1) (rad).
-
-    Parameters
-    ----------
-    t : ndarray, shape (n,)
-        Sample times (s), equally spaced (the filter's rate is ``1 / (t[1] - t[0])``).
-    roll, pitch : ndarray, shape (n,)
-        Boresight angles (rad).
-    t0, t1 : float
-        Window start (included) and end (excluded) (s).
-
-    Returns
-    -------
-    float
-        ``sqrt(mean(roll^2 + pitch^2))`` over the window (rad), after a zero-phase
-        2nd-order Butterworth high-pass at ``HP_HZ`` (5 Hz) of the whole record.
-    """
+    """RMS ``sqrt(mean(roll^2 + pitch^2))`` (rad) over [t0, t1) (s) of the boresight
+    angles (rad) at the equally spaced times ``t`` (s), after a zero-phase 2nd-order
+    Butterworth high-pass at ``HP_HZ`` (5 Hz) of the whole record."""
     m = (t >= t0) & (t < t1)
     r, p = _highpassed(t, roll), _highpassed(t, pitch)
     return float(np.sqrt(np.mean(r[m] ** 2 + p[m] ** 2)))
@@ -479,16 +433,8 @@ def testbed_verdicts(data) -> list:
     before and after the switch-on at 2.4 s in one run, so the verdicts compare that
     (``before_after_reduction_pct``); the two-run measure (the last 1.2 s against an
     isolation-off run, which removes the isolation-off run's own decay between the two
-    windows) is reported beside it in each verdict as ``two_runs``.
-
-    Parameters
-    ----------
-    data : dict
-        :func:`compute`'s result.
-
-    Returns
-    -------
-    list of dict
+    windows) is reported beside it in each verdict as ``two_runs``.  ``data``:
+    :func:`compute`'s result.
     """
     ba, red = data["before_after"], data["reduction"]
     lo, hi = PAPER["all_mounts"]
@@ -504,18 +450,8 @@ def testbed_verdicts(data) -> list:
 
 
 def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
-    """Linear design numbers and the two co-simulations (mount #3, all mounts).
-
-    Parameters
-    ----------
-    quick : bool
-        6.0 s instead of 9.6 s of co-simulation (see :func:`run`).
-    fmu_dir : path-like
-        Folder of the FMUs (built there first if needed).
-    fmu_kind : {"native", "python"}
-        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
-    variant : {"stiff", "hybrid"}
-        Mount #3 with the stiff strut, or the hybrid isolator (gains ``HYBRID_GAINS``).
+    """Linear design numbers and the two co-simulations (mount #3, all mounts); the
+    arguments as :func:`run`'s.
 
     Returns
     -------
@@ -574,30 +510,17 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
 
 def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff",
         fmu_kind="native") -> dict:
-    """Run the experiment into ``out_dir``; returns the JSON-able result.
+    """Run the experiment into ``out_dir`` (figure ``testbed-isolation.png``, the hybrid
+    variant ``testbed-isolation-hybrid.png``); the JSON-able result: co-simulated and
+    linear reductions (%), gain margins (dB), isolation bandwidth (Hz), strut voltages
+    (V), boresight RMS (arcsec), the paper's values, ``reproduced`` and a ``note``.
 
-    Parameters
-    ----------
-    out_dir : path-like
-        Output folder (figure ``testbed-isolation.png``).
-    quick : bool
-        6.0 s instead of 9.6 s of co-simulation (the last 1.2 s are measured: 2.4 s or
-        6 s after switch-on; the 23 Hz bus mode, 0.5 % damped, settles in about 1.4 s).
-    fmu_dir : path-like
-        Folder of the built FMUs (built there if missing or stale).
-    fmu_kind : {"native", "python"}
-        Which build of the suite's FMUs the co-simulations run (``--python-fmus``).
-    variant : {"stiff", "hybrid"}
-        The model as documented (stiff struts) or with the hybrid mount #3
-        (``eos_testbed.build(iso3="hybrid")``, gains ``HYBRID_GAINS``); the hybrid
-        variant writes ``testbed-isolation-hybrid.png``.
-
-    Returns
-    -------
-    dict
-        Co-simulated and linear reductions (%), gain margins (dB), isolation bandwidth
-        (Hz), strut voltages (V), boresight RMS (arcsec), the paper's values,
-        ``reproduced`` and a ``note``.
+    ``quick``: 6.0 s instead of 9.6 s of co-simulation (the last 1.2 s are measured: 2.4 s
+    or 6 s after switch-on; the 23 Hz bus mode, 0.5 % damped, settles in about 1.4 s);
+    the FMUs are built into ``fmu_dir`` when missing or stale and run as ``fmu_kind``
+    ("native" or "python", ``--python-fmus``); ``variant``: the stiff struts as
+    documented, or the hybrid mount #3 (``eos_testbed.build(iso3="hybrid")``, gains
+    ``HYBRID_GAINS``).
     """
     data = compute(quick, fmu_dir, variant, fmu_kind)
     testbed_figure(data, out_dir, "testbed-isolation" + ("-hybrid" if variant == "hybrid" else ""))

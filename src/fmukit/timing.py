@@ -17,6 +17,9 @@ __all__ = ["STEP_RTOL", "TIME_RTOL", "end_time", "reached", "same_step"]
 
 # picoseconds are counted exactly in a double below 2**53 ps (about 9007 s)
 _PS = 1e12
+# the grid a drifting host's time is brought back to: periods of the suite are whole
+# microseconds (1 ms, 4 ms, 0.25 ms, 0.1 s)
+_US = 1e6
 _LIMIT = 9.0e3
 # within rounding: a few ulps of the sum
 _ULPS = 4 * 2.220446049250313e-16
@@ -45,8 +48,10 @@ def end_time(t: float, h: float, last: float | None = None) -> float:
     -------
     float
         The multiple of 1 ps nearest ``t + h``, correctly rounded (``k / 1000`` for the
-        tick ``k`` of a 1 ms step), when it lies within 4 ulps of it; else ``t + h``.
-        The same rule as ``jf_end_time`` of the native FMUs.
+        tick ``k`` of a 1 ms step), when it lies within 4 ulps of it; else the multiple
+        of 1 µs nearest it when within ``TIME_RTOL h`` (a host whose clock drifts by
+        1e-12 s still meets a source's edges on its samples); else ``t + h``.  The
+        same rule as ``jf_end_time`` of the native FMUs.
     """
     if last is not None and abs(t - last) <= TIME_RTOL * abs(h):
         t = last
@@ -54,7 +59,12 @@ def end_time(t: float, h: float, last: float | None = None) -> float:
     if not abs(te) < _LIMIT:
         return te
     g = _nearbyint(te * _PS) / _PS
-    return g if abs(g - te) <= _ULPS * abs(te) else te
+    if abs(g - te) <= _ULPS * abs(te):
+        return g
+    # a host whose clock drifts (or whose steps are off by more than rounding): a time
+    # within TIME_RTOL of a step of a whole microsecond is that microsecond
+    g = _nearbyint(te * _US) / _US
+    return g if abs(g - te) <= TIME_RTOL * abs(h) else te
 
 
 def reached(t: float, event: float, period: float) -> bool:

@@ -39,6 +39,20 @@ def test_every_host_gets_the_exact_tick():
     assert sum(a != b for a, b in zip(raw, want)) > n // 4
 
 
+def test_a_drifting_clock_is_brought_back_to_the_microsecond():
+    """A host whose clock is k h - 1e-12 k / n s: its steps are h - 1.25e-16 s, more than
+    rounding off 1 ms, yet the chain of communication points stays on k / 1000."""
+    n, h, drift = 8000, 1e-3, -1e-12
+    t = [k * h + drift * k / n for k in range(n + 1)]
+    last, got = 0.0, []
+    for k in range(n):
+        last = end_time(t[k], t[k + 1] - t[k], last)
+        got.append(last)
+    assert got == [float(Fraction(k + 1, 1000)) for k in range(n)]
+    # but a time a real fraction of a step from the microsecond is not moved
+    assert end_time(0.0, 1e-3 + 1e-8) == 1e-3 + 1e-8
+
+
 def test_a_time_off_the_grid_is_left_alone():
     t, h = 1.0 / 3.0, 1.0 / 3.0
     assert end_time(t, h) == t + h

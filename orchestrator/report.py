@@ -273,6 +273,7 @@ th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}
 th{background:#eee} td:first-child,th:first-child{text-align:left}
 td.fail{background:#f8d0d0;font-weight:bold} td.pass{background:#d6f0d6}
 td.incomplete{background:#f6ecc8} table.text td{text-align:left}
+table.verdict td:nth-child(2),table.verdict td:last-child{text-align:left}
 img{max-width:100%;border:1px solid #ddd;margin:0.5em 0}
 h1{font-size:22px;margin:0.3em 0} h2{font-size:17px;margin:1.2em 0 0.4em}
 p{font-size:13px;margin:0.4em 0} p.key{font-size:11px;color:#555}

@@ -239,7 +239,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
     cbar = fig.colorbar(im, ax=axs[1], pad=0.01, fraction=0.03)
     cbar.set_label(unit, fontsize=8)
     if isinstance(norm, LogNorm):
-        _plain_log_labels(cbar.ax.yaxis, norm.vmin, norm.vmax, minor_decades=1.0)
+        _plain_log_labels(cbar.ax.yaxis, norm.vmin, norm.vmax)
 
     # change of each further group against the baseline
     for k in range(n_change):
@@ -253,7 +253,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
         fig.colorbar(im, ax=a, pad=0.01, fraction=0.03).set_label("%", fontsize=8)
 
     fig.suptitle(f"Jitter budget: {metric}{win}, {unit}", fontsize=12, x=0.01, ha="left")
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.4 / fig.get_figheight()))   # room for the title
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.15 / fig.get_figheight()))   # room for the title
     return fig
 
 

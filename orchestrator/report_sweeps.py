@@ -254,6 +254,7 @@ def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
             cum = cumulative_rms(f, psd)
             axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), lw=0.7, label=label)
             axs[i][1].semilogx(f[1:], cum[1:], lw=0.9, label=label)
+        axs[i][1].set_ylim(bottom=0.0)   # the share of each band reads off a zero base
         axs[i][0].set_ylabel(f"{axis} ({unit}^2/Hz)")
         axs[i][1].set_ylabel(f"{axis} cum. RMS ({unit})")
         for a in axs[i]:
@@ -261,7 +262,8 @@ def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
     axs[0][1].legend(fontsize=7, loc="lower right")
     for a in axs[-1]:
         a.set_xlabel("frequency (Hz)")
-    fig.suptitle(f"{inst} line of sight: PSD and cumulative RMS, {event}", fontsize=11)
+    fig.suptitle(f"{inst} {' and '.join(axes)}: PSD and cumulative RMS, {event}",
+                 fontsize=11)
     fig.tight_layout()
     return fig
 

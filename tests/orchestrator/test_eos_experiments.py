@@ -36,6 +36,27 @@ def _requirements_by_instrument(path):
     return reqs
 
 
+def _check_report_opens_with_the_verdict(html, shot_dir):
+    """The budget report: its first table is the verdict, one row per instrument axis (15)
+    all in the first 1280x900 screen of headless Chromium (screenshot in shot_dir); the
+    SAD, which dominates pitch, has a time history for every instrument's pitch, and the
+    roll-pitch image plane is drawn."""
+    import re
+
+    from .browser import ink, render, verdict_bands
+
+    text = html.read_text(encoding="utf-8")
+    first = re.search(r'<table class="(\w*)">.*?<tbody>(.*?)</tbody>', text)
+    assert first.group(1) == "verdict" and first.group(2).count("<tr>") == 15
+    for inst in ("CERES", "TIR", "MISR", "SWIR", "VNIR"):
+        assert f"<figcaption>{inst} pitch: time history of SAD</figcaption>" in text
+        assert f"<figcaption>{inst} roll, yaw: time history of VNIR pointing" in text
+        assert f"<figcaption>{inst}: boresight roll–pitch" in text
+    dom, png = render(html, shot_dir)
+    assert dom.index('<table class="verdict">') == dom.index("<table")
+    assert ink(png) > 0.05 and verdict_bands(png) == 15
+
+
 def test_eos_budget(out, tmp_path, suite_fmu_dir):
     res = run_experiment("eos-budget", out, quick=True, fmu_dir=suite_fmu_dir)
     assert res["n_failed"] == 0
@@ -68,7 +89,8 @@ def test_eos_budget(out, tmp_path, suite_fmu_dir):
 
     # The report's budget chart has isolation off and on for every instrument and axis.
     camp_dir = Path(res["campaign_dir"])
-    write_report(camp_dir, "html")
+    html = write_report(camp_dir, "html")
+    _check_report_opens_with_the_verdict(html, tmp_path / "browser")
     summary = pq.read_table(camp_dir / "summary.parquet").to_pylist()
     rows = [r for r in summary if r["metric"] == "peak_to_peak"]
     grid = budget_grid(rows, {i: {"roll": 0, "pitch": 0, "yaw": 0} for i in shipped})

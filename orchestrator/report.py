@@ -44,7 +44,7 @@ from .campaign import ANGLE_UNITS, RSS_EVENT, slug
 from .report_budget import BudgetGrid, _budget_figure, _group_label, _groups, budget_grid
 from .report_figures import Marking, frf_figure, history_figure, scatter_axes, scatter_figure
 from .report_sweeps import WORST_HEAD, spectrum_figure, sweep_sections, uncertainty_sections
-from .report_verdict import axes_by_event, dominant_by_axis, verdict_table, verdicts
+from .report_verdict import axes_by_event, dominant_by_axis, metric_words, verdict_table, verdicts
 from .report_verdict import same_window as _same_window
 
 UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
@@ -318,14 +318,14 @@ def _contents(out_dir: Path):
 
     failed = [[c["case"], c["error"]] for c in cases if c["status"] != "ok"]
     n_ok = sum(c["status"] == "ok" for c in cases)
-    win = "" if window is None else f" over {window:g} s"
     swept = any(v for line in lines for v in line.sweep)
     engine_text, check_rows, flagged = _cross_check(out_dir, camp)
     vhead, vrows = verdict_table(configs, lines)
     n_fail = sum(row.count("FAIL") > 0 for row in vrows)
     return {
         "title": f"Jitter report: {camp.get('name', out_dir.name)}",
-        "intro": (f"{metric}{win} in {unit}, RSS over the events; {len(cases)} cases "
+        "intro": (f"{metric_words(metric, window)} in {unit}, RSS over the events; "
+                  f"{len(cases)} cases "
                   f"({n_ok} finished, {len(failed)} failed); {len(vrows)} instrument axes, "
                   f"{n_fail} failing in at least one configuration."
                   + (" With sweeps, each configuration's worst sweep point." if swept

@@ -15,6 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .campaign import RSS_EVENT
+from .report_verdict import metric_words
 
 __all__ = ["BudgetGrid", "budget_grid"]
 
@@ -182,7 +183,6 @@ def _budget_figure(rows, instruments, unit, metric, window):
     fig = Figure(figsize=(width, sum(heights) + 0.9))
     axs = fig.subplots(len(heights), 1, squeeze=False,
                        gridspec_kw={"height_ratios": heights})[:, 0]
-    win = "" if window is None else f" over {window:g} s"
     labels = [_group_label(g) or "all cases" for g in grid.groups]
 
     # RSS totals, grouped bars on a log axis
@@ -235,7 +235,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
             and finite.min() < finite.max() else Normalize())
     axs[1].set_label("events")
     im = _heatmap(axs[1], grid, np.where(base > 0, base, np.nan), "viridis", norm, _sig,
-                  f"{metric} ({unit}), {labels[0]}")
+                  f"{metric_words(metric)} ({unit}), {labels[0]}")
     cbar = fig.colorbar(im, ax=axs[1], pad=0.01, fraction=0.03)
     cbar.set_label(unit, fontsize=8)
     if isinstance(norm, LogNorm):
@@ -252,7 +252,8 @@ def _budget_figure(rows, instruments, unit, metric, window):
                       f"change with {labels[gi]} vs {labels[0]} (%; blue: less jitter)")
         fig.colorbar(im, ax=a, pad=0.01, fraction=0.03).set_label("%", fontsize=8)
 
-    fig.suptitle(f"Jitter budget: {metric}{win}, {unit}", fontsize=12, x=0.01, ha="left")
+    fig.suptitle(f"Jitter budget: {metric_words(metric, window)}, {unit}", fontsize=12,
+                 x=0.01, ha="left")
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.15 / fig.get_figheight()))   # room for the title
     return fig
 

@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 
 from .analysis.spectra import cumulative_rms
 from .metrics import one_sided_psd
+from .report_verdict import metric_words
 
 __all__ = ["WORST_HEAD", "sweep_sections", "transfer_figure", "spectrum_figure",
            "uncertainty_sections"]
@@ -102,7 +103,7 @@ def _wheel(out_dir: Path, instruments, metric, window, unit):
             if curves:
                 figures.append((f"{inst}: {sweep}, steady state",
                                 _figure(curves, inst, list(axes), "wheel speed (rpm)", unit,
-                                        f"{sweep} (steady state, {metric})")))
+                                        f"{sweep} (steady state, {metric_words(metric, window)})")))
     return figures, worst
 
 
@@ -142,7 +143,8 @@ def _parameter(summary, instruments, metric, window, unit, rss_event):
             if curves:
                 figures.append((f"{inst}: RSS against {param}",
                                 _figure(curves, inst, list(axes), param, unit,
-                                        f"RSS over the events against {param} ({metric})")))
+                                        f"RSS over the events against {param} "
+                                        f"({metric_words(metric, window)})")))
     return figures, worst
 
 

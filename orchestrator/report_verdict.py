@@ -13,7 +13,21 @@ from dataclasses import dataclass
 
 from .campaign import RSS_EVENT
 
-__all__ = ["AxisVerdict", "verdicts", "verdict_table", "dominant_by_axis", "axes_by_event"]
+__all__ = ["AxisVerdict", "verdicts", "verdict_table", "dominant_by_axis", "axes_by_event",
+           "metric_words"]
+
+_WORDS = {"peak_to_peak": "peak-to-peak", "rms_jitter": "RMS jitter",
+          "stability": "stability (RMS change)", "rms": "RMS", "ape": "APE", "mpe": "MPE",
+          "rpe": "RPE", "pde": "PDE"}
+
+
+def metric_words(kind, window=None) -> str:
+    """A metric kind as a report says it: ``peak_to_peak``, 1.8 -> "peak-to-peak over
+    1.8 s" (a stability's window is its lag)."""
+    words = _WORDS.get(kind, kind or "")
+    if window is None:
+        return words
+    return f"{words} {'across' if kind == 'stability' else 'over'} {float(window):g} s"
 
 
 def same_window(a, b) -> bool:

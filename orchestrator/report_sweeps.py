@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 
 from .analysis.spectra import cumulative_rms
 from .metrics import one_sided_psd
+from .report_budget import _plain_log_labels
 from .report_verdict import metric_words
 
 __all__ = ["WORST_HEAD", "sweep_sections", "transfer_figure", "spectrum_figure",
@@ -335,12 +336,21 @@ def uncertainty_sections(out_dir, instruments, unit):
             if lines:
                 sens = lines[-1].get("sensitivity", {})
                 names = list(sens)[:6][::-1]
-                axs[i][1].barh(range(len(names)), [sens[n] for n in names], color="0.45")
-                axs[i][1].set_yticks(range(len(names)), names, fontsize=6)
+                axs[i][1].barh(range(len(names)), [sens[n] for n in names], color="0.45",
+                               height=0.6)
+                axs[i][1].set_yticks(range(len(names)), names, fontsize=7)
+                pad = max(4 - len(names), 0) / 2       # one bar stays a bar, centred
+                axs[i][1].set_ylim(-0.5 - pad, len(names) - 0.5 + pad)
                 axs[i][1].set_xlim(-1, 1)
                 axs[i][1].axvline(0, color="k", lw=0.5)
                 axs[i][1].set_title(f"rank correlation ({lines[-1]['configuration']})",
                                     fontsize=7)
+            shown = [ln.get_xdata() for ln in axs[i][0].get_lines()]
+            shown = np.concatenate([np.ravel(x) for x in shown]) if shown else np.array([])
+            shown = shown[np.isfinite(shown) & (shown > 0)]
+            if shown.size and shown.max() > 10 * shown.min():
+                axs[i][0].set_xscale("log")   # configurations a decade apart: both readable
+                _plain_log_labels(axs[i][0].xaxis, shown.min(), shown.max())
             axs[i][0].set_ylabel(f"{axis}: P(X <= x)")
             axs[i][0].grid(alpha=0.3)
         axs[0][0].legend(fontsize=7, loc="lower right")

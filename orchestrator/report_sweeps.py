@@ -244,30 +244,33 @@ def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
     Figure
     """
     axes = sorted(series[0][2], key=lambda a: _ORDER.get(a, 3))
-    fig = Figure(figsize=(9, 2.2 * len(axes) + 0.8))
+    fig = Figure(figsize=(9, 2.2 * len(axes) + 1.1), layout="constrained")
     axs = fig.subplots(len(axes), 2, squeeze=False, sharex=True)
     for i, axis in enumerate(axes):
-        for label, t, cols in series:
+        for k, (label, t, cols) in enumerate(series):
             if axis not in cols or t.size < 8:
                 continue
+            wide = 1.6 if k == 0 else 1.0   # the first underneath: equal curves show both
             keep = t >= t[0] + skip - 1e-9
             x = np.asarray(cols[axis], float)[keep] * scale
             dt = float(np.median(np.diff(t)))
             f, psd = one_sided_psd(x, dt, max(x.size * dt / 4, 10 * dt))   # Welch
             cum = cumulative_rms(f, psd)
-            axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), lw=0.7, label=label)
-            axs[i][1].semilogx(f[1:], cum[1:], lw=0.9, label=label)
+            axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), lw=0.7 * wide, label=label,
+                             color=f"C{k}")
+            axs[i][1].semilogx(f[1:], cum[1:], lw=0.9 * wide, label=label, color=f"C{k}")
         axs[i][1].set_ylim(bottom=0.0)   # the share of each band reads off a zero base
         axs[i][0].set_ylabel(f"{axis} ({unit}^2/Hz)")
         axs[i][1].set_ylabel(f"{axis} cum. RMS ({unit})")
         for a in axs[i]:
             a.grid(alpha=0.3, which="both")
-    axs[0][1].legend(fontsize=7, loc="lower right")
+    handles, labels = axs[0][1].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 4),
+               fontsize=7.5, frameon=False)   # below the panels: never over a curve
     for a in axs[-1]:
         a.set_xlabel("frequency (Hz)")
     fig.suptitle(f"{inst} {' and '.join(axes)}: PSD and cumulative RMS, {event}",
                  fontsize=11)
-    fig.tight_layout()
     return fig
 
 

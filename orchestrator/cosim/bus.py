@@ -93,9 +93,15 @@ class Bus:
         in_loop |= {l.members[0] for l in plan.loops}
         ft = {(c.source, c.source_var, c.target, c.target_var) for c in plan.feedthrough_edges}
         gs = sc.experiment.algorithm == "gauss-seidel"
-        # sources of feedthrough edges outside algebraic loops: read before stepping
+        # sources of feedthrough edges outside algebraic loops: read before stepping;
+        # so is an instance whose recorded output has feedthrough, connected or not (the
+        # record holds the output at t_k for the inputs at t_k, as the FMI defines it)
         self.ft_sources = {c.source for c in plan.feedthrough_edges
                            if gs and c.source not in in_loop}
+        for ref in sc.record:
+            inst, var = ref.split(".", 1)
+            if gs and inst not in in_loop and plan.fmus[inst].feedthrough.get(var):
+                self.ft_sources.add(inst)
         self.inputs = {}
         for inst in sc.instances:
             by_type = {"Real": [], "Integer": [], "Boolean": []}

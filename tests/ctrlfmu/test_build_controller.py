@@ -85,11 +85,9 @@ def test_non_delayed_law_feeding_an_instance(tmp_path, suite_fmus, capsys):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the master records an output with direct "
-                   "feedthrough that feeds no instance as it was after the step, not after "
-                   "the inputs of t_k were set: C x(k) + D y(t_(k-1)) instead of "
-                   "C x(k) + D y(t_k) (orchestrator.cosim)")
 def test_non_delayed_law_recorded_only(tmp_path, suite_fmus, capsys):
+    """A feedthrough output that feeds no instance is recorded at t_k for the inputs of
+    t_k, C x(k) + D y(t_k) (it was C x(k) + D y(t_(k-1)), one sample late)."""
     got, expected = _non_delayed_run(tmp_path, suite_fmus, consumer=False)
     np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
 

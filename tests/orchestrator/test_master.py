@@ -93,3 +93,29 @@ def test_jacobi_is_gauss_seidel_delayed_by_one_step(fmu_dir):
     # Jacobi: the gain's output of the previous tick (initial output 0 at the first)
     np.testing.assert_allclose(u_jac[1:], u_gs[:-1], rtol=0, atol=1e-9)
     assert u_jac[0] == 0.0 and u_gs[1] > 0.0
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["compiled-loop", "python-loop"])
+def test_a_recorded_feedthrough_output_that_feeds_nothing_is_the_one_at_t_k(fmu_dir, fast):
+    """Gain y = 2 u with u = x(t) = t from an integrator, y recorded and connected to
+    nothing: the row at t_k holds 2 t_k, the output for the inputs of t_k (it held
+    2 t_(k-1), as after the previous step)."""
+    from orchestrator import load_scenario, prepare
+    from orchestrator.cosim import Simulation
+
+    sc = {
+        "experiment": {"stop": 0.02, "output_interval": 1e-3},
+        "fmus": {"i": {"fmu": "MtIntegrator", "period": 1e-3, "parameters": {"u": 1.0}},
+                 "g": {"fmu": "MtGain", "period": 1e-3, "parameters": {"k": 2.0}}},
+        "connections": [{"from": "i.x", "to": "g.u"}],
+        "record": {"variables": ["i.x", "g.y"]},
+    }
+    sim = Simulation(prepare(load_scenario(sc), fmu_dir), fast=fast)
+    try:
+        sim.initialize()
+        sim.run()
+    finally:
+        sim.close()
+    table = sim.table()
+    np.testing.assert_allclose(table["g.y"], 2 * table["i.x"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(table["i.x"], table["time"], rtol=0, atol=1e-12)

@@ -27,6 +27,13 @@ carries, from which:
 
 ``jitterfmu analyze SCENARIO`` prints these as a table.
 
+For a loop assembled from matrices instead of a scenario (a design study on a reduced
+structure of one's own), the modules :mod:`~orchestrator.analysis.sampled` (sampled
+structures, stack loops, records with the ACS in the loop), :mod:`.margins` (margins
+and gain designs at a margin), :mod:`.frf` (frequency responses, transmissibility),
+:mod:`.bounds` (ceilings and least-squares optima) and :mod:`.lqg` (one law on many
+stacks) hold the tools; ``docs/linear_engine.md`` lists them.
+
 Example
 -------
 >>> from orchestrator.analysis import linearize             # doctest: +SKIP

@@ -348,8 +348,8 @@ def _folded_html(title, table, n):
 
 def _html(c) -> str:
     vhead, vrows = c["verdict"]
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>"
-             f"{html.escape(c['title'])}</title><style>{_CSS}</style></head><body>",
+    parts = [(f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>"
+              f"{html.escape(c['title'])}</title><style>{_CSS}</style></head><body>"),
              f"<h1>{html.escape(c['title'])}</h1>",
              f"<h2 id='verdict'>Verdict</h2><p>{html.escape(c['intro'])}</p>",
              _html_table(vhead, vrows, "verdict"),
@@ -375,8 +375,8 @@ def _html(c) -> str:
         parts += ["<h2>Cross-check of the linear engine</h2>",
                   _html_table(CHECK_HEAD, check_rows)]
     if flagged:
-        parts += ["<p><b>Nonlinear in co-simulation</b> (the linear answer does not "
-                  "hold for these cases):</p>", _html_table(["case", "flags"], flagged)]
+        parts += [("<p><b>Nonlinear in co-simulation</b> (the linear answer does not "
+                   "hold for these cases):</p>"), _html_table(["case", "flags"], flagged)]
     parts.append("<h2>Tables</h2>")
     parts.append(_folded_html("Budget by configuration",
                               _html_table(BUDGET_HEAD, c["budget"], "budget"),
@@ -413,8 +413,8 @@ def _markdown(c, fig_dir: Path) -> str:
         parts += ["## Cross-check of the linear engine", "", _md_table(CHECK_HEAD, check_rows),
                   ""]
     if flagged:
-        parts += ["**Nonlinear in co-simulation** (the linear answer does not hold for "
-                  "these cases):", "", _md_table(["case", "flags"], flagged), ""]
+        parts += [("**Nonlinear in co-simulation** (the linear answer does not hold for "
+                   "these cases):"), "", _md_table(["case", "flags"], flagged), ""]
     parts += ["## Budget by configuration", "", _md_table(BUDGET_HEAD, c["budget"]), ""]
     if c["worst"]:
         parts += ["## Worst points of the sweeps", "", _md_table(WORST_HEAD, c["worst"]), ""]

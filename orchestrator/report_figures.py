@@ -20,8 +20,15 @@ from matplotlib.patches import Rectangle
 
 from . import metrics as M
 
-__all__ = ["Marking", "worst_window", "history_figure", "scatter_axes", "scatter_figure",
-           "frf_figure", "legend_above"]
+__all__ = [
+    "Marking",
+    "frf_figure",
+    "history_figure",
+    "legend_above",
+    "scatter_axes",
+    "scatter_figure",
+    "worst_window",
+]
 
 _ORDER = {"roll": 0, "pitch": 1, "yaw": 2}
 _REQ = "crimson"
@@ -275,7 +282,7 @@ def frf_figure(path: Path):
     -------
     Figure
     """
-    from .report import ReportError   # deferred: report imports this module
+    from .report import ReportError  # deferred: report imports this module
 
     t = pq.read_table(path) if path.suffix == ".parquet" else pacsv.read_csv(path)
     cols = {n: t.column(n).to_numpy() for n in t.column_names}

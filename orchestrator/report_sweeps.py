@@ -25,8 +25,13 @@ from .metrics import one_sided_psd
 from .report_budget import _plain_log_labels
 from .report_verdict import metric_words
 
-__all__ = ["WORST_HEAD", "sweep_sections", "transfer_figure", "spectrum_figure",
-           "uncertainty_sections"]
+__all__ = [
+    "WORST_HEAD",
+    "spectrum_figure",
+    "sweep_sections",
+    "transfer_figure",
+    "uncertainty_sections",
+]
 
 WORST_HEAD = ["sweep", "configuration", "instrument", "axis", "metric", "worst at", "value",
               "requirement", "margin"]

@@ -13,8 +13,14 @@ from dataclasses import dataclass
 
 from .campaign import RSS_EVENT
 
-__all__ = ["AxisVerdict", "verdicts", "verdict_table", "dominant_by_axis", "axes_by_event",
-           "metric_words"]
+__all__ = [
+    "AxisVerdict",
+    "axes_by_event",
+    "dominant_by_axis",
+    "metric_words",
+    "verdict_table",
+    "verdicts",
+]
 
 _WORDS = {"peak_to_peak": "peak-to-peak", "rms_jitter": "RMS jitter",
           "stability": "stability (RMS change)", "rms": "RMS", "ape": "APE", "mpe": "MPE",

@@ -110,7 +110,7 @@ _GROUP_COLORS = ("#8c8c8c", "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd
 
 def _column_axis_labels(ax, columns):
     """Axis names as tick labels, instrument names centred under their axes."""
-    ax.set_xticks(np.arange(len(columns)), [a for _, a in columns], fontsize=8)
+    ax.set_xticks(np.arange(len(columns)), [a for _, a in columns], fontsize=9)
     start = 0
     for k in range(1, len(columns) + 1):
         if k == len(columns) or columns[k][0] != columns[start][0]:
@@ -126,14 +126,14 @@ def _heatmap(ax, grid, data, cmap, norm, fmt, title):
     masked = np.ma.masked_invalid(data)
     cm = matplotlib.colormaps[cmap].with_extremes(bad="#e8e8e8")
     im = ax.imshow(masked, cmap=cm, norm=norm, aspect="auto", interpolation="nearest")
-    ax.set_yticks(np.arange(len(grid.events)), grid.events, fontsize=8)
+    ax.set_yticks(np.arange(len(grid.events)), grid.events, fontsize=9)
     ax.get_yticklabels()[-1].set_fontweight("bold")
     ax.axhline(len(grid.events) - 1.5, color="k", lw=1.2)  # events above, RSS below
     for (i, j), v in np.ndenumerate(data):
         text = "–" if not np.isfinite(v) else fmt(v)
         rgba = im.cmap(im.norm(v)) if np.isfinite(v) else (1, 1, 1, 1)
         dark = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2] < 0.5
-        ax.text(j, i, text, ha="center", va="center", fontsize=6.5,
+        ax.text(j, i, text, ha="center", va="center", fontsize=8,
                 color="white" if dark else "black")
     _column_axis_labels(ax, grid.columns)
     ax.set_title(title, fontsize=10, loc="left")
@@ -206,7 +206,7 @@ def _budget_figure(rows, instruments, unit, metric, window):
             if np.isfinite(change[j]):
                 ax.annotate(f"{change[j]:+.0f} %" if abs(change[j]) >= 0.5 else "0 %",
                             (x[j], top[j]), xytext=(0, 3), textcoords="offset points",
-                            ha="center", va="bottom", fontsize=7,
+                            ha="center", va="bottom", fontsize=8,
                             color="#1f4e9c" if change[j] <= -0.5 else "#444")
     shown = np.concatenate([rss.ravel(), grid.requirement])
     shown = shown[np.isfinite(shown) & (shown > 0)]

@@ -50,6 +50,14 @@ def swir_figure(off, on, out_dir, stem="swir-isolation", label="SWIR/VNIR mounts
     plt.close(fig)
 
 
+def _frequency_axes(ax, ylabel, title):
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+
+
 def testbed_figure(data, out_dir, stem="testbed-isolation"):
     """Figs. 13-16 style figure of the testbed isolation's data, written to ``<stem>.png``.
 
@@ -77,21 +85,15 @@ def testbed_figure(data, out_dir, stem="testbed-isolation"):
     ax.loglog(FREQS, np.abs(data["frf"]["mount3"][0]), label="open loop (baseline)")
     ax.loglog(FREQS, np.abs(data["frf"]["mount3"][1]), label="mount #3 closed")
     ax.loglog(FREQS, np.abs(data["frf"]["all_mounts"][1]), ls="--", label="all mounts closed")
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("accel. #6 / SWIR force ((m/s^2)/N)")
-    ax.set_title("Fig. 13 style: accelerometer #6 (payload, mount #3)")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    _frequency_axes(ax, "accel. #6 / SWIR force ((m/s^2)/N)",
+                    "Fig. 13 style: accelerometer #6 (payload, mount #3)")
     ax = axes[0, 1]
     ax.loglog(FREQS, data["ratio"], label="mount #3")
     ax.loglog(FREQS, np.abs(data["frf"]["all_mounts"][0]) / np.abs(data["frf"]["all_mounts"][1]),
               ls="--", label="all mounts")
     ax.axhline(1.0, color="0.5", lw=0.8)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("open / closed accel. #6")
-    ax.set_title("Fig. 14 style: transmissibility (linear model)")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    _frequency_axes(ax, "open / closed accel. #6",
+                    "Fig. 14 style: transmissibility (linear model)")
     ax = axes[1, 0]
     t = data["off"]["time"]
     n = int(round(0.25 / (t[1] - t[0])))

@@ -500,13 +500,24 @@ def balance(A: np.ndarray):
     """Exact power-of-two diagonal balancing: ``(D^-1 A D, diag(D))``.
 
     The memory state of a loop mixes metres, volts and strains; without it a Schur form
-    or an eigenvalue of the loop loses digits to the spread of scales.
+    or an eigenvalue of the loop loses digits to the spread of scales.  A state whose row
+    or column of ``A`` is zero up to round-off (a source's held output, written afresh
+    each period and never carried over) cannot be balanced: the iteration drives its
+    scale to 1e-50 or so, which a vector with that state non-zero does not survive, so
+    it keeps scale 1.
     """
     import scipy.linalg as la
 
     with np.errstate(invalid="ignore"):   # scipy casts its unused permutation
         Ab, T = la.matrix_balance(A, permute=False)
-    return Ab, np.diag(T).copy()
+    d = np.diag(T).copy()
+    # zero up to round-off of the products that made A (1e-53 against 3 seen)
+    tiny = np.finfo(float).eps ** 2 * np.abs(A).max()
+    idle = (np.abs(A).max(axis=0) <= tiny) | (np.abs(A).max(axis=1) <= tiny)
+    if np.any(idle & (d != 1.0)):
+        d[idle] = 1.0
+        Ab = A / d[:, None] * d[None, :]      # powers of two: exact
+    return Ab, d
 
 
 def _causal_conv(h: np.ndarray, w: np.ndarray, Hf=None) -> np.ndarray:

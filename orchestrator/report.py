@@ -42,7 +42,14 @@ from matplotlib.figure import Figure
 
 from .campaign import ANGLE_UNITS, RSS_EVENT, slug
 from .report_budget import BudgetGrid, _budget_figure, _group_label, _groups, budget_grid
-from .report_figures import Marking, frf_figure, history_figure, scatter_axes, scatter_figure
+from .report_figures import (
+    Marking,
+    ReportError,
+    frf_figure,
+    history_figure,
+    scatter_axes,
+    scatter_figure,
+)
 from .report_sweeps import WORST_HEAD, spectrum_figure, sweep_sections, uncertainty_sections
 from .report_verdict import axes_by_event, dominant_by_axis, metric_words, verdict_table, verdicts
 from .report_verdict import same_window as _same_window
@@ -53,10 +60,6 @@ UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
 __all__ = ["BudgetGrid", "ReportError", "budget_grid", "write_report"]
 
 FORMATS = ("html", "md")
-
-
-class ReportError(ValueError):
-    """A campaign folder that cannot be reported on."""
 
 
 # ----------------------------------------------------------------------------- data

@@ -22,6 +22,7 @@ from . import metrics as M
 
 __all__ = [
     "Marking",
+    "ReportError",
     "frf_figure",
     "history_figure",
     "legend_above",
@@ -29,6 +30,11 @@ __all__ = [
     "scatter_figure",
     "worst_window",
 ]
+
+
+class ReportError(ValueError):
+    """A campaign folder that cannot be reported on."""
+
 
 _ORDER = {"roll": 0, "pitch": 1, "yaw": 2}
 _REQ = "crimson"
@@ -282,8 +288,6 @@ def frf_figure(path: Path):
     -------
     Figure
     """
-    from .report import ReportError  # deferred: report imports this module
-
     t = pq.read_table(path) if path.suffix == ".parquet" else pacsv.read_csv(path)
     cols = {n: t.column(n).to_numpy() for n in t.column_names}
     fcol = next((n for n in cols if n.lower() in ("frequency", "frequency_hz", "f", "freq")),

@@ -31,8 +31,14 @@ def test_the_front_door_docstring_runs(suite_fmus, suite_fmu_dir, monkeypatch):
     assert result.failed == 0
 
 
+#: Examples with a test file of their own (tests/test_<name>.py), run there with short runs.
+OWN_TESTS = {p.name for p in (ROOT / "examples").glob("*.py")
+             if (ROOT / "tests" / f"test_{p.stem}.py").is_file()}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("script", sorted(p.name for p in (ROOT / "examples").glob("*.py")))
+@pytest.mark.parametrize("script", sorted(p.name for p in (ROOT / "examples").glob("*.py")
+                                          if p.name not in OWN_TESTS))
 def test_example_runs(script, tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
     proc = subprocess.run([sys.executable, str(ROOT / "examples" / script),

@@ -27,7 +27,15 @@ _SHOWN: dict[str, int] = {}
 
 
 def clip(text: str, limit: int = MAX_MESSAGE) -> str:
-    """``text``, cut in the middle when longer than ``limit`` characters."""
+    """``text``, cut in the middle when longer than ``limit`` characters.
+
+    Parameters
+    ----------
+    text : str
+        A message.
+    limit : int
+        Characters kept.
+    """
     if len(text) <= limit:
         return text
     return f"{text[:limit // 2]} [... {len(text) - limit} characters cut ...] {text[-limit // 2:]}"
@@ -51,6 +59,16 @@ def show_warning(message, category=UserWarning, filename="", lineno=0, file=None
     worker processes, which import it): no source line, no file name, no repeats.  In a
     worker, an UnconnectedInputWarning is not printed: it is about the scenario's
     wiring, which the campaign command reports once for the whole run.
+
+    Parameters
+    ----------
+    message : Warning or str
+        What was warned.
+    category : type
+        The warning's class.
+    filename, lineno, file, line
+        As :func:`warnings.showwarning` passes them; only ``file`` is used (default
+        stderr).
     """
     text = str(message)
     if text in _SHOWN:

@@ -174,8 +174,23 @@ def run(args) -> int:
 
 
 def budget_lines(summary_path, limit: int = 20) -> list:
-    """The verdict a user runs a campaign for: per instrument and axis, the RSS of each
-    configuration against its requirement (the first metric that has requirements)."""
+    """The verdict a user runs a campaign for, as lines to print.
+
+    Per instrument and axis, the RSS of each configuration against its requirement, for
+    the first metric that has requirements.
+
+    Parameters
+    ----------
+    summary_path : path-like
+        The campaign's ``summary.parquet``.
+    limit : int
+        Instrument-axis lines at most (the rest are counted).
+
+    Returns
+    -------
+    list of str
+        Empty when no summary or no requirement.
+    """
     import pyarrow.parquet as pq
 
     from ..campaign.spec import RSS_EVENT

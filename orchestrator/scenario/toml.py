@@ -7,7 +7,7 @@ import os
 import tomllib
 from pathlib import Path
 
-from fmutools.archive import short_repr
+from fmutools.archive import PATH_CHARS, short_repr
 
 from .model import (
     _NAME,
@@ -232,7 +232,7 @@ def load_toml_file(path, what: str = "scenario file", error: type = ScenarioErro
     dict
     """
     path = Path(path)
-    shown = short_repr(str(path))
+    shown = short_repr(str(path), PATH_CHARS)
     try:
         if path.is_dir():
             raise error(f"{what} {shown} is a folder; expected a TOML scenario file or an "
@@ -277,5 +277,5 @@ def read_toml(path, base_dir=None) -> Scenario:
     try:
         return scenario_from_dict(data, base_dir or path.parent, str(path))
     except ScenarioError as exc:
-        name = str(path) if len(str(path)) <= 200 else short_repr(str(path))
+        name = str(path) if len(str(path)) <= PATH_CHARS else short_repr(str(path))
         raise ScenarioError(f"{name}: {exc}") from None

@@ -179,11 +179,13 @@ def model_identifier_problem(ident) -> str | None:
 
 _REPR = reprlib.Repr()
 _REPR.maxstring = _REPR.maxother = 80
+#: Characters of a file path echoed in a message (a real path fits; a 100 KB one is cut).
+PATH_CHARS = 300
 _REPR.maxlevel, _REPR.maxlist, _REPR.maxdict, _REPR.maxtuple = 3, 6, 6, 6
 
 
-def short_repr(value) -> str:
-    """``repr(value)`` cut to about 80 characters, for echoing outside data in a message.
+def short_repr(value, limit: int = 80) -> str:
+    """``repr(value)`` cut to about ``limit`` characters, for echoing outside data.
 
     A long string keeps its two ends and says how long it was; a deep or long list or
     table keeps its first levels and items.  Never raises (a nesting too deep for
@@ -193,13 +195,20 @@ def short_repr(value) -> str:
     ----------
     value : object
         A name, path or value read from a file or the command line.
+    limit : int
+        Characters of a string kept (about; 80 by default, more for a file path).
 
     Returns
     -------
     str
     """
-    text = _REPR.repr(value)
-    if isinstance(value, (str, bytes)) and len(value) > _REPR.maxstring:
+    rep = _REPR
+    if limit != rep.maxstring:
+        rep = reprlib.Repr()
+        rep.maxstring = rep.maxother = limit
+        rep.maxlevel, rep.maxlist, rep.maxdict, rep.maxtuple = 3, 6, 6, 6
+    text = rep.repr(value)
+    if isinstance(value, (str, bytes)) and len(value) > rep.maxstring:
         text += f" ({len(value)} characters)"
     return text
 

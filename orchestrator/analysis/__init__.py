@@ -18,7 +18,8 @@ carries, from which:
   which the loop goes unstable (up and down), with every other loop closed;
 * :meth:`LinearScenario.decay` -- cycles to 90 % decay of the pole nearest a mode;
 * :meth:`LinearScenario.frequency_response` -- steady-state response to a harmonic
-  exogenous input (the fundamental, exact for single-rate loops);
+  exogenous input (the fundamental, exact for single-rate loops;
+  :func:`~orchestrator.analysis.spectra.transfer` on the compiled loop);
 * :func:`ceiling` -- the ideal ceiling: the largest reduction of a performance output
   under a harmonic disturbance that any controller driving the chosen actuators could
   reach, either by cancelling the chosen sensor signals perfectly (``"cancel"``) or by

@@ -102,15 +102,19 @@ class FastResponse:
         Published outputs ``instance.variable`` to record.  The outputs the blocks
         declare as limited (piezo voltage and current, ACS torques) are computed too and
         checked on every record.
+    strict : bool
+        Refuse an instance holding something the linear model leaves out (default);
+        False compiles its linear part (what a transfer needs).
 
     Raises
     ------
     AnalysisError
         When an instance holds something the linear model leaves out (one sentence per
-        instance), or a reference is not an output of the scenario.
+        instance; unless ``strict`` is False), or a reference is not an output of the
+        scenario.
     """
 
-    def __init__(self, lin: LinearScenario, refs):
+    def __init__(self, lin: LinearScenario, refs, strict: bool = True):
         self.lin = lin
         self.refs = tuple(refs)
         reasons = [u for b in lin.blocks.values() for u in b.unmodelled
@@ -119,7 +123,7 @@ class FastResponse:
             b = lin.blocks.get(ref.partition(".")[0])
             if b is not None:
                 reasons += [u for u in b.unmodelled if u.startswith(f"output {ref} ")]
-        if reasons:
+        if reasons and strict:
             raise AnalysisError("the linear engine cannot represent " + "; ".join(reasons)
                                 + ": run these cases with the co-simulation (--engine cosim)")
         self._checks = [(f"{n}.{o}", lo, hi, what) for n, b in lin.blocks.items()

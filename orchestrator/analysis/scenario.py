@@ -245,33 +245,6 @@ class LinearScenario:
             X = self._tick(X, k, w_next)
         return X
 
-    def _harmonic(self, X, inputs, w_rad, out_rows=None, n_ticks=None):
-        """Run ``n_ticks`` (one hyperperiod by default) from ``X`` (n, n_in) with
-        ``exp(j w t)`` on ``inputs``.
-
-        Returns the final ``X`` and, with ``out_rows``, the fundamental of those rows.
-        """
-        n_ticks = self.hyper if n_ticks is None else n_ticks
-        cols = len(inputs)
-        acc = None if out_rows is None else np.zeros((len(out_rows), cols), complex)
-        k_now = [0]
-
-        def w_next(name):
-            b = self.blocks[name]
-            rows = np.zeros((len(b.outputs), cols), complex)
-            for j, ref in enumerate(inputs):
-                inst, var = ref.split(".", 1)
-                if inst == name:
-                    rows[b.outputs.index(var), j] = np.exp(1j * w_rad * k_now[0] * self.base)
-            return rows
-
-        for k in range(n_ticks):
-            k_now[0] = k
-            X = self._tick(X, k % self.hyper, w_next)
-            if acc is not None:
-                acc += X[out_rows] * np.exp(-1j * w_rad * k * self.base)
-        return X, (None if acc is None else acc / n_ticks)
-
     def simulate(self, n_ticks: int, w: Callable | None = None, x0=None, record=()):
         """Tick-by-tick linear simulation.
 
@@ -361,6 +334,12 @@ class LinearScenario:
     def frequency_response(self, inputs, outputs, freqs_hz) -> np.ndarray:
         """Steady-state response to harmonic exogenous inputs.
 
+        The transfer of :func:`orchestrator.analysis.spectra.transfer` (its one home) on
+        this loop as linearised: an instance whose noise or quantisation a record would
+        refuse (:class:`~orchestrator.analysis.fast.FastResponse`) counts by its linear
+        part.  A source slower than the loop's hyperperiod holds each value over its own
+        period, as the co-simulation steps it.
+
         Parameters
         ----------
         inputs : sequence of str
@@ -368,6 +347,8 @@ class LinearScenario:
         outputs : sequence of str
             Published outputs ``instance.variable``.
         freqs_hz : array_like, shape (n_f,)
+            Frequencies (Hz), none at a multiple of the steady state's rate on a neutral
+            pole (a free rigid body at 0 Hz).
 
         Returns
         -------
@@ -375,35 +356,15 @@ class LinearScenario:
             Fundamental component of each output per unit input (exact for a loop
             whose instances share one period; for mixed rates the component at ``f``
             of the periodic steady state, whose period is the hyperperiod of the loop and
-            of the driving sources together).
+            of the sources together).
         """
-        freqs = np.atleast_1d(np.asarray(freqs_hz, float))
-        inputs = list(inputs)
-        period = self.hyper   # the steady state's period: the sources' periods included
-        for ref in inputs:
-            inst, var = ref.split(".", 1)
-            if inst not in self.sources or var not in self.blocks[inst].outputs:
-                raise AnalysisError(f"{ref} is not an output of a source instance; sources: "
-                                    f"{', '.join(self.sources)}")
-            period = int(np.lcm(period, self.blocks[inst].period))
-        Phi = np.linalg.matrix_power(self.lifted(), period // self.hyper)
-        T = period * self.base
-        rows = [self.index(r) for r in outputs]
-        H = np.zeros((len(rows), len(inputs), freqs.size), complex)
-        eye = np.eye(self.n)
-        for fi, f in enumerate(freqs):
-            w = 2 * np.pi * f
-            # periodic steady state: X(T) = exp(j w T) X(0)
-            forced, _ = self._harmonic(np.zeros((self.n, len(inputs)), complex), inputs, w,
-                                       n_ticks=period)
-            try:
-                X0 = np.linalg.solve(np.exp(1j * w * T) * eye - Phi, forced)
-            except np.linalg.LinAlgError:
-                raise AnalysisError(f"the loop has a pole at {f} Hz (a multiple of the "
-                                    "hyperperiod rate on a neutral mode); choose another "
-                                    "frequency") from None
-            _, H[:, :, fi] = self._harmonic(X0, inputs, w, rows, n_ticks=period)
-        return H
+        # deferred: the compiled loop imports scipy
+        from .fast import FastResponse
+        from .spectra import transfer
+
+        outputs = list(outputs)
+        return transfer(FastResponse(self, outputs, strict=False), inputs, outputs,
+                        freqs_hz).H
 
 
 def _cycles(zeta: float) -> float:

@@ -198,8 +198,9 @@ def test_stability_margin_db_against_known_limits():
 def test_frequency_response_of_a_source_slower_than_the_loop(fmus):
     # The excitation at 8 ms drives a loop whose hyperperiod is 4 ms: the periodic steady
     # state then repeats every 8 ms.  Reference: the tick-by-tick linear simulation driven
-    # by cos and sin (their complex sum is the response to exp(j w t)), settled, whose
-    # fundamental over whole 8 ms periods is what frequency_response defines.
+    # by cos and sin (their complex sum is the response to exp(j w t)), each value held
+    # over the source's 8 ms as the co-simulation steps it, settled, whose fundamental
+    # over whole 8 ms periods is what frequency_response defines.
     with open(SCENARIO, "rb") as f:
         sc = tomllib.load(f)
     sc["fmus"]["excitation"]["period"] = "8e-3"
@@ -214,7 +215,8 @@ def test_frequency_response_of_a_source_slower_than_the_loop(fmus):
 
     def run(phase):
         def src(name, k):
-            return np.array([math.cos(w * k * lin.base - phase), 0.0])
+            # simulate() publishes sources every hyperperiod (4 ms); hold the 8 ms value
+            return np.array([math.cos(w * (k - k % 8) * lin.base - phase), 0.0])
         return lin.simulate(n, w=src, record=[out])[0][:, 0]
 
     y = run(0.0) + 1j * run(math.pi / 2)

@@ -327,32 +327,3 @@ def test_transfer_from_an_opened_controller_is_the_settled_response(suite_fmus, 
     np.testing.assert_allclose(np.abs(H), settled, rtol=1e-3)
     tr = transfer(FastResponse(op, refs), ["ctrl_long.u1"], refs, [f]).H[:, 0, 0]
     np.testing.assert_allclose(np.abs(tr), settled, rtol=1e-3)
-
-
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="spectra.transfer (FastResponse.steady_state) of a "
-                   "source slower than the loop's hyperperiod (8 ms against 4 ms) is 12 % "
-                   "off LinearScenario.frequency_response, which test_analysis checks "
-                   "against the settled simulation; until found, the two transfers are "
-                   "not folded into one")
-def test_transfer_of_a_source_slower_than_the_loop(suite_fmus, suite_fmu_dir):
-    import tomllib
-    import warnings
-
-    from orchestrator.analysis import linearize
-    from orchestrator.analysis.fast import FastResponse
-    from orchestrator.analysis.spectra import transfer
-    from orchestrator.experiments import SCENARIOS
-    from orchestrator.experiments.truss_decay import FMUS
-
-    suite_fmus(*FMUS)
-    sc = tomllib.loads((SCENARIOS / "truss10_closed_loop.toml").read_text())
-    sc["fmus"]["excitation"]["period"] = "8e-3"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        lin = linearize(sc, overrides={"ctrl_diag.t_on": 0.0, "ctrl_long.t_on": 0.0},
-                        fmu_dir=suite_fmu_dir)
-    out = ["structure.strain_diag"]
-    H = lin.frequency_response(["excitation.v1"], out, [10.0])[0, 0, 0]
-    tr = transfer(FastResponse(lin, out), ["excitation.v1"], out, [10.0]).H[0, 0, 0]
-    np.testing.assert_allclose(tr, H, rtol=1e-9)

@@ -35,7 +35,6 @@ import numpy as np
 import scipy.fft as sfft
 
 from .blocks import AnalysisError
-from .scenario import LinearScenario
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
 
@@ -114,7 +113,7 @@ class FastResponse:
         scenario.
     """
 
-    def __init__(self, lin: LinearScenario, refs, strict: bool = True):
+    def __init__(self, lin, refs, strict: bool = True):
         self.lin = lin
         self.refs = tuple(refs)
         reasons = [u for b in lin.blocks.values() for u in b.unmodelled

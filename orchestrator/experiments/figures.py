@@ -58,7 +58,11 @@ def _frequency_axes(ax, ylabel, title):
     ax.legend(fontsize=8)
 
 
-def testbed_figure(data, out_dir, stem="testbed-isolation"):
+#: Names the figure gives the testbed's configurations (the experiment's keys).
+CONFIGURATION_NAMES = {"mount3": "mount #3", "all_mounts": "all three mounts"}
+
+
+def testbed_figure(data, out_dir, stem="testbed-isolation", *, freqs, t_on, highpass):
     """Figs. 13-16 style figure of the testbed isolation's data, written to ``<stem>.png``.
 
     Parameters
@@ -69,6 +73,12 @@ def testbed_figure(data, out_dir, stem="testbed-isolation"):
         Output folder (must exist).
     stem : str
         File name without ``.png``.
+    freqs : ndarray, shape (n_f,)
+        Frequencies of ``data["frf"]`` and ``data["ratio"]`` (Hz).
+    t_on : float
+        Switch-on time of the isolation (s).
+    highpass : callable
+        ``highpass(t, x)``: the boresight above the band the figure shows.
     """
     # deferred: plotting only
     import matplotlib
@@ -77,9 +87,7 @@ def testbed_figure(data, out_dir, stem="testbed-isolation"):
     # deferred: plotting only
     import matplotlib.pyplot as plt
 
-    from .testbed_isolation import FREQS, T_ON
-    from .testbed_isolation import _highpassed
-
+    FREQS, T_ON, _highpassed = freqs, t_on, highpass   # noqa: N806 (the experiment's names)
     fig, axes = plt.subplots(2, 2, figsize=(11, 8))
     ax = axes[0, 0]
     ax.loglog(FREQS, np.abs(data["frf"]["mount3"][0]), label="open loop (baseline)")
@@ -111,7 +119,7 @@ def testbed_figure(data, out_dir, stem="testbed-isolation"):
     ax.plot(t, moving_rms(data["off"]), color="0.3", label="RMS, isolation off")
     for k, c in (("mount3", "C1"), ("all_mounts", "C2")):
         ax.plot(t, moving_rms(data["runs"][k]), color=c,
-                label=f"RMS, {k} ({data['reduction'][k]:.0f} %)")
+                label=f"RMS, {CONFIGURATION_NAMES[k]} ({data['reduction'][k]:.0f} %)")
     ax.axvline(T_ON, color="0.5", ls="--", lw=0.8)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("MISR boresight (arcsec, >5 Hz; RMS over 0.25 s)")

@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test reproduce build bench clean native-deps browser-deps
+.PHONY: setup demo test test-full reproduce build bench clean native-deps browser-deps
 
 setup: $(STAMP)
 
@@ -39,7 +39,11 @@ demo: setup
 	$(VENV)/bin/jitterfmu report out/demo/eos-budget-campaign
 
 test: setup
-	$(PY) -m pytest -q -n 2 --dist loadfile   # two workers; a file's tests share one
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "not paper"   # two workers; a file's tests share one
+
+# The paper's experiments and their designs at length (tests marked `paper`); CI runs both.
+test-full: setup
+	$(PY) -m pytest -q -n 2 --dist loadfile -m paper
 
 build: setup
 	$(VENV)/bin/jitterfmu build

@@ -17,7 +17,7 @@ from orchestrator.experiments import eos_budget
 from orchestrator.experiments import run as run_experiment
 from orchestrator.report import budget_grid, write_report
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.paper]
 
 
 @pytest.fixture(scope="module")

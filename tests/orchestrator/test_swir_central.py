@@ -7,6 +7,8 @@ import pytest
 from orchestrator.analysis.margins import spectral_radius, without_states
 from orchestrator.experiments import swir_isolation as sw
 
+pytestmark = pytest.mark.paper   # the paper's experiments' designs: make test-full
+
 
 @pytest.fixture(scope="module")
 def plant():

@@ -6,6 +6,8 @@ import pytest
 
 from orchestrator.experiments import testbed_isolation as tb
 
+pytestmark = pytest.mark.paper   # the paper's experiments' designs: make test-full
+
 
 @pytest.fixture(scope="module")
 def plant(suite_fmu_dir):

@@ -42,6 +42,7 @@ from fmukit.units import LBF
 from fmutools.ensure import ensure_fmus as _ensure
 from orchestrator import UnconnectedInputWarning, run_scenario
 from orchestrator.analysis.margins import band_damping
+from orchestrator.progress import stage
 
 from . import eos
 from . import verdicts as vd
@@ -230,6 +231,7 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native",
         raise ValueError(f"variant is {variant!r}; swir-isolation takes one of "
                          f"{', '.join(VARIANTS)}")
     stop = 3.5 if quick else 6.0
+    stage(f"swir-isolation: linear design of the twelve leg loops ({variant})")
     model = structure_model()
     plant = linear_plant(model)
     central = central_law(plant)
@@ -237,6 +239,7 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native",
     lin_off = simulate_linear(plant, stop=stop)
     lin_on = simulate_linear(plant, lw, GAIN, stop=stop)
     ceil = ceiling(lin_off, lin_on)
+    stage("swir-isolation: ceilings, margins and the modes that carry SWIR pitch")
     ls = ls_ceiling(plant, lin_off)
     mar = margins(plant, lw, GAIN)
     damp = band_damping(plant.A, closed_loop(plant, lw, GAIN)[0], H)
@@ -255,6 +258,7 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native",
                                                                    down=True)}
 
     fdir = ensure_fmus(fmu_dir, fmu_kind, central if variant == "central" else None)
+    stage(f"swir-isolation: co-simulating {stop:g} s, isolation off then on")
     off = cosim(fdir, 0.0, stop, fmu_kind, variant)
     on = cosim(fdir, GAIN, stop, fmu_kind, variant)
     sw_off, sw_on = jitter(off, "swir"), jitter(on, "swir")

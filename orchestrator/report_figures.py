@@ -108,7 +108,17 @@ def worst_window(t, x, window: float, skip: float = 0.0):
 
 
 def legend_above(ax, handles=None, fontsize=7.5):
-    """A legend in a row above the axes (outside them: it never hides data)."""
+    """A legend in a row above the axes (outside them: it never hides data).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        The axes; nothing is drawn when there are no handles.
+    handles : list of matplotlib.artist.Artist, optional
+        The entries, at most four per row; default the axes' labelled artists.
+    fontsize : float
+        Size of the legend's text (pt).
+    """
     handles = handles if handles is not None else ax.get_legend_handles_labels()[0]
     if handles:
         ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.01),

@@ -29,7 +29,16 @@ _WORDS = {"peak_to_peak": "peak-to-peak", "rms_jitter": "RMS jitter",
 
 def metric_words(kind, window=None) -> str:
     """A metric kind as a report says it: ``peak_to_peak``, 1.8 -> "peak-to-peak over
-    1.8 s" (a stability's window is its lag)."""
+    1.8 s" (a stability's window is its lag).
+
+    Parameters
+    ----------
+    kind : str or None
+        Metric kind (``"peak_to_peak"``, ``"rms_jitter"``, ``"stability"``, ``"rms"``,
+        ``"ape"``, ...); an unknown kind is said as it is, None as "".
+    window : float, optional
+        The metric's window (s; a stability's lag); None: no window in the words.
+    """
     words = _WORDS.get(kind, kind or "")
     if window is None:
         return words
@@ -37,7 +46,14 @@ def metric_words(kind, window=None) -> str:
 
 
 def same_window(a, b) -> bool:
-    """Whether two metric windows (s, or None) are the same."""
+    """Whether two metric windows are the same (equal to ``math.isclose``; None only
+    equals None).
+
+    Parameters
+    ----------
+    a, b : float or None
+        The windows (s), None for a metric without one.
+    """
     if a is None or b is None:
         return a is None and b is None
     return math.isclose(float(a), float(b))

@@ -119,12 +119,28 @@ class SampledStructure:
     n_coords: int
 
     def rows(self, prefix: str, names) -> list:
-        """Rows of ``C`` of the outputs ``<prefix><name>``, in the order of ``names``."""
+        """Rows of ``C`` of the outputs ``<prefix><name>``, in the order of ``names``.
+
+        Parameters
+        ----------
+        prefix : str
+            Common start of the output names (e.g. ``"strain_"``; ``""`` for none).
+        names : iterable of str
+            The rest of each output's name.
+        """
         idx = {n: i for i, n in enumerate(self.outputs)}
         return [idx[f"{prefix}{n}"] for n in names]
 
     def cols(self, prefix: str, names) -> list:
-        """Columns of ``B`` of the inputs ``<prefix><name>``, in the order of ``names``."""
+        """Columns of ``B`` of the inputs ``<prefix><name>``, in the order of ``names``.
+
+        Parameters
+        ----------
+        prefix : str
+            Common start of the input names (e.g. ``"fc_"``; ``""`` for none).
+        names : iterable of str
+            The rest of each input's name.
+        """
         idx = {n: i for i, n in enumerate(self.inputs)}
         return [idx[f"{prefix}{n}"] for n in names]
 

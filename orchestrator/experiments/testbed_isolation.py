@@ -50,6 +50,7 @@ import numpy as np
 from fmukit.units import ARCSEC_PER_RAD
 
 from ..analysis.frf import isolation_bandwidth, transmissibility_bands
+from ..progress import stage
 from ..run import run_scenario
 from . import eos
 from . import verdicts as vd
@@ -194,6 +195,7 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
         ``off_linear_full_scale_arcsec_rms`` (arcsec).
     """
     fdir = ensure_fmus(fmu_dir, variant, fmu_kind)
+    stage(f"testbed-isolation: linear design of the mount loops ({variant} struts)")
     model = linear_model(fdir, variant)
     plant = linear_plant(model)
     gains = HYBRID_GAINS if variant == "hybrid" else GAINS
@@ -212,6 +214,8 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
     shape = loop_shape(Gf)
     ff = feedforward_bound(plant, 3, Gh)
     stop = 6.0 if quick else 9.6
+    stage(f"testbed-isolation: co-simulating {stop:g} s three times (mount #3, all three "
+          "mounts, isolation off)")
     runs = {k: _cosim(fdir, MOUNTS[k], gains[k], stop, variant, fmu_kind) for k in MOUNTS}
     off = _cosim(fdir, (), 0.0, stop, variant, fmu_kind)
     t = off["time"]

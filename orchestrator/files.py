@@ -10,20 +10,10 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Callable
 
-
-def _umask() -> int:
-    mask = os.umask(0o022)   # read it (there is no getter) and put it back at once
-    os.umask(mask)
-    return mask
-
-
-#: Mode of every file written here: what ``open`` would give (0666 less the umask).
-_FILE_MODE = 0o666 & ~_umask()
+from fmutools.atomic import replaced_when_done
 
 
 def atomic_write(path, writer: Callable[[str], None]) -> Path:
@@ -34,9 +24,10 @@ def atomic_write(path, writer: Callable[[str], None]) -> Path:
     path : path-like
         Final file; its folder is created if missing.
     writer : callable
-        Called with the name of a temporary file in the same folder; it writes the whole
-        content there.  If it raises, the temporary file is removed and the exception
-        propagates, leaving ``path`` as it was.
+        Called with the name of a temporary file in the same folder (not yet created,
+        :func:`fmutools.atomic.replaced_when_done`); it writes the whole content there.
+        If it raises, the temporary file is removed and the exception propagates,
+        leaving ``path`` as it was.
 
     Returns
     -------
@@ -46,18 +37,8 @@ def atomic_write(path, writer: Callable[[str], None]) -> Path:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        writer(tmp)
-        os.chmod(tmp, _FILE_MODE)   # mkstemp makes 0600; a result is the group's to read
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with replaced_when_done(path) as tmp:
+        writer(str(tmp))
     return path
 
 

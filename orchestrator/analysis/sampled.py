@@ -128,8 +128,7 @@ class SampledStructure:
         names : iterable of str
             The rest of each output's name.
         """
-        idx = {n: i for i, n in enumerate(self.outputs)}
-        return [idx[f"{prefix}{n}"] for n in names]
+        return _positions(self.outputs, prefix, names)
 
     def cols(self, prefix: str, names) -> list:
         """Columns of ``B`` of the inputs ``<prefix><name>``, in the order of ``names``.
@@ -141,8 +140,7 @@ class SampledStructure:
         names : iterable of str
             The rest of each input's name.
         """
-        idx = {n: i for i, n in enumerate(self.inputs)}
-        return [idx[f"{prefix}{n}"] for n in names]
+        return _positions(self.inputs, prefix, names)
 
     def modal_output(self, modes) -> np.ndarray:
         """``C`` restricted to the displacement states of some modes.
@@ -430,3 +428,9 @@ def simulate_with_acs(A, Bw, w, acs, att, rate, dt: float, record) -> list:
         u[:nw], u[nw:] = w[k], torque
         x = A @ x + Bw @ u
     return out
+
+
+def _positions(all_names, prefix: str, names) -> list:
+    """Positions in ``all_names`` of ``<prefix><name>`` for each of ``names``, in order."""
+    idx = {n: i for i, n in enumerate(all_names)}
+    return [idx[f"{prefix}{n}"] for n in names]

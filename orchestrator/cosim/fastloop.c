@@ -114,6 +114,7 @@ int fastloop_run(const loop_t *L, int64_t k0, int64_t k1, const double *t, resul
         const int64_t *pr = L->prog + 5 * L->prog_of_tick[k % L->hyperperiod];
         const double tk = t[k - k0];
         double sum = 0.0;
+        int out = 0;
         res->tick = k;
         if (pr[3] < 0)
             memcpy(values, values + n, (size_t)n * sizeof(double));
@@ -141,13 +142,14 @@ int fastloop_run(const loop_t *L, int64_t k0, int64_t k1, const double *t, resul
                 L->rec[row * L->n_rec + i] = values[L->rec_idx[i]];
             res->rows = row + 1;
         }
-        for (i = n; i < 3 * n; i++)
+        for (i = n; i < 3 * n; i++) {   /* one pass: finite and inside its range */
             sum += values[i];
+            out |= values[i] < L->lo[i - n] || values[i] > L->hi[i - n];
+        }
         if (!isfinite(sum))
-            return RUN_NOT_FINITE;
-        for (i = n; i < 3 * n; i++)
-            if (values[i] < L->lo[i - n] || values[i] > L->hi[i - n])
-                return RUN_OUT_OF_RANGE;
+            return RUN_NOT_FINITE;   /* a NaN compares false: reported as not finite */
+        if (out)
+            return RUN_OUT_OF_RANGE;
         for (i = 0; i < L->n_flag; i++)
             if (values[L->flag_idx[i]] != 0.0) {
                 L->flag_ticks[i]++;

@@ -16,12 +16,10 @@ from __future__ import annotations
 import contextlib
 import importlib
 import importlib.util
-import os
 import re
 import shutil
 import sys
 import tempfile
-import uuid
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -30,10 +28,10 @@ from pathlib import Path
 
 from fmukit import slave as fmukit_slave
 from fmukit.modeldesc import CAPABILITIES
+from fmutools.atomic import replaced_when_done
 from fmutools.loader import REAL_BINARY_SUFFIX, cached_loader
 
-__all__ = ["FmuSpec", "BuildError", "BuildReport", "build_fmu", "REAL_BINARY_SUFFIX",
-           "replaced_when_done"]
+__all__ = ["FmuSpec", "BuildError", "BuildReport", "build_fmu", "REAL_BINARY_SUFFIX"]
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _CLASS_PATH = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
@@ -284,34 +282,6 @@ def _installed_builder():
         for name in [n for n in sys.modules if ours(n)]:
             del sys.modules[name]
         sys.modules.update(saved)
-
-
-@contextlib.contextmanager
-def replaced_when_done(dest: Path):
-    """A temporary file beside ``dest``, renamed onto it when the block succeeds.
-
-    The name is unique to this process and call (``.NAME.PID-RANDOM.part``), so two
-    builds writing the same file at once each write their own and the last rename
-    wins with a whole file; a failed block leaves ``dest`` as it was and no partial
-    file behind.
-
-    Parameters
-    ----------
-    dest : Path
-        The file to write.
-
-    Yields
-    ------
-    Path
-        Where to write it (not yet created).
-    """
-    dest = Path(dest)
-    tmp = dest.with_name(f".{dest.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}.part")
-    try:
-        yield tmp
-        os.replace(tmp, dest)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def _rewrite_archive(src: Path, dest: Path, model_identifier: str, loader: Path | None) -> None:

@@ -25,7 +25,8 @@ except ImportError:  # pragma: no cover - not POSIX: builds are not serialised
     fcntl = None
 
 from fmutools import FMU_KINDS, PYTHON_SUBDIR
-from fmutools.build import FmuSpec, build_fmu, replaced_when_done
+from fmutools.atomic import replaced_when_done
+from fmutools.build import FmuSpec, build_fmu
 from fmutools.registry import SOURCE_PACKAGES, collect_specs, sources_hash
 from nativefmu.build import build_native
 from nativefmu.data import NativeUnsupportedError

@@ -28,7 +28,8 @@ from xml.etree import ElementTree as ET
 
 import fmpy
 
-from fmutools.build import FmuSpec, build_fmu, replaced_when_done
+from fmutools.atomic import replaced_when_done
+from fmutools.build import FmuSpec, build_fmu
 from fmutools.registry import collect_specs
 from fmutools.validate import validate_fmu
 from nativefmu.data import KERNELS, kernel_of, model_data

@@ -10,6 +10,12 @@
  * Boolean by != 0.  Any FMI status above Warning, a non-finite value or one out of its
  * range stops the run
  * and is reported back so that Python raises the error it raises today.
+ *
+ * The container FMU (nativefmu.container, `jitterfmu export-fmu`) compiles this file
+ * into its binary and drives the same tables one tick (and half tick) at a time with
+ * fastloop_snapshot / fastloop_calls / fastloop_check; it includes this file with
+ * FASTLOOP_TYPES_ONLY defined to get the table types.  Function pointers are held as a
+ * generic function pointer type, so the file also compiles with -pedantic.
  */
 #include <math.h>
 #include <stddef.h>
@@ -19,6 +25,9 @@
 enum { READ_REAL = 0, READ_INT = 1, SET_REAL = 2, SET_INT = 3, SET_BOOL = 4, DO_STEP = 5 };
 enum { RUN_OK = 0, RUN_FMI_STATUS = 1, RUN_NOT_FINITE = 2, RUN_OUT_OF_RANGE = 3 };
 
+#ifndef FASTLOOP_H
+#define FASTLOOP_H
+typedef void (*fastloop_fn)(void);   /* any FMI function, cast back before the call */
 typedef int (*get_real_fn)(void *, const uint32_t *, size_t, double *);
 typedef int (*get_int_fn)(void *, const uint32_t *, size_t, int32_t *);
 typedef int (*set_real_fn)(void *, const uint32_t *, size_t, const double *);
@@ -27,7 +36,7 @@ typedef int (*do_step_fn)(void *, double, double, int);
 
 typedef struct {
     int64_t kind;          /* READ_REAL ... DO_STEP */
-    void *fn;              /* the raw FMI function */
+    fastloop_fn fn;        /* the raw FMI function */
     void *comp;            /* fmi2Component */
     const uint32_t *vr;    /* value references, nv of them */
     int64_t nv;
@@ -69,6 +78,15 @@ typedef struct {
     int64_t rows;    /* rows recorded so far */
 } result_t;
 
+/* One tick in pieces (fastloop_run is these in order, recording between the calls). */
+void fastloop_snapshot(const loop_t *L, int64_t k);
+int fastloop_calls(const loop_t *L, int64_t k, double t, int phase, result_t *res);
+int fastloop_check(const loop_t *L, int64_t k);
+int fastloop_run(const loop_t *L, int64_t k0, int64_t k1, const double *t, result_t *res);
+#endif
+
+#ifndef FASTLOOP_TYPES_ONLY
+
 static int run_part(double *values, const part_t *p, double t)
 {
     int64_t i;
@@ -103,59 +121,93 @@ static int run_part(double *values, const part_t *p, double t)
     return ((set_int_fn)p->fn)(p->comp, p->vr, (size_t)p->nv, p->ibuf);
 }
 
+static void record_row(const loop_t *L, int64_t k, result_t *res)
+{
+    int64_t i;
+    const int64_t row = k / L->output_ticks;
+    for (i = 0; i < L->n_rec; i++)
+        L->rec[row * L->n_rec + i] = L->values[L->rec_idx[i]];
+    res->rows = row + 1;
+}
+
+/* Start of tick k: the values stamped <= t_k (snapshot of the due instances' slots). */
+void fastloop_snapshot(const loop_t *L, int64_t k)
+{
+    const int64_t *pr = L->prog + 5 * L->prog_of_tick[k % L->hyperperiod];
+    const int64_t n = L->n;
+    int64_t i;
+    if (pr[3] < 0)
+        memcpy(L->values, L->values + n, (size_t)n * sizeof(double));
+    else
+        for (i = pr[3]; i < pr[4]; i++)
+            L->values[L->snap_idx[i]] = L->values[n + L->snap_idx[i]];
+}
+
+/* The calls of tick k at time t: phase 0 (set inputs, read feedthrough outputs at t_k)
+ * or phase 1 (step and read).  RUN_OK, or RUN_FMI_STATUS with res->part and res->status. */
+int fastloop_calls(const loop_t *L, int64_t k, double t, int phase, result_t *res)
+{
+    const int64_t *pr = L->prog + 5 * L->prog_of_tick[k % L->hyperperiod];
+    int64_t o;
+    for (o = phase ? pr[1] : pr[0]; o < (phase ? pr[2] : pr[1]); o++) {
+        int st = run_part(L->values, &L->parts[L->ops[o]], t);
+        if (st > 1) {
+            res->part = L->ops[o];
+            res->status = st;
+            return RUN_FMI_STATUS;
+        }
+    }
+    return RUN_OK;
+}
+
+/* After tick k's steps: every produced value finite and inside its range (RUN_OK,
+ * RUN_NOT_FINITE or RUN_OUT_OF_RANGE), then count the saturation flags. */
+int fastloop_check(const loop_t *L, int64_t k)
+{
+    const double *values = L->values;
+    const int64_t n = L->n;
+    double sum = 0.0;
+    int out = 0;
+    int64_t i;
+    for (i = n; i < 3 * n; i++) {   /* one pass: finite and inside its range */
+        sum += values[i];
+        out |= values[i] < L->lo[i - n] || values[i] > L->hi[i - n];
+    }
+    if (!isfinite(sum))
+        return RUN_NOT_FINITE;   /* a NaN compares false: reported as not finite */
+    if (out)
+        return RUN_OUT_OF_RANGE;
+    for (i = 0; i < L->n_flag; i++)
+        if (values[L->flag_idx[i]] != 0.0) {
+            L->flag_ticks[i]++;
+            if (L->flag_first[i] < 0)
+                L->flag_first[i] = k;
+        }
+    return RUN_OK;
+}
+
 /* Run ticks k0..k1 (inclusive); t[k - k0] is the time of tick k.  Returns RUN_OK, or
  * RUN_FMI_STATUS / RUN_NOT_FINITE with res->tick (and res->part, res->status). */
 int fastloop_run(const loop_t *L, int64_t k0, int64_t k1, const double *t, result_t *res)
 {
-    double *values = L->values;
-    const int64_t n = L->n;
-    int64_t k, o, i;
+    int64_t k;
     for (k = k0; k <= k1; k++) {
-        const int64_t *pr = L->prog + 5 * L->prog_of_tick[k % L->hyperperiod];
         const double tk = t[k - k0];
-        double sum = 0.0;
-        int out = 0;
+        int st;
         res->tick = k;
-        if (pr[3] < 0)
-            memcpy(values, values + n, (size_t)n * sizeof(double));
-        else
-            for (i = pr[3]; i < pr[4]; i++)
-                values[L->snap_idx[i]] = values[n + L->snap_idx[i]];
-        for (o = pr[0]; o < pr[2]; o++) {
-            int st;
-            if (o == pr[1] && k % L->output_ticks == 0) {
-                const int64_t row = k / L->output_ticks;
-                for (i = 0; i < L->n_rec; i++)
-                    L->rec[row * L->n_rec + i] = values[L->rec_idx[i]];
-                res->rows = row + 1;
-            }
-            st = run_part(values, &L->parts[L->ops[o]], tk);
-            if (st > 1) {
-                res->part = L->ops[o];
-                res->status = st;
-                return RUN_FMI_STATUS;
-            }
-        }
-        if (pr[1] == pr[2] && k % L->output_ticks == 0) {
-            const int64_t row = k / L->output_ticks;
-            for (i = 0; i < L->n_rec; i++)
-                L->rec[row * L->n_rec + i] = values[L->rec_idx[i]];
-            res->rows = row + 1;
-        }
-        for (i = n; i < 3 * n; i++) {   /* one pass: finite and inside its range */
-            sum += values[i];
-            out |= values[i] < L->lo[i - n] || values[i] > L->hi[i - n];
-        }
-        if (!isfinite(sum))
-            return RUN_NOT_FINITE;   /* a NaN compares false: reported as not finite */
-        if (out)
-            return RUN_OUT_OF_RANGE;
-        for (i = 0; i < L->n_flag; i++)
-            if (values[L->flag_idx[i]] != 0.0) {
-                L->flag_ticks[i]++;
-                if (L->flag_first[i] < 0)
-                    L->flag_first[i] = k;
-            }
+        fastloop_snapshot(L, k);
+        st = fastloop_calls(L, k, tk, 0, res);
+        if (st != RUN_OK)
+            return st;
+        if (k % L->output_ticks == 0)
+            record_row(L, k, res);
+        st = fastloop_calls(L, k, tk, 1, res);
+        if (st != RUN_OK)
+            return st;
+        st = fastloop_check(L, k);
+        if (st != RUN_OK)
+            return st;
     }
     return RUN_OK;
 }
+#endif

@@ -43,7 +43,7 @@ __all__ = ["CFLAGS", "NativeBuildError", "NativeReport", "build_native", "build_
 CFLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
 #: The FMI 2.0 headers shipped with fmpy (Modelica Association, BSD licence).
 _FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
-_COMMON = ("fmi2.c", "data.c", "linalg.c")
+_COMMON = ("jfcore.c", "data.c", "linalg.c")
 _GENERATION_TOOL = "jitterfmu nativefmu 1"
 _TYPES = {"Real": "JF_REAL", "Integer": "JF_INTEGER", "Boolean": "JF_BOOLEAN",
           "String": "JF_STRING"}
@@ -109,7 +109,7 @@ def _model_config(root: ET.Element) -> str:
 
 def source_files(kernel: str) -> tuple[str, ...]:
     """The ``.c`` files of a native FMU with C kernel ``kernel``, in compile order."""
-    return (*_COMMON, f"{kernel}.c")
+    return ("fmi2.c", *_COMMON, f"{kernel}.c")
 
 
 def native_model_description(python_xml: bytes, kernel: str) -> ET.Element:
@@ -147,7 +147,7 @@ def native_model_description(python_xml: bytes, kernel: str) -> ET.Element:
 def _sources(root: ET.Element, kernel: str) -> dict[str, bytes]:
     csrc = _res.files("nativefmu") / "csrc"
     out = {name: (_fmi_header_dir() / name).read_bytes() for name in _FMI_HEADERS}
-    for name in (*source_files(kernel), "jfmu.h"):
+    for name in (*source_files(kernel), "jfmu.h", "jfcore.h"):
         out[name] = (csrc / name).read_bytes()
     out["model_config.h"] = _model_config(root).encode()
     return out

@@ -1,8 +1,9 @@
 /* Shared interface of the native FMUs of jitterfmu (C99, libc and libm only).
  *
- * fmi2.c implements the FMI 2.0 co-simulation API once for every model: variable
- * storage by value reference, phases, logging, and the FMU state as one versioned,
- * checksummed byte layout.  A model kernel (structure.c, piezo.c, controller.c,
+ * jfcore.c implements once for every model what the FMI API needs: variable storage
+ * by value reference, phases, logging, and the FMU state as one versioned, checksummed
+ * byte layout; fmi2.c maps the FMI 2.0 co-simulation API onto it, fmi3.c the FMI 3.0
+ * one (an FMU carries one of the two).  A model kernel (structure.c, piezo.c, controller.c,
  * excitation.c) implements the model_* functions below and reads its data from a
  * file in resources/ with jf_data_*.
  */
@@ -30,7 +31,7 @@ typedef struct JfInstance JfInstance;
 struct JfInstance {
     char *instance_name;
     char *resource_dir;   /* local path of resources/, with a trailing separator */
-    const void *callbacks; /* const fmi2CallbackFunctions * */
+    const void *callbacks; /* FMI 2.0: const fmi2CallbackFunctions * */
     int logging_on;
     int phase;
     double *r;            /* Real values, indexed by value reference */
@@ -41,9 +42,11 @@ struct JfInstance {
     size_t n_state;       /* internal state (beyond the variables), saved with the FMU state */
     double *state;
     void *model;          /* kernel data that is not state (matrices, caches) */
+    void *environment;    /* FMI 3.0: the host's instanceEnvironment */
+    void (*log_message)(void); /* FMI 3.0: its fmi3LogMessageCallback */
 };
 
-/* Phases of an instance (FMI 2.0 co-simulation state machine). */
+/* Phases of an instance (the co-simulation state machine of FMI 2.0 and 3.0). */
 enum { JF_INSTANTIATED = 0, JF_INITIALIZATION = 1, JF_STEPPING = 2, JF_TERMINATED = 3,
        JF_FAILED = 4 };
 
@@ -92,8 +95,8 @@ int jf_same_step(double h, double known);
 int model_instantiate(JfInstance *inst);           /* read data, allocate, set n_state */
 int model_exit_initialization(JfInstance *inst);   /* parameters final: initial outputs */
 int model_do_step(JfInstance *inst, double t, double h);
-int model_inputs_changed(JfInstance *inst);        /* after fmi2Set* (direct feedthrough) */
-int model_state_restored(JfInstance *inst);        /* after fmi2SetFMUstate: check, refresh */
+int model_inputs_changed(JfInstance *inst);        /* after fmi2Set* / fmi3Set* (feedthrough) */
+int model_state_restored(JfInstance *inst);        /* after a state is set: check, refresh */
 void model_free(JfInstance *inst);
 
 #endif

@@ -174,7 +174,7 @@ def test_aset_matrices_with_a_dof_map(deck, native, tmp_path):
     dof_map.write_text("# grid component\n" + "".join(f"{gset[i][0]} {gset[i][1]}\n"
                                                       for i in keep))
     assert_same_model(import_truss10(deck[0], op4, "in-lbf-s", dof_map=dof_map), native)
-    with pytest.raises(ValueError, match=r"has \d+ rows but the DOF map has \d+ entries"):
+    with pytest.raises(ValueError, match=r"have 126 rows, but .* has a g-set of 276 DOFs"):
         import_truss10(deck[0], op4, "in-lbf-s")
 
 
@@ -213,6 +213,7 @@ def test_binary_op4(deck, native, tmp_path):
     assert_same_model(import_truss10(deck[0], op4, "in-lbf-s"), native)
 
 
+@pytest.mark.filterwarnings("ignore:BDF .* cards this import does not interpret")  # CQUAD4, PSHELL
 def test_bar_and_beam_members_carry_stacks(tmp_path):
     """CBAR/CBEAM/CROD: the axial stiffness E A / L and the mass are swapped for the stack's."""
     BDF, _, OP4 = nas._pynastran()

@@ -1,0 +1,94 @@
+"""pyNastran, imported for numpy 2 and kept quiet.
+
+pyNastran 1.4.1 binds ``numpy.in1d`` at import, which numpy 2.4 removed; the equivalent
+``numpy.isin`` is lent for the import only.  Its readers log to the console; here they
+log into a :class:`QuietLog` whose lines an error message can quote instead.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+__all__ = ["pynastran", "QuietLog", "reason"]
+
+
+def pynastran():
+    """pyNastran's BDF, OP2 and OP4 classes.
+
+    Returns
+    -------
+    (type, type, type)
+        ``pyNastran.bdf.bdf.BDF``, ``pyNastran.op2.op2.OP2``, ``pyNastran.op4.op4.OP4``.
+    """
+    lent = not hasattr(np, "in1d")
+    if lent:
+        np.in1d = np.isin
+    try:
+        # deferred: optional dependency (the nastran extra)
+        from pyNastran.bdf.bdf import BDF
+        from pyNastran.op2.op2 import OP2
+        from pyNastran.op4.op4 import OP4
+    except ImportError as exc:  # pragma: no cover - dependency missing
+        raise ImportError(f"reading NASTRAN files needs pyNastran ({exc}); run "
+                          "'make setup'") from None
+    finally:
+        if lent:
+            del np.in1d
+    return BDF, OP2, OP4
+
+
+class QuietLog:
+    """A pyNastran log that prints nothing and keeps its lines.
+
+    ``log`` is the object to hand to pyNastran (``BDF(log=q.log)``); ``lines`` holds
+    ``(level, message)`` in order.
+    """
+
+    def __init__(self):
+        # deferred: optional dependency (the nastran extra)
+        from cpylog import SimpleLogger
+
+        self.lines: list = []
+        self.log = SimpleLogger(level="debug", log_func=self._keep)
+
+    def _keep(self, typ, filename, lineno, msg):
+        self.lines.append((str(typ).lower(), str(msg).strip()))
+
+    def worst(self) -> str:
+        """The first error line, else the first warning line, else ``""``."""
+        for level in ("error", "warning"):
+            for typ, msg in self.lines:
+                if typ == level and msg:
+                    return msg.splitlines()[0]
+        return ""
+
+
+_KEY = re.compile(r"KeyError: ['\"](.+?)(?:\.\s+Allowed.*)?['\"]\s*$")
+
+
+def reason(exc: BaseException, log: QuietLog | None = None) -> str:
+    """pyNastran's own reason for ``exc``, as one short clause.
+
+    A cross-reference error lists every missing id after a general first line
+    ("There are cross-reference errors"); the first such id is the reason, with the
+    number of others.  Otherwise the first non-empty line of the message, else the
+    worst line pyNastran logged.
+
+    Parameters
+    ----------
+    exc : BaseException
+        What pyNastran raised.
+    log : QuietLog, optional
+        The log the reader wrote to.
+    """
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    keys = [m.group(1) for m in (_KEY.match(ln) for ln in lines) if m]
+    if keys:
+        more = f" (and {len(keys) - 1} more missing ids)" if len(keys) > 1 else ""
+        return keys[0].rstrip(".") + more
+    if lines:
+        return lines[0].rstrip(".")
+    extra = log.worst() if log is not None else ""
+    return extra.rstrip(".") or type(exc).__name__

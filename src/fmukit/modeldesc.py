@@ -222,7 +222,9 @@ def check_model_description(xml: bytes | str) -> list[str]:
 
     Checks: every output has a ``dependencies`` attribute; every Real declares a unit
     that is defined in ``UnitDefinitions``; ``canGetAndSetFMUstate="true"``;
-    ``InitialUnknowns`` is present when some output is calculated.
+    ``InitialUnknowns`` is present when some output is calculated.  An FMI 3.0 model
+    description gets the same checks in its own terms (Float64, ``Output`` and
+    ``InitialUnknown`` elements, ``canGetAndSetFMUState``).
 
     Parameters
     ----------
@@ -235,6 +237,8 @@ def check_model_description(xml: bytes | str) -> list[str]:
         One sentence per problem; empty if none.
     """
     root = fromstring(xml)
+    if root.get("fmiVersion") == "3.0":
+        return _check_fmi3(root)
     problems: list[str] = []
     cs = root.find("CoSimulation")
     if cs is None:
@@ -270,4 +274,40 @@ def check_model_description(xml: bytes | str) -> list[str]:
     if calculated_outputs and root.find("ModelStructure/InitialUnknowns") is None:
         problems.append(f"ModelStructure has no InitialUnknowns; expected entries for "
                         f"{len(calculated_outputs)} calculated outputs")
+    return problems
+
+
+def _check_fmi3(root: Element) -> list[str]:
+    """:func:`check_model_description` for an FMI 3.0 ``fmiModelDescription``."""
+    problems: list[str] = []
+    cs = root.find("CoSimulation")
+    if cs is None:
+        problems.append("modelDescription.xml has no CoSimulation element; expected an FMI 3.0 "
+                        "co-simulation FMU")
+    elif cs.get("canGetAndSetFMUState") != "true":
+        problems.append(f"CoSimulation has canGetAndSetFMUState="
+                        f"{cs.get('canGetAndSetFMUState')!r}; expected 'true'")
+    defined = {u.get("name") for u in root.iterfind("UnitDefinitions/Unit")}
+    names = {v.get("valueReference"): v.get("name") for v in root.find("ModelVariables")}
+    for v in root.iterfind("ModelVariables/Float64"):
+        unit = v.get("unit")
+        if unit is None and v.get("declaredType"):
+            td = root.find(f"TypeDefinitions/Float64Type[@name='{v.get('declaredType')}']")
+            unit = td.get("unit") if td is not None else None
+        if unit is None:
+            problems.append(f"Float64 variable {v.get('name')!r} has no unit; expected an SI "
+                            "unit ('1' if dimensionless)")
+        elif unit not in defined:
+            problems.append(f"Float64 variable {v.get('name')!r} has unit {unit!r}, which "
+                            "UnitDefinitions does not define")
+    for out in root.iterfind("ModelStructure/Output"):
+        if out.get("dependencies") is None:
+            problems.append(f"output {names.get(out.get('valueReference'))!r} has no "
+                            "dependencies attribute; expected the exact list of inputs it "
+                            "feeds through ('' for none)")
+    calculated = [v for v in root.find("ModelVariables") if v.get("causality") == "output"
+                  and v.get("initial", "calculated") in ("approx", "calculated")]
+    if calculated and root.find("ModelStructure/InitialUnknown") is None:
+        problems.append(f"ModelStructure has no InitialUnknown; expected entries for "
+                        f"{len(calculated)} calculated outputs")
     return problems

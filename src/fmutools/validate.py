@@ -86,14 +86,15 @@ def check_fmu(path: str | Path) -> FmuCheck:
         return FmuCheck(errors=tuple(errors))
     warnings = [f"{path.name}: {p}" for p in check_model_description(xml)]
     if cs is not None:
-        binary = f"binaries/linux64/{cs.get('modelIdentifier')}.so"
+        platform = "x86_64-linux" if fromstring(xml).get("fmiVersion") == "3.0" else "linux64"
+        binary = f"binaries/{platform}/{cs.get('modelIdentifier')}.so"
         if binary not in names:
             warnings.append(f"{path.name}: {binary} is missing; expected the Linux binary")
     return FmuCheck(tuple(errors), tuple(warnings))
 
 
 def archive_problem(path) -> str | None:
-    """Why the file at ``path`` cannot be read as an FMI 2.0 FMU at all, or None.
+    """Why the file at ``path`` cannot be read as an FMI 2.0 or 3.0 FMU at all, or None.
 
     It must exist, be a zip archive within the size limits whose member paths stay
     inside it (:mod:`fmutools.archive`), and hold a ``modelDescription.xml`` of FMI 2.0.
@@ -126,9 +127,9 @@ def archive_problem(path) -> str | None:
         version = fromstring(xml).get("fmiVersion")
     except ParseError as exc:
         return f"{where}: modelDescription.xml is not well-formed XML ({exc})"
-    if version != "2.0":
-        return (f"{where} is FMI {version}, and this master runs FMI 2.0 FMUs only; export "
-                "the model as an FMI 2.0 co-simulation FMU")
+    if version not in ("2.0", "3.0"):
+        return (f"{where} is FMI {version}, and this master runs FMI 2.0 and 3.0 FMUs only; "
+                "export the model as an FMI 2.0 or 3.0 co-simulation FMU")
     return None
 
 

@@ -11,6 +11,11 @@ ModelStructure, whose model code is the C of ``nativefmu/csrc`` plus a generated
 - ``binaries/linux64/<id>.so`` built here with gcc, and ``binaries/win64/<id>.dll``
   when ``x86_64-w64-mingw32-gcc`` is on the PATH;
 - ``resources/<kernel>.dat``: the model data (:mod:`nativefmu.data`).
+
+With ``fmi=3`` the same kernels make an FMI 3.0 co-simulation FMU: ``fmi3.c`` replaces
+``fmi2.c`` over the shared core ``jfcore.c``, the model description is the FMI 2.0 one
+written the FMI 3.0 way (:mod:`nativefmu.fmi3xml`), and ``sources/buildDescription.xml``
+lists the C files.
 """
 
 from __future__ import annotations
@@ -33,16 +38,22 @@ from fmutools.build import FmuSpec, build_fmu
 from fmutools.registry import collect_specs
 from fmutools.validate import validate_fmu
 from nativefmu.data import KERNELS, kernel_of, model_data
+from nativefmu.fmi3xml import build_description, fmi3_model_description
 from structfmu.fmuspec import build_structure_fmu, spec_from_npz
 
-__all__ = ["CFLAGS", "NativeBuildError", "NativeReport", "build_native", "build_all_native",
+__all__ = ["CFLAGS", "FMI_VERSIONS", "NativeBuildError", "NativeReport", "build_native", "build_all_native",
            "build_native_structure",
            "compile_sources", "mingw_compiler", "native_model_description", "source_files"]
 
 #: Flags the sources must compile with (libc and libm only).
 CFLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
-#: The FMI 2.0 headers shipped with fmpy (Modelica Association, BSD licence).
-_FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+#: The FMI 2.0 and 3.0 headers shipped with fmpy (Modelica Association, BSD licence).
+_FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+                3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
+#: The FMI versions a native FMU can be built for.
+FMI_VERSIONS = (2, 3)
+#: Binary folders (Linux, Windows) of each FMI version.
+_PLATFORMS = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}
 _COMMON = ("jfcore.c", "data.c", "linalg.c")
 _GENERATION_TOOL = "jitterfmu nativefmu 1"
 _TYPES = {"Real": "JF_REAL", "Integer": "JF_INTEGER", "Boolean": "JF_BOOLEAN",
@@ -107,9 +118,24 @@ def _model_config(root: ET.Element) -> str:
     ])
 
 
-def source_files(kernel: str) -> tuple[str, ...]:
-    """The ``.c`` files of a native FMU with C kernel ``kernel``, in compile order."""
-    return ("fmi2.c", *_COMMON, f"{kernel}.c")
+def _check_fmi(fmi: int) -> int:
+    if fmi not in FMI_VERSIONS:
+        raise NativeBuildError(f"FMI version {fmi!r} is not one a native FMU is built for; "
+                               f"expected one of {', '.join(map(str, FMI_VERSIONS))}")
+    return fmi
+
+
+def source_files(kernel: str, fmi: int = 2) -> tuple[str, ...]:
+    """The ``.c`` files of a native FMU with C kernel ``kernel``, in compile order.
+
+    Parameters
+    ----------
+    kernel : str
+        C kernel name (``structure``, ``piezo``, ...).
+    fmi : {2, 3}
+        FMI version of the API layer (``fmi2.c`` or ``fmi3.c``).
+    """
+    return (f"fmi{_check_fmi(fmi)}.c", *_COMMON, f"{kernel}.c")
 
 
 def native_model_description(python_xml: bytes, kernel: str) -> ET.Element:
@@ -144,13 +170,26 @@ def native_model_description(python_xml: bytes, kernel: str) -> ET.Element:
     return root
 
 
-def _sources(root: ET.Element, kernel: str) -> dict[str, bytes]:
+def _sources(root: ET.Element, kernel: str, fmi: int = 2) -> dict[str, bytes]:
+    """Every file of ``sources/``: C files, headers, ``model_config.h`` (from FMI 2.0
+    ``root``), and for FMI 3.0 ``buildDescription.xml``."""
     csrc = _res.files("nativefmu") / "csrc"
-    out = {name: (_fmi_header_dir() / name).read_bytes() for name in _FMI_HEADERS}
-    for name in (*source_files(kernel), "jfmu.h", "jfcore.h"):
+    out = {name: (_fmi_header_dir() / name).read_bytes() for name in _FMI_HEADERS[fmi]}
+    for name in (*source_files(kernel, fmi), "jfmu.h", "jfcore.h"):
         out[name] = (csrc / name).read_bytes()
-    out["model_config.h"] = _model_config(root).encode()
+    config = root if fmi == 2 else _with_guid(root, fmi3_model_description(root)
+                                               .get("instantiationToken"))
+    out["model_config.h"] = _model_config(config).encode()
+    if fmi == 3:
+        model_id = root.find("CoSimulation").get("modelIdentifier")
+        out["buildDescription.xml"] = build_description(model_id, source_files(kernel, 3))
     return out
+
+
+def _with_guid(root: ET.Element, guid: str) -> ET.Element:
+    copy = ET.fromstring(ET.tostring(root))
+    copy.set("guid", guid)
+    return copy
 
 
 def compile_sources(sources: Path, out: Path, *, compiler: str = "gcc",
@@ -205,7 +244,7 @@ def _from_python_fmu(spec: FmuSpec, python_fmu: Path | None) -> tuple[FmuSpec, b
 
 
 def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path | None = None,
-                 windows: bool | None = None) -> Path:
+                 windows: bool | None = None, fmi: int = 2) -> Path:
     """Build the native FMU of ``spec`` into ``out_dir``.
 
     Parameters
@@ -219,6 +258,9 @@ def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path |
         built in a temporary folder when omitted.
     windows : bool, optional
         Also build ``binaries/win64``; None: when the mingw-w64 compiler is installed.
+    fmi : {2, 3}
+        FMI version: 2.0 (``binaries/linux64``, ``win64``) or 3.0 (the same kernels;
+        ``binaries/x86_64-linux``, ``x86_64-windows``).
 
     Returns
     -------
@@ -233,6 +275,7 @@ def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path |
         If compiling fails, or ``windows=True`` without the cross compiler.
     """
     kernel = kernel_of(spec)
+    _check_fmi(fmi)
     mingw = mingw_compiler()
     if windows and mingw is None:
         raise NativeBuildError("windows=True needs x86_64-w64-mingw32-gcc (Debian package "
@@ -253,14 +296,16 @@ def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path |
     with tempfile.TemporaryDirectory(prefix="nativefmu_") as tmp:
         src = Path(tmp) / "sources"
         src.mkdir()
-        for name, content in _sources(root, kernel).items():
+        for name, content in _sources(root, kernel, fmi).items():
             (src / name).write_bytes(content)
-        binaries = {f"binaries/linux64/{model_id}.so":
+        linux, win = _PLATFORMS[fmi]
+        binaries = {f"binaries/{linux}/{model_id}.so":
                     compile_sources(src, Path(tmp) / f"{model_id}.so")}
         if windows:
-            binaries[f"binaries/win64/{model_id}.dll"] = compile_sources(
+            binaries[f"binaries/{win}/{model_id}.dll"] = compile_sources(
                 src, Path(tmp) / f"{model_id}.dll", compiler=mingw, windows=True)
-        xml = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+        xml = ET.tostring(root if fmi == 2 else fmi3_model_description(root),
+                          encoding="UTF-8", xml_declaration=True)
         with replaced_when_done(target) as part, \
                 zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("modelDescription.xml", xml)
@@ -287,7 +332,7 @@ class NativeReport:
 
 def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *,
                      progress: Callable[[str], None] | None = None,
-                     python_dir: str | Path | None = None) -> NativeReport:
+                     python_dir: str | Path | None = None, fmi: int = 2) -> NativeReport:
     """Build and validate the native FMU of every model that has a C kernel.
 
     Parameters
@@ -301,6 +346,8 @@ def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *
     python_dir : str or Path, optional
         Folder of the already built Python FMUs to take the model descriptions from;
         each is built in a temporary folder when omitted.
+    fmi : {2, 3}
+        FMI version of the FMUs.
 
     Returns
     -------
@@ -317,7 +364,7 @@ def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *
                          "skipped")
             continue
         twin = None if python_dir is None else Path(python_dir) / f"{spec.model_identifier}.fmu"
-        path = build_native(spec, out_dir, python_fmu=twin)
+        path = build_native(spec, out_dir, python_fmu=twin, fmi=fmi)
         found = validate_fmu(path, strict=True)
         fmus.append(path)
         problems += found
@@ -328,7 +375,7 @@ def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *
 
 
 def build_native_structure(npz: str | Path, out_dir: str | Path,
-                           model_identifier: str | None = None) -> NativeReport:
+                           model_identifier: str | None = None, fmi: int = 2) -> NativeReport:
     """Build and validate the native structure FMU of a reduced model file.
 
     The native twin of :func:`structfmu.fmuspec.build_structure_fmu` (same name rule:
@@ -342,6 +389,8 @@ def build_native_structure(npz: str | Path, out_dir: str | Path,
         Destination folder.
     model_identifier : str, optional
         FMI modelIdentifier and file stem.
+    fmi : {2, 3}
+        FMI version of the FMU.
 
     Returns
     -------
@@ -351,5 +400,5 @@ def build_native_structure(npz: str | Path, out_dir: str | Path,
     with tempfile.TemporaryDirectory(prefix="nativefmu_py_") as tmp:
         python_fmu = build_structure_fmu(npz, tmp, model_identifier).fmus[0]
         spec = spec_from_npz(npz, python_fmu.stem)
-        path = build_native(spec, out_dir, python_fmu=python_fmu)
+        path = build_native(spec, out_dir, python_fmu=python_fmu, fmi=fmi)
     return NativeReport((path,), (), tuple(validate_fmu(path, strict=True)))

@@ -1,0 +1,630 @@
+/* FMI 3.0 co-simulation API of a jitterfmu native FMU (C99, libc and libm only).
+ *
+ * The FMI 3.0 twin of fmi2.c: a thin layer over jfcore.c, which holds the variables, the
+ * phases and the FMU state (its byte layout, the same as under FMI 2.0, is documented
+ * at the top of jfcore.c), over the same model kernels.  FMI 2.0 Real, Integer, Boolean
+ * and String variables are Float64, Int32, Boolean and String variables here, with the
+ * same value references.  Co-simulation only, without event mode, intermediate updates,
+ * early return or clocks; the functions of the other interface types and of the other
+ * variable types are present (an FMI 3.0 binary exports every function) and answer
+ * fmi3Error with a logged reason.
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi3Functions.h"
+#include "jfcore.h"
+#include "jfmu.h"
+#include "model_config.h"
+
+void jf_api_log(JfInstance *inst, int status, const char *category, const char *message) {
+    fmi3LogMessageCallback log = (fmi3LogMessageCallback)inst->log_message;
+    if (log == NULL) return;
+    log((fmi3InstanceEnvironment)inst->environment, (fmi3Status)status, category, message);
+}
+
+#define INST ((JfInstance *)instance)
+#define STATUS(x) ((x) == JF_OK ? fmi3OK : fmi3Error)
+
+static fmi3Status fail(fmi3Instance instance, const char *fn, const char *why) {
+    if (instance != NULL) jf_log(INST, 3, "%s: %s", fn, why);
+    return fmi3Error;
+}
+
+/* resourcePath (a native path, ideally with a trailing separator) as the core keeps it. */
+static char *resource_dir(fmi3String path) {
+    size_t n;
+    char *out;
+    if (path == NULL) return NULL;
+    n = strlen(path);
+    out = (char *)malloc(n + 2);
+    if (out == NULL) return NULL;
+    memcpy(out, path, n + 1);
+    if (n == 0 || (out[n - 1] != '/' && out[n - 1] != '\\')) {
+        out[n] = '/';
+        out[n + 1] = '\0';
+    }
+    return out;
+}
+
+/* ------------------------------------------------------------------ common functions */
+
+const char *fmi3GetVersion(void) { return fmi3Version; }
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn,
+                               size_t nCategories, const fmi3String categories[]) {
+    (void)nCategories;
+    (void)categories;
+    if (instance == NULL) return fmi3Error;
+    INST->logging_on = loggingOn != 0;
+    return fmi3OK;
+}
+
+fmi3Instance fmi3InstantiateCoSimulation(
+    fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath,
+    fmi3Boolean visible, fmi3Boolean loggingOn, fmi3Boolean eventModeUsed,
+    fmi3Boolean earlyReturnAllowed, const fmi3ValueReference requiredIntermediateVariables[],
+    size_t nRequiredIntermediateVariables, fmi3InstanceEnvironment instanceEnvironment,
+    fmi3LogMessageCallback logMessage, fmi3IntermediateUpdateCallback intermediateUpdate) {
+    JfInstance *inst;
+    (void)visible;
+    (void)eventModeUsed;       /* hasEventMode is false: no event is ever signalled */
+    (void)earlyReturnAllowed;  /* never returns early */
+    (void)requiredIntermediateVariables;
+    (void)nRequiredIntermediateVariables;
+    (void)intermediateUpdate;  /* providesIntermediateUpdate is false */
+    inst = jf_instance_new(instanceName, loggingOn != 0);
+    if (inst == NULL) return NULL;
+    inst->environment = instanceEnvironment;
+    inst->log_message = (void (*)(void))logMessage;
+    if (jf_instance_setup(inst, instantiationToken, resource_dir(resourcePath)) != JF_OK) {
+        jf_instance_free(inst);
+        return NULL;
+    }
+    return inst;
+}
+
+fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName,
+                                          fmi3String instantiationToken,
+                                          fmi3String resourcePath, fmi3Boolean visible,
+                                          fmi3Boolean loggingOn,
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage) {
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    (void)loggingOn;
+    if (logMessage != NULL)
+        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                   JF_MODEL_IDENTIFIER " supports co-simulation only");
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(
+    fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath,
+    fmi3Boolean visible, fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
+    fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
+    fmi3LockPreemptionCallback lockPreemption, fmi3UnlockPreemptionCallback unlockPreemption) {
+    (void)clockUpdate;
+    (void)lockPreemption;
+    (void)unlockPreemption;
+    return fmi3InstantiateModelExchange(instanceName, instantiationToken, resourcePath,
+                                        visible, loggingOn, instanceEnvironment, logMessage);
+}
+
+void fmi3FreeInstance(fmi3Instance instance) { jf_instance_free(INST); }
+
+fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
+                                       fmi3Float64 tolerance, fmi3Float64 startTime,
+                                       fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    (void)toleranceDefined;
+    (void)tolerance;
+    (void)stopTimeDefined;
+    (void)stopTime;
+    if (instance == NULL) return fmi3Error;
+    return STATUS(jf_enter_initialization(INST, startTime, "fmi3EnterInitializationMode"));
+}
+
+fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
+    if (instance == NULL) return fmi3Error;
+    return STATUS(jf_exit_initialization(INST, "fmi3ExitInitializationMode"));
+}
+
+fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
+    return fail(instance, "fmi3EnterEventMode", "hasEventMode is false");
+}
+
+fmi3Status fmi3Terminate(fmi3Instance instance) {
+    if (instance == NULL) return fmi3Error;
+    INST->phase = JF_TERMINATED;
+    return fmi3OK;
+}
+
+fmi3Status fmi3Reset(fmi3Instance instance) {
+    if (instance == NULL) return fmi3Error;
+    return STATUS(jf_instance_reset(INST));
+}
+
+/* ------------------------------------------------------------------ getters and setters */
+
+/* Scalars only: one value per value reference. */
+#define CHECK(type, setting, fn)                                                         \
+    if (instance == NULL) return fmi3Error;                                               \
+    if (nValues != nValueReferences)                                                      \
+        return fail(instance, fn, "nValues differs from nValueReferences (every variable " \
+                    "is a scalar)");                                                      \
+    if (jf_check_refs(INST, valueReferences, nValueReferences, type, setting) != JF_OK)  \
+        return fmi3Error
+
+fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
+    size_t k;
+    CHECK(JF_REAL, 0, "fmi3GetFloat64");
+    for (k = 0; k < nValueReferences; k++) values[k] = INST->r[valueReferences[k]];
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, fmi3Int32 values[], size_t nValues) {
+    size_t k;
+    CHECK(JF_INTEGER, 0, "fmi3GetInt32");
+    for (k = 0; k < nValueReferences; k++) values[k] = (fmi3Int32)INST->iv[valueReferences[k]];
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, fmi3Boolean values[], size_t nValues) {
+    size_t k;
+    CHECK(JF_BOOLEAN, 0, "fmi3GetBoolean");
+    for (k = 0; k < nValueReferences; k++)
+        values[k] = INST->bv[valueReferences[k]] ? fmi3True : fmi3False;
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, fmi3String values[], size_t nValues) {
+    size_t k;
+    CHECK(JF_STRING, 0, "fmi3GetString");
+    for (k = 0; k < nValueReferences; k++) values[k] = INST->sv[valueReferences[k]];
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, const fmi3Float64 values[],
+                          size_t nValues) {
+    size_t k;
+    CHECK(JF_REAL, 1, "fmi3SetFloat64");
+    for (k = 0; k < nValueReferences; k++) INST->r[valueReferences[k]] = values[k];
+    return STATUS(jf_after_set(INST, nValueReferences));
+}
+
+fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, const fmi3Int32 values[], size_t nValues) {
+    size_t k;
+    CHECK(JF_INTEGER, 1, "fmi3SetInt32");
+    for (k = 0; k < nValueReferences; k++) INST->iv[valueReferences[k]] = (int)values[k];
+    return STATUS(jf_after_set(INST, nValueReferences));
+}
+
+fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, const fmi3Boolean values[],
+                          size_t nValues) {
+    size_t k;
+    CHECK(JF_BOOLEAN, 1, "fmi3SetBoolean");
+    for (k = 0; k < nValueReferences; k++) INST->bv[valueReferences[k]] = values[k] != 0;
+    return STATUS(jf_after_set(INST, nValueReferences));
+}
+
+fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, const fmi3String values[], size_t nValues) {
+    size_t k;
+    CHECK(JF_STRING, 1, "fmi3SetString");
+    for (k = 0; k < nValueReferences; k++)
+        if (jf_set_string(INST, valueReferences[k], values[k]) != JF_OK) return fmi3Error;
+    return STATUS(jf_after_set(INST, nValueReferences));
+}
+
+/* Types this model has no variable of. */
+static fmi3Status no_such_type(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                               const char *type) {
+    if (instance == NULL) return fmi3Error;
+    if (nvr == 0) return fmi3OK;
+    jf_log(INST, 3, "value reference %u is not a variable of type %s (this model has none)",
+           (unsigned)vr[0], type);
+    return fmi3Error;
+}
+
+/* fmi3Get<T> and fmi3Set<T> of a type this model has no variable of. */
+#define NO_VARIABLES_OF(T)                                                                  \
+    fmi3Status fmi3Get##T(fmi3Instance instance, const fmi3ValueReference valueReferences[], \
+                          size_t nValueReferences, fmi3##T values[], size_t nValues) {      \
+        (void)values;                                                                       \
+        (void)nValues;                                                                      \
+        return no_such_type(instance, valueReferences, nValueReferences, #T);              \
+    }                                                                                       \
+    fmi3Status fmi3Set##T(fmi3Instance instance, const fmi3ValueReference valueReferences[], \
+                          size_t nValueReferences, const fmi3##T values[], size_t nValues) { \
+        (void)values;                                                                       \
+        (void)nValues;                                                                      \
+        return no_such_type(instance, valueReferences, nValueReferences, #T);              \
+    }
+
+NO_VARIABLES_OF(Float32)
+NO_VARIABLES_OF(Int8)
+NO_VARIABLES_OF(UInt8)
+NO_VARIABLES_OF(Int16)
+NO_VARIABLES_OF(UInt16)
+NO_VARIABLES_OF(UInt32)
+NO_VARIABLES_OF(Int64)
+NO_VARIABLES_OF(UInt64)
+
+fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, size_t valueSizes[], fmi3Binary values[],
+                         size_t nValues) {
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    return no_such_type(instance, valueReferences, nValueReferences, "Binary");
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, const size_t valueSizes[],
+                         const fmi3Binary values[], size_t nValues) {
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    return no_such_type(instance, valueReferences, nValueReferences, "Binary");
+}
+
+fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, fmi3Clock values[]) {
+    (void)values;
+    return no_such_type(instance, valueReferences, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, const fmi3Clock values[]) {
+    (void)values;
+    return no_such_type(instance, valueReferences, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance,
+                                               fmi3ValueReference valueReference,
+                                               size_t *nDependencies) {
+    (void)valueReference;
+    (void)nDependencies;
+    return fail(instance, "fmi3GetNumberOfVariableDependencies", "not provided (the model "
+                "description's ModelStructure lists every dependency)");
+}
+
+fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference dependent,
+                                       size_t elementIndicesOfDependent[],
+                                       fmi3ValueReference independents[],
+                                       size_t elementIndicesOfIndependents[],
+                                       fmi3DependencyKind dependencyKinds[],
+                                       size_t nDependencies) {
+    (void)dependent;
+    (void)elementIndicesOfDependent;
+    (void)independents;
+    (void)elementIndicesOfIndependents;
+    (void)dependencyKinds;
+    (void)nDependencies;
+    return fail(instance, "fmi3GetVariableDependencies", "not provided (the model "
+                "description's ModelStructure lists every dependency)");
+}
+
+/* ------------------------------------------------------------------ FMU state */
+
+fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    JfState *blob;
+    if (instance == NULL || FMUState == NULL) return fmi3Error;
+    blob = jf_state_save(INST);
+    if (blob == NULL) return fmi3Error;
+    free(*FMUState);
+    *FMUState = blob;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
+    const JfState *blob = (const JfState *)FMUState;
+    if (instance == NULL || blob == NULL) return fmi3Error;
+    return STATUS(jf_state_restore(INST, blob->bytes, blob->size));
+}
+
+fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    (void)instance;
+    if (FMUState == NULL) return fmi3OK;
+    free(*FMUState);
+    *FMUState = NULL;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState,
+                                      size_t *size) {
+    const JfState *blob = (const JfState *)FMUState;
+    if (instance == NULL || blob == NULL || size == NULL) return fmi3Error;
+    *size = blob->size;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState,
+                                 fmi3Byte serializedState[], size_t size) {
+    const JfState *blob = (const JfState *)FMUState;
+    if (instance == NULL || blob == NULL || serializedState == NULL) return fmi3Error;
+    if (size != blob->size)
+        return fail(instance, "fmi3SerializeFMUState", "size differs from "
+                    "fmi3SerializedFMUStateSize");
+    memcpy(serializedState, blob->bytes, size);
+    return fmi3OK;
+}
+
+fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[],
+                                   size_t size, fmi3FMUState *FMUState) {
+    JfState *blob;
+    if (instance == NULL || serializedState == NULL || FMUState == NULL) return fmi3Error;
+    blob = jf_state_copy(INST, (const unsigned char *)serializedState, size);
+    if (blob == NULL) return fmi3Error;
+    free(*FMUState);
+    *FMUState = blob;
+    return fmi3OK;
+}
+
+/* ------------------------------------------------------------------ not provided */
+
+fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance,
+                                        const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                        const fmi3ValueReference knowns[], size_t nKnowns,
+                                        const fmi3Float64 seed[], size_t nSeed,
+                                        fmi3Float64 sensitivity[], size_t nSensitivity) {
+    (void)unknowns;
+    (void)nUnknowns;
+    (void)knowns;
+    (void)nKnowns;
+    (void)seed;
+    (void)nSeed;
+    (void)sensitivity;
+    (void)nSensitivity;
+    return fail(instance, "fmi3GetDirectionalDerivative", "not provided "
+                "(providesDirectionalDerivatives is false)");
+}
+
+fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
+                                    size_t nUnknowns, const fmi3ValueReference knowns[],
+                                    size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
+                                    fmi3Float64 sensitivity[], size_t nSensitivity) {
+    (void)unknowns;
+    (void)nUnknowns;
+    (void)knowns;
+    (void)nKnowns;
+    (void)seed;
+    (void)nSeed;
+    (void)sensitivity;
+    (void)nSensitivity;
+    return fail(instance, "fmi3GetAdjointDerivative", "not provided "
+                "(providesAdjointDerivatives is false)");
+}
+
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) {
+    return fail(instance, "fmi3EnterConfigurationMode", "the model has no structural "
+                "parameters");
+}
+
+fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) {
+    return fail(instance, "fmi3ExitConfigurationMode", "the model has no structural "
+                "parameters");
+}
+
+#define NO_CLOCKS(fn) return fail(instance, fn, "the model has no clocks")
+
+fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance,
+                                  const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, fmi3Float64 intervals[],
+                                  fmi3IntervalQualifier qualifiers[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)intervals;
+    (void)qualifiers;
+    NO_CLOCKS("fmi3GetIntervalDecimal");
+}
+
+fmi3Status fmi3GetIntervalFraction(fmi3Instance instance,
+                                   const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, fmi3UInt64 counters[],
+                                   fmi3UInt64 resolutions[],
+                                   fmi3IntervalQualifier qualifiers[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)counters;
+    (void)resolutions;
+    (void)qualifiers;
+    NO_CLOCKS("fmi3GetIntervalFraction");
+}
+
+fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                               size_t nValueReferences, fmi3Float64 shifts[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)shifts;
+    NO_CLOCKS("fmi3GetShiftDecimal");
+}
+
+fmi3Status fmi3GetShiftFraction(fmi3Instance instance,
+                                const fmi3ValueReference valueReferences[],
+                                size_t nValueReferences, fmi3UInt64 counters[],
+                                fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)counters;
+    (void)resolutions;
+    NO_CLOCKS("fmi3GetShiftFraction");
+}
+
+fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance,
+                                  const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, const fmi3Float64 intervals[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)intervals;
+    NO_CLOCKS("fmi3SetIntervalDecimal");
+}
+
+fmi3Status fmi3SetIntervalFraction(fmi3Instance instance,
+                                   const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, const fmi3UInt64 counters[],
+                                   const fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)counters;
+    (void)resolutions;
+    NO_CLOCKS("fmi3SetIntervalFraction");
+}
+
+fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                               size_t nValueReferences, const fmi3Float64 shifts[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)shifts;
+    NO_CLOCKS("fmi3SetShiftDecimal");
+}
+
+fmi3Status fmi3SetShiftFraction(fmi3Instance instance,
+                                const fmi3ValueReference valueReferences[],
+                                size_t nValueReferences, const fmi3UInt64 counters[],
+                                const fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)counters;
+    (void)resolutions;
+    NO_CLOCKS("fmi3SetShiftFraction");
+}
+
+fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
+    return fail(instance, "fmi3EvaluateDiscreteStates", "hasEventMode is false");
+}
+
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
+                                    fmi3Boolean *terminateSimulation,
+                                    fmi3Boolean *nominalsOfContinuousStatesChanged,
+                                    fmi3Boolean *valuesOfContinuousStatesChanged,
+                                    fmi3Boolean *nextEventTimeDefined,
+                                    fmi3Float64 *nextEventTime) {
+    (void)discreteStatesNeedUpdate;
+    (void)terminateSimulation;
+    (void)nominalsOfContinuousStatesChanged;
+    (void)valuesOfContinuousStatesChanged;
+    (void)nextEventTimeDefined;
+    (void)nextEventTime;
+    return fail(instance, "fmi3UpdateDiscreteStates", "hasEventMode is false");
+}
+
+#define ME_ONLY(fn) return fail(instance, fn, "co-simulation only (no model exchange)")
+
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
+    ME_ONLY("fmi3EnterContinuousTimeMode");
+}
+
+fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
+                                       fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi3Boolean *enterEventMode,
+                                       fmi3Boolean *terminateSimulation) {
+    (void)noSetFMUStatePriorToCurrentPoint;
+    (void)enterEventMode;
+    (void)terminateSimulation;
+    ME_ONLY("fmi3CompletedIntegratorStep");
+}
+
+fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
+    (void)time;
+    ME_ONLY("fmi3SetTime");
+}
+
+fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) {
+    (void)continuousStates;
+    (void)nContinuousStates;
+    ME_ONLY("fmi3SetContinuousStates");
+}
+
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
+                                             size_t nContinuousStates) {
+    (void)derivatives;
+    (void)nContinuousStates;
+    ME_ONLY("fmi3GetContinuousStateDerivatives");
+}
+
+fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[],
+                                  size_t nEventIndicators) {
+    (void)eventIndicators;
+    (void)nEventIndicators;
+    ME_ONLY("fmi3GetEventIndicators");
+}
+
+fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) {
+    (void)continuousStates;
+    (void)nContinuousStates;
+    ME_ONLY("fmi3GetContinuousStates");
+}
+
+fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
+                                             size_t nContinuousStates) {
+    (void)nominals;
+    (void)nContinuousStates;
+    ME_ONLY("fmi3GetNominalsOfContinuousStates");
+}
+
+fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
+    (void)nEventIndicators;
+    ME_ONLY("fmi3GetNumberOfEventIndicators");
+}
+
+fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates) {
+    (void)nContinuousStates;
+    ME_ONLY("fmi3GetNumberOfContinuousStates");
+}
+
+fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
+                                      fmi3Float64 activationTime) {
+    (void)clockReference;
+    (void)activationTime;
+    return fail(instance, "fmi3ActivateModelPartition", "co-simulation only (no scheduled "
+                "execution)");
+}
+
+/* ------------------------------------------------------------------ co-simulation */
+
+fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
+    return fail(instance, "fmi3EnterStepMode", "hasEventMode is false: the instance is in "
+                "step mode after fmi3ExitInitializationMode");
+}
+
+fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance,
+                                    const fmi3ValueReference valueReferences[],
+                                    size_t nValueReferences, const fmi3Int32 orders[],
+                                    fmi3Float64 values[], size_t nValues) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)orders;
+    (void)values;
+    (void)nValues;
+    return fail(instance, "fmi3GetOutputDerivatives", "maxOutputDerivativeOrder is 0");
+}
+
+fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint,
+                      fmi3Float64 communicationStepSize,
+                      fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                      fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
+                      fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
+    int st;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (instance == NULL) return fmi3Error;
+    if (eventHandlingNeeded != NULL) *eventHandlingNeeded = fmi3False;
+    if (terminateSimulation != NULL) *terminateSimulation = fmi3False;
+    if (earlyReturn != NULL) *earlyReturn = fmi3False;
+    st = jf_do_step(INST, currentCommunicationPoint, communicationStepSize, "fmi3DoStep");
+    if (lastSuccessfulTime != NULL)
+        *lastSuccessfulTime = st == JF_OK ? currentCommunicationPoint + communicationStepSize
+                                          : currentCommunicationPoint;
+    return STATUS(st);
+}

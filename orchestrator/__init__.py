@@ -26,7 +26,7 @@ What each room holds, in pipeline order:
 * :mod:`orchestrator.campaign` -- disturbance campaigns (cases, pool or Dask, summary);
 * :mod:`orchestrator.metrics`, :mod:`orchestrator.report` -- jitter metrics, reports;
 * :mod:`orchestrator.analysis` -- the linear closed loop of a scenario (poles, margins,
-  ideal ceilings); :mod:`orchestrator.reference` -- its sampled-data reference (the
+  upper bounds); :mod:`orchestrator.reference` -- its sampled-data reference (the
   continuous structure and amplifiers: what the partition adds to each loop);
   :mod:`orchestrator.experiments` -- the paper's experiments;
 * :mod:`orchestrator.cli` -- the ``jitterfmu`` command.

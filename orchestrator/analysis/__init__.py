@@ -20,11 +20,11 @@ carries, from which:
 * :meth:`LinearScenario.frequency_response` -- steady-state response to a harmonic
   exogenous input (the fundamental, exact for single-rate loops;
   :func:`~orchestrator.analysis.spectra.transfer` on the compiled loop);
-* :func:`ceiling` -- the ideal ceiling: the largest reduction of a performance output
-  under a harmonic disturbance that any controller driving the chosen actuators could
-  reach, either by cancelling the chosen sensor signals perfectly (``"cancel"``) or by
-  the best actuator commands at each frequency (``"optimal"``, a bound no causal
-  controller can beat).
+* :func:`ceiling` -- the upper bound on the reduction of a performance output under a
+  harmonic disturbance by any controller driving the chosen actuators: the best
+  actuator commands at each frequency (``"optimal"``, which no controller, causal or
+  not, beats in steady state); and, as a reference point that is not a bound, what
+  cancelling the chosen sensor signals perfectly gives (``"cancel"``, infinite gain).
 
 ``jitterfmu analyze SCENARIO`` prints these as a table.
 
@@ -32,7 +32,7 @@ For a loop assembled from matrices instead of a scenario (a design study on a re
 structure of one's own), the modules :mod:`~orchestrator.analysis.sampled` (sampled
 structures, stack loops, records with the ACS in the loop), :mod:`.margins` (margins
 and gain designs at a margin), :mod:`.frf` (frequency responses, transmissibility),
-:mod:`.bounds` (ceilings and least-squares optima) and :mod:`.lqg` (one law on many
+:mod:`.bounds` (upper bounds and least-squares optima) and :mod:`.lqg` (one law on many
 stacks) hold the tools; ``docs/linear_engine.md`` lists them.
 
 Example

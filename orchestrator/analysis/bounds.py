@@ -1,18 +1,19 @@
-"""Bounds a design is measured against: ceilings and least-squares optima.
+"""Bounds a design is measured against: upper bounds and least-squares optima.
 
 :func:`~orchestrator.analysis.ceiling` answers for a scenario; these answer from the
 responses a design study computes itself (:mod:`orchestrator.analysis.frf`):
 
 * :func:`harmonic_reduction_pct` -- the RMS reduction over disturbance lines;
 * :func:`harmonic_ceiling` -- the most any controller at the chosen actuators could
-  remove at those lines: by cancelling its sensors, or by the least-squares best
-  commands;
+  remove at those lines (``optimal``: the least-squares best commands, the upper bound),
+  and what cancelling its sensors gives (``cancel``: infinite gain; not a bound);
 * :func:`best_real_gain` -- the best real gain on one fixed correction (the most a
   feedforward path of a given shape could do);
 * :func:`least_squares_inputs` and :func:`least_squares_records` -- per-frequency
   regularised least-squares inputs that cancel a recorded response, and the records
-  they give (a non-causal, periodic bound, swept over the regularisation), and
-  :func:`record_ceiling` the best of them, exact and within limits.
+  they give (non-causal, periodic, swept over the regularisation), and
+  :func:`record_ceiling` the best of them: exact cancellation (the upper bound) and the
+  best within limits (achievable within them, not a bound on them).
 """
 
 from __future__ import annotations
@@ -49,9 +50,10 @@ def harmonic_ceiling(Gd, Gu, amplitudes, Sd=None, Su=None) -> dict:
     """The most any controller at some actuators could remove at harmonic lines.
 
     ``optimal``: the least-squares best actuator commands at each line (no controller,
-    causal or not, does better in steady state); ``cancel`` (with ``Sd``, ``Su``): the
-    commands that hold the sensors at exactly zero, what a loop of infinite gain on
-    them would do.
+    causal or not, does better in steady state: the upper bound); ``cancel`` (with
+    ``Sd``, ``Su``): the commands that hold the sensors at exactly zero, what a loop of
+    infinite gain on them would do -- a reference point, not a bound (a finite-gain law
+    can remove more).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Design answers on a linear scenario: the ideal ceiling and the readable report."""
+"""Design answers on a linear scenario: the upper bound on a reduction, and the report."""
 
 from __future__ import annotations
 
@@ -13,13 +13,15 @@ from .scenario import LinearScenario, _cycles
 
 @dataclass(frozen=True)
 class Ceiling:
-    """Ideal ceiling of one performance output under one harmonic disturbance.
+    """What free actuator commands remove from one performance output under one harmonic
+    disturbance: with ``method="optimal"`` the upper bound, with ``"cancel"`` the
+    infinite-gain reference point (not a bound); see :func:`ceiling`.
 
     Attributes
     ----------
     performance : tuple of str
     method : str
-        ``"cancel"`` or ``"optimal"``.
+        ``"optimal"`` (upper bound) or ``"cancel"`` (sensors held at zero).
     sensors : tuple of str
         Signals cancelled (``"cancel"``).
     freqs_hz : ndarray, shape (n_f,)
@@ -43,15 +45,18 @@ class Ceiling:
 
 
 def ceiling(lin: LinearScenario, performance, disturbance: str, freqs_hz, *,
-            actuators, sensors=None, method: str = "cancel", amplitudes=None) -> Ceiling:
-    """Ideal ceiling of the reduction of ``performance`` under a harmonic disturbance.
+            actuators, sensors=None, method: str = "optimal", amplitudes=None) -> Ceiling:
+    """Upper bound on the reduction of ``performance`` under a harmonic disturbance (or,
+    with ``method="cancel"``, what holding the controllers' sensors at zero gives).
 
     The named controllers are removed (their command outputs become free actuator
-    commands ``v``).  With ``method="cancel"``, ``v`` zeroes the signals the removed
-    controllers measured (``sensors``; by default their connected inputs): what a loop
-    of infinite gain on those sensors would do.  With ``"optimal"``, ``v`` minimises the
+    commands ``v``).  With ``method="optimal"`` (the default), ``v`` minimises the
     performance outputs at each frequency (least squares): no controller driving these
-    actuators, causal or not, can do better in steady state.
+    actuators, causal or not, can do better in steady state -- the upper bound.  With
+    ``"cancel"``, ``v`` zeroes the signals the removed controllers measured
+    (``sensors``; by default their connected inputs): what a loop of infinite gain on
+    those sensors would do.  That is a reference point, not a bound: a finite-gain law
+    can remove more (or less).
 
     Parameters
     ----------
@@ -67,7 +72,7 @@ def ceiling(lin: LinearScenario, performance, disturbance: str, freqs_hz, *,
     sensors : sequence of str, optional
         Signals to cancel (``instance.variable``); default: the outputs connected to the
         removed controllers' measurement inputs.
-    method : {"cancel", "optimal"}
+    method : {"optimal", "cancel"}
     amplitudes : array_like, shape (n_f,), optional
         Disturbance amplitude per line; 1 by default.
 

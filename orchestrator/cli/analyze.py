@@ -4,7 +4,7 @@ from __future__ import annotations
 
 COMMAND = "analyze"
 HELP = ("linear closed loop of a scenario: poles and damping, decay of a mode, gain "
-        "margins per loop, ideal ceiling of a performance output")
+        "margins per loop, upper bound on reducing a performance output")
 
 
 def add_arguments(parser) -> None:
@@ -22,16 +22,19 @@ def add_arguments(parser) -> None:
                         help="list the closed-loop poles in this band (Hz)")
     parser.add_argument("--no-margins", action="store_true", help="skip the gain margins")
     parser.add_argument("--performance", action="append", default=[], metavar="INST.VAR",
-                        help="output whose ideal ceiling to compute (repeatable)")
+                        help="output whose upper bound on reduction to compute "
+                             "(repeatable)")
     parser.add_argument("--disturbance", default=None, metavar="INST.VAR",
-                        help="source output carrying the disturbance (for the ceiling)")
+                        help="source output carrying the disturbance (for the bound)")
     parser.add_argument("--freq", type=float, action="append", default=[], metavar="HZ",
                         help="disturbance line (Hz, repeatable)")
     parser.add_argument("--actuator", action="append", default=[], metavar="CONTROLLER",
-                        help="controller instance whose command is free in the ceiling "
+                        help="controller instance whose command is free in the bound "
                              "(repeatable; default: every controller)")
-    parser.add_argument("--method", choices=["cancel", "optimal", "both"], default="both",
-                        help="ceiling: cancel the controllers' sensors, or best commands")
+    parser.add_argument("--method", choices=["optimal", "cancel", "both"], default="both",
+                        help="optimal: the upper bound (best commands at each line); "
+                             "cancel: the controllers' sensors held at zero (infinite "
+                             "gain, a reference point, not a bound)")
     parser.add_argument("--reference", action="store_true",
                         help="compare with the sampled-data reference (continuous structure "
                              "and amplifiers, the controllers at their rates): what the "
@@ -84,20 +87,22 @@ def run(args) -> int:
     print(report(lin, modes=args.mode, margins=not args.no_margins, band=args.band))
     if args.performance:
         if not (args.disturbance and args.freq):
-            raise AnalysisError("a ceiling needs --disturbance INST.VAR and at least one "
-                                "--freq HZ")
+            raise AnalysisError("--performance needs --disturbance INST.VAR and at least "
+                                "one --freq HZ")
         actuators = args.actuator or lin.controllers()
-        methods = ("cancel", "optimal") if args.method == "both" else (args.method,)
+        methods = ("optimal", "cancel") if args.method == "both" else (args.method,)
         print()
-        print(f"ideal ceiling of {', '.join(args.performance)} under {args.disturbance} "
+        print(f"reduction of {', '.join(args.performance)} under {args.disturbance} "
               f"at {', '.join(f'{f:g}' for f in args.freq)} Hz, actuators "
               f"{', '.join(actuators)}")
         for m in methods:
             c = ceiling(lin, args.performance, args.disturbance, args.freq,
                         actuators=actuators, method=m)
-            what = ("cancel the controllers' sensors" if m == "cancel"
-                    else "best commands at each frequency")
-            print(f"  {m:<8} ({what}): {c.reduction_pct:6.1f} % reduction")
+            what = ("upper bound: the best commands at each line; no controller at these "
+                    "actuators removes more in steady state" if m == "optimal" else
+                    "the controllers' sensors held at zero: infinite gain, a reference "
+                    "point, not a bound")
+            print(f"  {c.reduction_pct:6.1f} %  {what}")
     return 0
 
 

@@ -61,10 +61,37 @@ def run(args) -> int:
     if hasattr(module, "summary"):
         print(module.summary(result))
     else:
-        shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict)) or
+        for line in verdict_lines(result):
+            print(line)
+        shown = {k: v for k, v in result.items() if k != "note" and (
+                 not isinstance(v, (list, dict)) or
                  k in ("jitter_reduction_pct", "reduction_pct", "jitter_off_arcsec",
-                       "ideal_ceiling_pct", "rigid_body_share_pct", "open_loop_damping",
-                       "closed_loop_cycles_to_90pct")}
+                       "rigid_body_share_pct", "open_loop_damping",
+                       "closed_loop_cycles_to_90pct"))}
         print(json.dumps(_clean(shown), indent=2))
     print(f"wrote {args.out}/{args.name}.json")
     return 1 if result.get("n_failed") else 0
+
+
+def verdict_lines(result: dict) -> list:
+    """What a user runs an experiment for, first: one line per paper target (ours, the
+    paper's words, reproduced / beats the paper / missed), the experiment's verdict, and
+    its bounds, the true upper bound first, each named for what it bounds.
+
+    Parameters
+    ----------
+    result : dict
+        An experiment's result (its JSON), with ``verdicts`` and optionally ``bounds``.
+    """
+    from orchestrator.experiments import verdicts as vd
+
+    lines = []
+    for v in result.get("verdicts", ()):
+        lines.append("  " + vd.outcome_words(v))
+    if "verdicts" in result:
+        lines.insert(0, f"verdict: {vd.overall(result['verdicts'])}")
+    for b in result.get("bounds", ()):
+        vals = ", ".join(f"{k} {x:.1f} %" for k, x in b["pct"].items() if x is not None)
+        lines.append(f"{b['name']}: {vals} ({'bounds ' if b['is_bound'] else ''}"
+                     f"{b['bounds']})")
+    return lines

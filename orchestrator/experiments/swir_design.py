@@ -4,7 +4,7 @@ What :mod:`orchestrator.experiments.swir_isolation` computes before any co-simul
 as calls into the engine (:mod:`orchestrator.analysis.sampled`, ``.margins``,
 ``.bounds``, ``.lqg``): the EOS testbed structure with every SWIR and VNIR mount leg
 active sampled exactly at ``H``, the paper's mount law (or one LQG on all twelve
-strains), gain margins, the ideal ceilings, the modes that carry SWIR pitch and what 5 %
+strains), gain margins, the upper bound, the modes that carry SWIR pitch and what 5 %
 damping would give.  Forces are at testbed scale (``LOAD_SCALE``); ``FULL_SCALE`` gives
 EOS AM-1's.
 """
@@ -291,8 +291,8 @@ def _norm_pct(off, on):
                           / np.linalg.norm(list(off.values()))))
 
 
-def ceiling(lin_off: dict, lin_on: dict | None = None) -> dict:
-    """What of the isolation-off SWIR LOS no mount can remove (linear, %, arcsec): the
+def mode_shares(lin_off: dict, lin_on: dict | None = None) -> dict:
+    """Shares of the isolation-off SWIR LOS by kind of mode (linear, %, arcsec): the
     rigid-body modes' share (mount forces are self-equilibrated: only the ACS moves
     them), 100 - that share, and the share of the modes below ``LOW_HZ`` (with ``lin_on``
     also isolation on: mount forces do move those).  Peak-to-peak is not additive, so a
@@ -323,15 +323,20 @@ def ceiling(lin_off: dict, lin_on: dict | None = None) -> dict:
     return out
 
 
-def ls_ceiling(plant, lin_off: dict, stroke_limit=5e-6,
-               force_limit=15.0 * LBF / FULL_SCALE) -> dict:
-    """Least-squares bound: the most any controller using the twelve stacks could remove
-    from the SWIR line of sight, knowing the disturbance
+def ls_cancellation(plant, lin_off: dict, stroke_limit=5e-6,
+                    force_limit=15.0 * LBF / FULL_SCALE) -> dict:
+    """Stack forces that cancel the SWIR line of sight, knowing the disturbance
     (:func:`orchestrator.analysis.bounds.record_ceiling` on the isolation-off record:
-    non-causal, periodic, a least-squares, not a peak-to-peak, optimum): exact
-    cancellation of the three axes (``"unconstrained"``: reduction %, stroke um, force
-    lbf), and per axis the best within a leg elongation of ``stroke_limit`` (m) and a
-    stack force of ``force_limit`` (N, testbed scale) (None when none fits).
+    non-causal, periodic, least squares).
+
+    ``"unconstrained"``: exact cancellation of the three axes (reduction %, stroke um,
+    force lbf) -- the upper bound, 100 %, and the stroke and force it takes.
+    ``"within_limits"``: per axis, the best of the Tikhonov-regularised least-squares
+    inputs that keep a leg elongation below ``stroke_limit`` (m) and a stack force below
+    ``force_limit`` (N, testbed scale) (None when none fits).  Those are *achievable*
+    reductions within the limits, not a bound on them: each minimises one axis's squared
+    error with a uniform penalty on the forces, not its peak to peak under the limits,
+    and a controller within the limits can remove more (the central law does on roll).
 
     Parameters
     ----------

@@ -5,9 +5,10 @@ as calls into the engine (:mod:`orchestrator.analysis.sampled`, ``.margins``, ``
 ``.bounds``): the reduced structure of the FMU (``model.npz``, accelerometers through
 their 150 Hz low-pass), sampled exactly with a zero-order hold at 1 kHz, the P-865.10
 amplifier in series with each MISR strut, and the discrete isolation law with its
-Eq. (11) delay closed on one or more mounts; gain margins, the ideal ceilings at the
-disturbance harmonics, the best gain directions and per-mount factors, the feedforward
-bound and the loop shape at 22 Hz.
+Eq. (11) delay closed on one or more mounts; gain margins, the upper bound on the
+reduction (and the accelerometer null) at the disturbance harmonics, the best gain
+directions and per-mount factors, the law's bus path as feedforward and the loop shape
+at 22 Hz.
 """
 
 from __future__ import annotations
@@ -352,11 +353,15 @@ def boresight_reduction(plant, mounts, gain=1.0, law=None, Gh=None) -> float:
     return harmonic_reduction_pct(Gh[:, 6:8, 3], yc[:, 6:8], list(HARMONICS.values()))
 
 
-def ideal_ceiling(plant, mounts, Gh=None) -> dict:
-    """Most any controller at the ``mounts`` struts could remove from the boresight (%,
-    :func:`orchestrator.analysis.bounds.harmonic_ceiling` at ``HARMONICS``):
-    ``accel_null`` holds their payload accelerometers at zero, ``optimal`` is the
-    least-squares best strut commands.
+def strut_bounds(plant, mounts, Gh=None) -> dict:
+    """What the ``mounts`` struts could remove from the boresight at ``HARMONICS`` (%,
+    :func:`orchestrator.analysis.bounds.harmonic_ceiling`), each named for what it is.
+
+    ``upper_bound``: the least-squares best strut commands at each line; no controller
+    driving these struts, causal or not, removes more in steady state.  ``accel_null``:
+    the commands that hold the payload accelerometers at exactly zero, what a loop of
+    infinite gain on them would do; a reference point, not a bound (a finite-gain law
+    can remove more: the hybrid mount's own-direction design does).
 
     Parameters
     ----------
@@ -366,13 +371,18 @@ def ideal_ceiling(plant, mounts, Gh=None) -> dict:
         The mounts whose struts act (1, 2, 3).
     Gh : ndarray, shape (n_harmonics, 9, 4), optional
         :func:`plant_frf` at ``HARMONICS`` (complex; computed when not given).
+
+    Returns
+    -------
+    dict of str to float
+        ``upper_bound`` and ``accel_null`` (%).
     """
     cols = [k - 1 for k in mounts]
     rows = [2 * (k - 1) for k in mounts]
     Gh = plant_frf(plant, list(HARMONICS)) if Gh is None else Gh
     c = harmonic_ceiling(Gh[:, 6:8, 3], Gh[:, 6:8][:, :, cols], list(HARMONICS.values()),
                          Gh[:, rows, 3], Gh[:, rows][:, :, cols])
-    return {"accel_null": c["cancel"], "optimal": c["optimal"]}
+    return {"upper_bound": c["optimal"], "accel_null": c["cancel"]}
 
 
 def _design_law(kp, kb, delayed=True):
@@ -407,11 +417,13 @@ def design_gains(plant, mounts, n_dir=36, margin_db=6.0, delayed=True):
         n_dir, margin_db)
 
 
-def feedforward_bound(plant, mount=3, Gh=None) -> float:
-    """Most the stated law could remove (%) as pure feedforward of the bus-side
+def feedforward_best_gain(plant, mount=3, Gh=None) -> float:
+    """Most the stated law's bus path could remove (%) as pure feedforward of the bus-side
     accelerometer of ``mount``: its shape on the *open-loop* bus acceleration times the
     best real gain of either sign (:func:`orchestrator.analysis.bounds.best_real_gain`),
-    the harmonics weighted as in :func:`boresight_reduction`; whatever the margin.
+    the harmonics weighted as in :func:`boresight_reduction`, whatever the margin.  It
+    bounds that feedforward only, not the closed loop (whose payload path and feedback
+    change the bus acceleration).
 
     Parameters
     ----------

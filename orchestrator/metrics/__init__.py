@@ -57,6 +57,7 @@ __all__ = [
     "jitter_rms_from_psd",
     "jitter_weight",
     "margin",
+    "rss",
     "metric_values",
     "mpe",
     "one_sided_psd",

@@ -162,16 +162,22 @@ def test_testbed_isolation(testbed, out):
     # loops scaled together and each alone); strut voltages inside +-50 V
     assert min(res["gain_margin_db"].values()) >= 6.0
     assert 0.0 < res["max_voltage_v"] < 50.0
-    # the layout (docs/eos_testbed.md): mount #3 is in the dominant 22 Hz path, so an
-    # ideal loop at mount #3 alone could remove about the paper's 80 %
-    assert res["ideal_ceiling_pct"]["mount3"] >= 70.0
-    assert res["ideal_ceiling_pct"]["all_mounts"] >= 90.0
-    # no controller beats the least-squares bound
+    # the layout (docs/eos_testbed.md): mount #3 is in the dominant 22 Hz path, so the
+    # best strut forces at mount #3 alone could remove about the paper's 80 %, and
+    # holding its payload accelerometer at zero nearly as much
+    assert res["upper_bound_pct"]["mount3"] >= 70.0
+    assert res["upper_bound_pct"]["all_mounts"] >= 90.0
+    assert res["accel_null_pct"]["mount3"] >= 70.0
+    # the bounds are listed true upper bound first, each saying what it bounds
+    assert res["bounds"][0]["name"] == "upper bound" and res["bounds"][0]["is_bound"]
+    assert res["bounds"][0]["pct"] == res["upper_bound_pct"]
+    assert not res["bounds"][1]["is_bound"]
+    # no controller beats the least-squares upper bound
     for k in ("mount3", "all_mounts"):
-        assert lin[k] <= res["optimal_bound_pct"][k] + 1e-6
+        assert lin[k] <= res["upper_bound_pct"][k] + 1e-6
     # the explanation of the miss, as a number: the design at 6 dB removes what the
     # law's bus path removes as a pure feedforward with the best real gain
-    assert lin["mount3"] == pytest.approx(res["feedforward_bound_mount3_pct"], abs=2.0)
+    assert lin["mount3"] == pytest.approx(res["feedforward_best_gain_mount3_pct"], abs=2.0)
     # the margin is set by a pole that leaves the unit circle (a real instability)
     assert res["margin_limiting_poles"]["mount3"][0]["abs_z"] >= 1.0
     # the co-simulation attenuates as the linear design says once settled; the quick run
@@ -192,7 +198,7 @@ def test_testbed_regression_pin(testbed):
 
 @pytest.mark.xfail(strict=True, reason="on the stiff struts the stated law at 6 dB removes "
                    "47 % (linear), 50 % the paper's way in the quick run (59 % in the full "
-                   "run), against a ceiling of 82 %: it acts as a feedforward of the bus "
+                   "run), against an upper bound of 82 %: it acts as a feedforward of the bus "
                    "accelerometer whose phase at the harmonics allows 47 % "
                    "(docs/eos_experiments.md)")
 def test_reproduces_fig15_mount3(testbed):
@@ -241,7 +247,7 @@ def test_testbed_isolation_hybrid(testbed_hybrid, out):
     assert 0.0 < res["max_voltage_v"] < 50.0
     for k in ("mount3", "all_mounts"):
         assert red[k] == pytest.approx(lin[k], abs=5.0)
-        assert lin[k] <= res["optimal_bound_pct"][k] + 1e-6
+        assert lin[k] <= res["upper_bound_pct"][k] + 1e-6
     assert all(g != 0.0 for g in res["gain"]["all_mounts"])
     assert (out / "testbed-isolation-hybrid.png").is_file()
 
@@ -266,9 +272,11 @@ def test_swir_isolation(swir, out):
     # paper: the isolation mounts need < 5 um of stroke and < 15 lb of force (full scale)
     assert 0.0 < res["max_stroke_um"] < 5.0
     assert 0.0 < res["max_force_lbf"] < 15.0
-    # the twelve stacks could cancel the SWIR LOS exactly, but not within 15 lbf
-    assert min(res["ideal_ceiling_pct"].values()) >= 99.0
-    assert res["ideal_ceiling_needs"]["max_force_lbf"] > 15.0
+    # the twelve stacks could cancel the SWIR LOS exactly (the upper bound), but not
+    # within 15 lbf; the least-squares inputs within the limits are not called a bound
+    assert min(res["upper_bound_pct"].values()) >= 99.0
+    assert res["upper_bound_needs"]["max_force_lbf"] > 15.0
+    assert [b["is_bound"] for b in res["bounds"]] == [True, False]
     assert (out / "swir-isolation.png").is_file()
 
 
@@ -323,11 +331,24 @@ def test_swir_isolation_central(swir, swir_central, out):
     # the co-simulation (one 12-in/12-out controller FMU) is the linear design model
     for a in ("roll", "pitch", "yaw"):
         assert red[a] == pytest.approx(res["linear_reduction_pct"][a], abs=1.0)
-        # and the default run reports the same law's linear result as its bound
+        # and the default run reports the same law's linear result
         assert swir["central_law_linear"]["reduction_pct"][a] == pytest.approx(
             res["linear_reduction_pct"][a], abs=1e-6)
     # the isolation-off run is the same scenario without control
     for a in ("roll", "pitch", "yaw"):
         assert res["jitter_off_arcsec"][a] == pytest.approx(swir["jitter_off_arcsec"][a],
                                                             rel=1e-9)
+    # per-target verdicts: more than the paper's "about 30 %" on roll and "about 10 %" on
+    # MISR is beating the paper, not missing it; every target is met or beaten
+    out_of = {v["target"]: v["outcome"] for v in res["verdicts"]}
+    assert out_of["SWIR roll reduction"] == "beats the paper"
+    assert out_of["MISR reduction"] == "beats the paper"
+    assert {out_of[t] for t in out_of if t not in ("SWIR roll reduction", "MISR reduction")} \
+        == {"reproduced"}
+    assert res["reproduced"] is False
+    assert res["verdict"].startswith("reproduced or beaten on every target")
+    # the least-squares inputs within the limits are not a bound: this law, within the
+    # same limits, removes more roll
+    assert red["roll"] > res["least_squares_within_limits_pct"]["roll"]
+    assert res["bounds"][1]["is_bound"] is False
     assert (out / "swir-isolation-central.png").is_file()

@@ -5,7 +5,6 @@ import json
 import numpy as np
 import pytest
 
-from orchestrator.experiments import run
 from orchestrator.experiments.truss_decay import cycles_to_fraction, fit_two_modes
 
 pytestmark = pytest.mark.slow
@@ -69,7 +68,6 @@ def test_truss_decay_through_the_cosimulation(tmp_path, fmu_dir, monkeypatch):
 def test_reproduce_runs_the_python_build_when_asked(tmp_path, fmu_dir, capsys):
     """jitterfmu reproduce --python-fmus runs the experiment on the Python twins: the
     co-simulated decay agrees with the native build's to round-off."""
-    import json
 
     from orchestrator.cli import main
 

@@ -181,7 +181,7 @@ def test_ssp_with_a_non_numeric_attribute_names_file_and_attribute(fmu_dir, tmp_
                 data = re.sub(rf'{attr}="[^"]*"'.encode(), f'{attr}="{value}"'.encode(), data,
                               count=1)
             zout.writestr(item, data)
-    with pytest.raises(ScenarioError, match=re.escape(f"bad.ssp/SystemStructure.ssd: ") + ".*"
+    with pytest.raises(ScenarioError, match=re.escape("bad.ssp/SystemStructure.ssd: ") + ".*"
                        + re.escape(named)):
         read_ssp(bad)
 

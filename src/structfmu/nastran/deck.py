@@ -147,7 +147,7 @@ def read_deck(bdf_path, units) -> Deck:
     """Read the geometry, members, constraints and sets of a BDF (SI units).
 
     Warns (NastranWarning) once for the cards it does not interpret and when the deck
-    has no ENDDATA (it may be cut short); an unreadable deck is one NastranError that
+    has no ENDDATA (it may be cut short; a ``.pch`` punch file has none by design); an unreadable deck is one NastranError that
     carries pyNastran's own reason.  Superelement punch files (``BEGIN SUPER``) are read
     as their bulk data.
 
@@ -166,7 +166,8 @@ def read_deck(bdf_path, units) -> Deck:
     text = path.read_text(errors="replace")
     model, log = _read_bdf(path, text)
     _warn_unread(model, path)
-    if not re.search(r"(?im)^\s*ENDDATA", text) and not _includes_enddata(model):
+    punch = path.suffix.lower() == ".pch" or re.search(r"(?im)^BEGIN\s+SUPER", text)
+    if not punch and not re.search(r"(?im)^\s*ENDDATA", text) and not _includes_enddata(model):
         warnings.warn(f"BDF {str(path)!r} has no ENDDATA: it may be cut short (grids, SPCs "
                       "or rigid elements missing); check that the file is complete",
                       NastranWarning, stacklevel=3)
@@ -288,7 +289,8 @@ def _unread(model) -> dict:
     out = {k: int(v) for k, v in model.card_count.items()
            if k not in INTERPRETED_CARDS and k not in REFUSED_RIGID}
     for k, v in (model.reject_count or {}).items():
-        out[k] = int(v)
+        if k not in INTERPRETED_CARDS:  # EXTRN: a superelement's DOF list, read as ASET
+            out[k] = int(v)
     return out
 
 
@@ -296,7 +298,7 @@ def _warn_unread(model, path: Path) -> None:
     unread = _unread(model)
     if not unread:
         return
-    rejected = set(model.reject_count or {})
+    rejected = set(model.reject_count or {}) - INTERPRETED_CARDS
     items = ", ".join(f"{k} ({n}{', unknown to pyNastran' if k in rejected else ''})"
                       for k, n in sorted(unread.items()))
     warnings.warn(f"BDF {str(path)!r}: {sum(unread.values())} cards this import does not "

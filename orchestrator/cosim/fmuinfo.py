@@ -48,6 +48,9 @@ class FmuInfo:
     feedthrough : dict of str to frozenset of str
         Each output's direct input dependencies.
     can_get_set_state : bool
+    fmi_version : str
+        ``"2.0"`` or ``"3.0"``.  An FMI 3.0 FMU's Float64, Int32, Boolean and String
+        variables have the types Real, Integer, Boolean and String here, as in FMI 2.0.
     """
 
     path: Path
@@ -58,16 +61,22 @@ class FmuInfo:
     feedthrough: dict
     can_get_set_state: bool
     model_description: object = field(repr=False, compare=False, default=None)
+    fmi_version: str = "2.0"
+
+
+#: FMI 3.0 variable types the master exchanges, as the FMI 2.0 types it knows.
+FMI3_AS_FMI2 = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean",
+                "String": "String"}
 
 
 _INFO_CACHE: dict = {}
 
 
 def _declared_range(path: Path, v) -> tuple:
-    """``(min, max)`` declared on a Real, as floats (-inf, inf where undeclared)."""
+    """``(min, max)`` declared on a Real (Float64), as floats (-inf, inf where undeclared)."""
     bounds = []
     for attr, default in (("min", -math.inf), ("max", math.inf)):
-        text = getattr(v, attr, None) if v.type == "Real" else None
+        text = getattr(v, attr, None) if v.type in ("Real", "Float64") else None
         try:
             bounds.append(default if text is None else float(text))
         except ValueError:
@@ -106,14 +115,16 @@ def read_fmu_info(path) -> FmuInfo:
         raise ScenarioError(f"FMU {str(path)!r} has no readable modelDescription.xml: {exc}")
     if md.coSimulation is None:
         raise ScenarioError(f"FMU {str(path)!r} is model exchange only; this master runs "
-                            "FMI 2.0 co-simulation FMUs: export it for co-simulation")
+                            "FMI 2.0 and 3.0 co-simulation FMUs: export it for co-simulation")
     problem = model_identifier_problem(md.coSimulation.modelIdentifier)
     if problem is not None:
         raise ScenarioError(f"FMU {str(path)!r}: {problem}")
     variables = {}
+    fmi3 = md.fmiVersion == "3.0"
     for v in md.modelVariables:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
-        variables[v.name] = Variable(v.name, int(v.valueReference), v.type, v.causality,
+        vtype = FMI3_AS_FMI2.get(v.type, v.type) if fmi3 else v.type
+        variables[v.name] = Variable(v.name, int(v.valueReference), vtype, v.causality,
                                      v.variability, unit, v.start,
                                      *_declared_range(path, v))
     inputs = frozenset(n for n, v in variables.items() if v.causality == "input")
@@ -128,7 +139,8 @@ def read_fmu_info(path) -> FmuInfo:
         if v.causality == "output" and n not in feedthrough:
             feedthrough[n] = inputs
     info = FmuInfo(path, sha256_file(path), md.coSimulation.modelIdentifier, md.guid,
-                   variables, feedthrough, bool(md.coSimulation.canGetAndSetFMUstate), md)
+                   variables, feedthrough, bool(md.coSimulation.canGetAndSetFMUstate), md,
+                   md.fmiVersion)
     _INFO_CACHE[key] = info
     return info
 

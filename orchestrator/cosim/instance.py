@@ -1,4 +1,8 @@
-"""One instantiated FMU bound to fmpy's raw FMI functions, and the process-wide logger."""
+"""One instantiated FMU bound to fmpy's raw FMI functions, and the process-wide logger.
+
+An FMI 3.0 FMU is bound through :mod:`.fmi3`: the same raw handles, with FMI 2.0
+signatures, so the master's loops run FMI 2.0 and 3.0 FMUs alike.
+"""
 
 from __future__ import annotations
 
@@ -18,6 +22,7 @@ from fmpy.logging import addLoggerProxy
 
 from fmutools.fmucache import extract_cached
 
+from .fmi3 import open_fmi3
 from .fmuinfo import FmuInfo
 
 __all__ = ["FmuInstance", "extracted"]
@@ -59,6 +64,10 @@ class FmuInstance:
         self.period_ticks = timebase.period_ticks[name]
         p = instance_spec.period * 1  # Fraction
         self.h = p.numerator / p.denominator
+        self.fmi3 = None
+        if info.fmi_version == "3.0":
+            self._open_fmi3(info, unzipdir, name)
+            return
         self.fmu = FMU2Slave(guid=info.guid, unzipDirectory=unzipdir,
                              modelIdentifier=info.model_identifier, instanceName=name)
 
@@ -102,8 +111,26 @@ class FmuInstance:
         self._getBooleanStatus = fn["fmi2GetBooleanStatus"]
         self._getRealStatus = fn["fmi2GetRealStatus"]
 
+    def _open_fmi3(self, info, unzipdir, name):
+        """Bind an FMI 3.0 FMU: the same raw handles, through :mod:`.fmi3`'s shim."""
+        self._cb = self._log = None
+        self.instantiated = False
+        self.fatal = False
+        b = self.fmi3 = open_fmi3(info, unzipdir, name, self.messages)
+        self.fmu = b.slave
+        self.instantiated = True
+        self.comp = b.comp
+        self.getReal, self.setReal = b.getReal, b.setReal
+        self.getInteger, self.setInteger = b.getInteger, b.setInteger
+        self.getBoolean, self.setBoolean = b.getBoolean, b.setBoolean
+        self.doStep = b.doStep
+
     def last_successful_time(self) -> float | None:
-        """``fmi2GetRealStatus(fmi2LastSuccessfulTime)`` (s), or None if not answered."""
+        """``fmi2GetRealStatus(fmi2LastSuccessfulTime)`` (s), or None if not answered;
+        FMI 3.0: ``lastSuccessfulTime`` of the last ``fmi3DoStep``."""
+        if self.fmi3 is not None:
+            t = self.fmi3.last_successful_time()
+            return t if math.isfinite(t) else None
         value = ctypes.c_double(0.0)
         try:
             st = self._getRealStatus(self.comp, fmi2LastSuccessfulTime, ctypes.byref(value))
@@ -118,6 +145,8 @@ class FmuInstance:
         simulation to end reports fmi2Terminated = true; any other answer (including
         an error from a slave that does not support the inquiry) means a failed step.
         """
+        if self.fmi3 is not None:  # FMI 3.0: fmi3DoStep's terminateSimulation
+            return self.fmi3.asks_to_terminate()
         value = ctypes.c_int(0)
         try:
             st = self._getBooleanStatus(self.comp, fmi2Terminated, ctypes.byref(value))
@@ -155,7 +184,10 @@ class FmuInstance:
                 # free the instance but keep the shared library loaded: a pythonfmu FMU
                 # leaves Python objects behind whose code lives in that library, and
                 # unloading it makes a later garbage collection crash the process
-                self.fmu.fmi2FreeInstance(self.comp)
+                if self.fmi3 is not None:
+                    self.fmu.free()
+                else:
+                    self.fmu.fmi2FreeInstance(self.comp)
             except Exception:
                 pass
             # keep the callbacks alive for the slave's leftovers collected later

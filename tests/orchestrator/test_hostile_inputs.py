@@ -521,28 +521,36 @@ FMI3 = """<?xml version="1.0" encoding="UTF-8"?>
 """
 
 
-def test_an_fmi3_fmu_is_named_as_such_by_run_and_validate(tmp_path, capsys):
+def test_an_fmi3_fmu_is_read_and_its_broken_binary_named_by_run(tmp_path, capsys):
     fmu = tmp_path / "three.fmu"
     with zipfile.ZipFile(fmu, "w") as z:
         z.writestr("modelDescription.xml", FMI3)
         z.writestr("binaries/x86_64-linux/m.so", b"\x7fELF")
-    with pytest.raises(ScenarioError, match="is FMI 3.0, and this master runs FMI 2.0 FMUs "
-                                            "only"):
-        read_fmu_info(fmu)
-    code, err = cli_error(capsys, ["validate", str(fmu)])
-    assert code == 1
+    info = read_fmu_info(fmu)   # the master runs FMI 3.0 FMUs (tests/nativefmu/test_fmi3.py)
+    assert info.fmi_version == "3.0" and info.variables["y"].type == "Real"
     code, err = cli_error(capsys, ["run", str(one_instance(tmp_path, fmu)), "--out",
                                    str(tmp_path / "o")])
-    assert code == 2 and "is FMI 3.0, and this master runs FMI 2.0" in err
+    assert code == 1 and "could not be loaded from three.fmu" in err
 
 
-def test_validate_prints_the_fmi3_sentence(tmp_path, capsys):
+def test_validate_names_the_conventions_an_fmi3_fmu_misses(tmp_path, capsys):
     fmu = tmp_path / "three.fmu"
     with zipfile.ZipFile(fmu, "w") as z:
         z.writestr("modelDescription.xml", FMI3)
-    assert main(["validate", str(fmu)]) == 1
-    out = capsys.readouterr().out.splitlines()
-    assert len(out) == 1 and "is FMI 3.0, and this master runs FMI 2.0" in out[0]
+    assert main(["validate", "--strict", str(fmu)]) == 1
+    out = capsys.readouterr()
+    text = out.out + out.err
+    assert "Float64 variable 'y' has no unit" in text
+    assert "output 'y' has no dependencies attribute" in text
+
+
+def test_an_fmi4_fmu_is_named_as_such(tmp_path):
+    fmu = tmp_path / "four.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.writestr("modelDescription.xml", FMI3.replace('fmiVersion="3.0"', 'fmiVersion="4.0"'))
+    with pytest.raises(ScenarioError, match="is FMI 4.0, and this master runs FMI 2.0 and "
+                                            "3.0 FMUs only"):
+        read_fmu_info(fmu)
 
 
 def test_a_non_finite_structure_matrix_is_named_by_its_field_and_file(tmp_path):

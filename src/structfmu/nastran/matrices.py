@@ -80,7 +80,8 @@ def read_dmig(pch_path) -> dict:
     -------
     dict of str to (scipy.sparse.csc_matrix, list of (int, int))
         Name to (matrix, ``(id, component)`` of each row, columns alike), in the
-        file's own units; symmetric matrices (IFO 6) completed.
+        file's own units; symmetric matrices (IFO 6) completed; values in double
+        precision whatever TIN says (the card's digits decide).
     """
     BDF = pynastran()[0]
     path = Path(pch_path)
@@ -96,6 +97,8 @@ def read_dmig(pch_path) -> dict:
         raise NastranError(f"cannot read DMIG file {str(path)!r}: {reason(exc, log)}") from None
     out = {}
     for name, d in model.dmig.items():
+        if d.tin in (1, 3):  # the digits decide, as for an ASCII OP4: never cast to float32
+            d.tin += 1
         A, rows, cols = d.get_matrix(is_sparse=False, apply_symmetry=True)
         order = [tuple(int(x) for x in rows[i]) for i in range(len(rows))]
         corder = [tuple(int(x) for x in cols[i]) for i in range(len(cols))]

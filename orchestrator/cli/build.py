@@ -12,9 +12,13 @@ HELP = "build every FMU of the project (or the named ones), native and Python, a
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``jitterfmu build``."""
-    parser.add_argument("--out", default="fmus",
-                        help="FMU folder (default: fmus/): the native FMUs in it, their "
-                        "Python twins in its python/ subfolder")
+    parser.add_argument("--out", default=None,
+                        help="FMU folder (default: fmus/, with --fmi 3 fmus/fmi3/): the "
+                        "native FMUs in it, their Python twins in its python/ subfolder")
+    parser.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                        help="FMI version of the native FMUs (default 2); 3 writes FMI 3.0 "
+                        "co-simulation FMUs from the same C kernels, native only "
+                        "(docs/native-fmus.md)")
     parser.add_argument("--model", action="append", metavar="NAME",
                         help="modelIdentifier to build (repeatable; default: all); with "
                         "--structure or --controller, the identifier of that FMU")
@@ -42,16 +46,22 @@ def run(args: argparse.Namespace) -> int:
     from nativefmu.build import build_all_native, build_native_structure
     from structfmu.fmuspec import build_structure_fmu
 
-    out = Path(args.out)
+    fmi = args.fmi
+    if fmi == 3 and args.python:
+        raise ValueError("--python builds the Python FMUs, which are FMI 2.0 only; drop "
+                         "--python or --fmi 3")
+    out = Path(args.out) if args.out else Path("fmus") / ("fmi3" if fmi == 3 else "")
     py_dir = out / PYTHON_SUBDIR
     single = args.structure or args.controller
     if single and args.model and len(args.model) > 1:
         option = "--structure" if args.structure else "--controller"
         raise ValueError(f"{option} builds one FMU; give at most one --model")
     name = args.model[0] if (single and args.model) else None
-    if args.controller:
+    if args.controller:   # with --fmi 3 the Python twin stays in a temporary folder
         return _report(*_build_controller(args.controller, out, py_dir, name, args))
     problems, built, skipped = [], [], ()
+    if fmi == 3:
+        return _report(*_build_fmi3(args, out, name))
     if not args.native:
         if args.structure:
             report = build_structure_fmu(args.structure, py_dir, name)
@@ -81,6 +91,24 @@ def run(args: argparse.Namespace) -> int:
     return _report(problems, built)
 
 
+def _build_fmi3(args, out: Path, name) -> tuple[list, list]:
+    """``--fmi 3``: the FMI 3.0 native FMUs (their Python twins built in a temporary
+    folder, for the model descriptions); returns (problems, built).  They are not
+    stamped for ``ensure_fmus``, whose folders hold FMI 2.0 builds."""
+    from nativefmu.build import build_all_native, build_native_structure
+
+    if args.structure:
+        report = build_native_structure(args.structure, out, name, fmi=3)
+        print(f"{report.fmus[0]} (native, FMI 3.0) "
+              f"{'ok' if not report.problems else 'has problems'}")
+    else:
+        report = build_all_native(out, args.model, progress=print, fmi=3)
+        if report.skipped:
+            print(f"no native kernel for {', '.join(report.skipped)}: no FMI 3.0 build",
+                  file=sys.stderr)
+    return list(report.problems), list(report.fmus)
+
+
 def _build_controller(path, out: Path, py_dir: Path, name, args) -> tuple[list, list]:
     """``--controller``: the law file's Python FMU (in ``py_dir``) and native FMU (in
     ``out``), each validated; returns (problems, built)."""
@@ -95,14 +123,15 @@ def _build_controller(path, out: Path, py_dir: Path, name, args) -> tuple[list, 
     ident = controller_identifier(law, name)
     problems, built = [], []
     with tempfile.TemporaryDirectory(prefix="jitterfmu_ctrl_") as tmp:
-        report = build_controller_fmu(law, tmp if args.native else py_dir, ident)
+        report = build_controller_fmu(law, tmp if args.native or args.fmi == 3 else py_dir,
+                                      ident)
         twin = report.fmus[0]
-        if not args.native:
+        if not args.native and args.fmi == 2:
             print(f"{twin} {'ok' if not report.problems else 'has problems'}")
             problems += report.problems
             built.append(twin)
         if not args.python:
-            native = build_native(law_spec(law, ident), out, python_fmu=twin)
+            native = build_native(law_spec(law, ident), out, python_fmu=twin, fmi=args.fmi)
             found = validate_fmu(native, strict=True)
             print(f"{native} (native) {'ok' if not found else 'has problems'}")
             problems += found

@@ -370,7 +370,8 @@ def build_all_native(out_dir: str | Path, models: Sequence[str] | None = None, *
         problems += found
         if progress is not None:
             status = "ok" if not found else f"{len(found)} problem(s)"
-            progress(f"[{i}/{len(specs)}] {spec.model_identifier}: {path} (native) {status}")
+            flavour = "native" if fmi == 2 else "native, FMI 3.0"
+            progress(f"[{i}/{len(specs)}] {spec.model_identifier}: {path} ({flavour}) {status}")
     return NativeReport(tuple(fmus), tuple(skipped), tuple(problems))
 
 

@@ -61,6 +61,7 @@ class LinearRunner:
         self._compiled = {}
         self._sources = {}
         self._source_blocks = {}
+        self._series_cache = {}
         self._extracted = {}
         self._tmp = None
 
@@ -153,13 +154,30 @@ class LinearRunner:
             if name in seeds:
                 inst = dataclasses.replace(inst, parameters={**inst.parameters,
                                                              "seed": int(seeds[name])})
-            b = self._source_block(fr, inst, cache=name not in seeds)
-            if b.series is None:
-                raise AnalysisError(f"source {name!r} has no open-loop series (an input-"
-                                    "driven wheel); the linear engine cannot drive it: run "
-                                    "this case with the co-simulation (--engine cosim)")
-            series[name] = b.series(fr.times(n_ticks, b.period))
+            series[name] = self._series(fr, inst, n_ticks, cache=name not in seeds)
         return fr.input_matrix(series, n_ticks)
+
+    def _series(self, fr: FastResponse, inst, n_ticks: int, cache: bool = True):
+        """A source's open-loop series at its sample times (kept, read-only, unless
+        ``cache`` is false: the configurations of a campaign share their events)."""
+        b = self._source_block(fr, inst, cache)
+        if b.series is None:
+            raise AnalysisError(f"source {inst.name!r} has no open-loop series (an input-"
+                                "driven wheel); the linear engine cannot drive it: run "
+                                "this case with the co-simulation (--engine cosim)")
+        times = fr.times(n_ticks, b.period)
+        key = (id(b), times.size, float(times[0]) if times.size else 0.0,
+               float(times[-1]) if times.size else 0.0)
+        hit = self._series_cache.get(key) if cache else None
+        if hit is not None:
+            return hit[1]
+        values = np.asarray(b.series(times))
+        if cache:
+            values.flags.writeable = False
+            if len(self._series_cache) >= 256:   # a bound, whatever the campaign
+                self._series_cache.clear()
+            self._series_cache[key] = (b, values)   # b kept, so its id stays unique
+        return values
 
     def record(self, scenario: dict):
         """A case's record and the output stride of its table.

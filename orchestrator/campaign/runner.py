@@ -10,6 +10,7 @@ case's temporary folder to ``cases/KEY`` only when everything is written.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import shutil
 import signal
@@ -71,10 +72,33 @@ class MasterRunner:
         self.fmu_dir = None if fmu_dir is None else Path(fmu_dir).resolve()
         self.fmu_kind = fmu_kind
         self._fingerprints = {}
+        self._parsed = {}
+        self._paths = {}
+
+    def __getstate__(self):
+        # the caches are this process's; a worker builds its own
+        return {**self.__dict__, "_parsed": {}, "_paths": {}}
 
     def _scenario(self, scenario: dict):
-        sc = scenario_from_dict(scenario, self.base_dir, source="<campaign case>")
-        return sc.with_experiment(fmu_kind=self.fmu_kind)
+        # a campaign asks for the same case scenario several times (key, overrides,
+        # run): parsed once; the key is order-sensitive, as the scenario is
+        key = json.dumps(scenario, default=str)
+        sc = self._parsed.get(key)
+        if sc is None:
+            sc = scenario_from_dict(scenario, self.base_dir, source="<campaign case>")
+            sc = sc.with_experiment(fmu_kind=self.fmu_kind)
+            if len(self._parsed) >= 64:
+                self._parsed.clear()
+            self._parsed[key] = sc
+        return sc
+
+    def _find_fmu(self, name: str, sc) -> Path:
+        """:func:`find_fmu`, remembered per name while the file found is still there."""
+        key = (name, sc.base_dir, sc.experiment.fmu_kind)
+        path = self._paths.get(key)
+        if path is None or not path.is_file():
+            path = self._paths[key] = find_fmu(name, sc, self.fmu_dir)
+        return path
 
     def fingerprint(self, scenario: dict) -> str:
         """SHA-256 over the FMU files the scenario uses ("missing" for absent ones).
@@ -87,7 +111,7 @@ class MasterRunner:
         files = []
         for inst in sorted(sc.instances, key=lambda i: i.name):
             try:
-                path = find_fmu(inst.fmu, sc, self.fmu_dir)
+                path = self._find_fmu(inst.fmu, sc)
             except ValueError:
                 path = None
             files.append((inst.name, inst.fmu, path))
@@ -125,7 +149,7 @@ class MasterRunner:
         if fmu is None:
             return None
         try:
-            info = read_fmu_info(find_fmu(fmu, sc, self.fmu_dir))
+            info = read_fmu_info(self._find_fmu(fmu, sc))
         except (ScenarioError, ValueError, OSError):
             return None
         v = info.variables.get(var)

@@ -18,12 +18,14 @@ __all__ = ["write_modes_op2", "write_truss_deck"]
 BIGMAT_ROWS = 65535  # larger OP4 matrices need the BIGMAT layout
 
 
-def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
+def write_modes_op2(op2_path, lam, phi, grids, units="SI", gen_mass=None):
     """Write eigenvalues and eigenvectors as a SOL 103-style OP2.
 
-    pyNastran 1.4.1 writes the eigenvector table (single precision) but skips the LAMA
-    eigenvalue table; the eigenvalues travel in the eigenvector table's header (single
-    precision too), which :func:`read_modes` reads when LAMA is absent.
+    The eigenvector table (OUGV1, single precision) always; the eigenvalues also travel
+    in its header (single precision), which :func:`read_modes` reads when LAMA is
+    absent.  With ``gen_mass`` the LAMA table too (eigenvalue, generalized mass and
+    stiffness, float32 as NASTRAN writes them), and the vectors scaled to that mass
+    (``phi / sqrt(gen_mass)`` is what NASTRAN's MAX or POINT normalisation gives).
 
     Parameters
     ----------
@@ -37,6 +39,8 @@ def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
         Grid ids, in the order of ``phi``'s row blocks.
     units : str or UnitSystem
         Unit system of the file.
+    gen_mass : ndarray, shape (n_modes,), optional
+        Generalized masses to write in LAMA (file units); None: no LAMA table.
     """
     u = unit_system(units)
     OP2 = pynastran()[1]
@@ -46,6 +50,8 @@ def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
     grids = np.asarray(grids, int)
     dofs = [(int(g), c) for g in grids for c in range(1, 7)]
     native = phi / dof_scale(dofs, u)[:, None] * np.sqrt(u.energy)
+    if gen_mass is not None:
+        native = native * np.sqrt(np.asarray(gen_mass, float))[None, :]
     data = native.T.reshape(len(lam), len(grids), 6).astype(np.float32)
     node_gridtype = np.column_stack([grids, np.ones(len(grids), int)]).astype(np.int32)
     modes = np.arange(1, len(lam) + 1)
@@ -57,10 +63,43 @@ def write_modes_op2(op2_path, lam, phi, grids, units="SI"):
     op2 = OP2(log=QuietLog().log)
     op2.set_mode("msc")
     op2.eigenvectors[1] = vec
+    if gen_mass is not None:
+        from pyNastran.op2.tables.lama_eigenvalues.lama_objects import RealEigenvalues
+
+        eig = RealEigenvalues("MODES", "LAMA", len(lam))
+        lam_f = np.asarray(lam, float)
+        for k in range(len(lam)):
+            eig.add_f06_line((k + 1, k + 1, lam_f[k], np.sqrt(abs(lam_f[k])),
+                              np.sqrt(abs(lam_f[k])) / (2 * np.pi), float(gen_mass[k]),
+                              float(gen_mass[k] * lam_f[k])), k)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # pyNastran's "downcasting" notice
         op2.write_op2(str(op2_path), nastran_format="msc")
+    if gen_mass is not None:
+        _append_lama(op2_path, eig)
     return Path(op2_path)
+
+
+def _append_lama(op2_path, eig) -> None:
+    """Append a LAMA table before the OP2's closing ``[4, 0, 4]``.
+
+    pyNastran 1.4.1's writer skips LAMA on purpose (its table list), but the table
+    object writes itself; this closes it as the writer closes every other table.
+    """
+    import io
+    import struct
+
+    path = Path(op2_path)
+    data = path.read_bytes()
+    close = struct.pack("<3i", 4, 0, 4)
+    if not data.endswith(close):  # pragma: no cover - another writer
+        raise RuntimeError(f"{path}: unexpected OP2 ending; cannot append LAMA")
+    with open(path, "wb") as f:
+        f.write(data[:-len(close)])
+        itable = eig.write_op2(f, io.StringIO(), -1, True, (1, 1, 2026), endian=b"<")
+        f.write(struct.pack("<9i", 4, itable, 4, 4, 1, 4, 4, 0, 4))
+        f.write(close)
+        f.write(close)
 
 
 def write_truss_deck(truss, bdf_path, op4_path, *, units="SI", rotated=(), e_ref=70e9):

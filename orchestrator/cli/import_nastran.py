@@ -16,8 +16,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--op4", help="OUTPUT4 file with the stiffness and mass matrices "
                      "(KGG/MGG, or KAA/MAA with --dof-map)")
-    src.add_argument("--op2", help="SOL 103 OP2 (eigenvalues and eigenvectors): modes only, "
-                     "no Ritz vectors")
+    src.add_argument("--op2", help="SOL 103 OP2 (eigenvalues and eigenvectors, and residual "
+                     "vectors of a RESVEC run as the Ritz block)")
+    src.add_argument("--dmig", help="DMIG punch file (PARAM,EXTOUT,DMIGPCH) with the stiffness "
+                     "and mass on the DOFs its cards name")
     parser.add_argument("--units", required=True, choices=["SI", "in-lbf-s", "mm-t-s"],
                         help="unit system of the BDF, the matrices and explicit stack values")
     parser.add_argument("--modes", type=int, required=True, metavar="N",
@@ -53,6 +55,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k-name", default=None, help="OP4 stiffness matrix name")
     parser.add_argument("--m-name", default=None, help="OP4 mass matrix name")
     parser.add_argument("--name", default=None, help="model name (default: the BDF's stem)")
+    parser.add_argument("--boundary", choices=["free", "fixed"], default=None,
+                        help="Craig-Bampton model (a q-set in the BDF): boundary DOFs free "
+                        "(default) or fixed (the fixed-interface modes)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -67,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", nastran.NastranWarning)
         model = nastran.import_nastran(
-            args.bdf, units=args.units, op4=args.op4, op2=args.op2, n_modes=args.modes,
+            args.bdf, units=args.units, op4=args.op4, op2=args.op2, dmig=args.dmig,
+            n_modes=args.modes, boundary=args.boundary,
             actuators=[nastran.parse_actuator(a, args.units) for a in args.actuator],
             sensors=[nastran.parse_point(s) for s in args.sensor],
             loads=[nastran.parse_point(s, "force") for s in args.load],

@@ -169,9 +169,11 @@ def test_beam_static_deflection_against_beam_theory():
 
 def test_sdof_crod_frequency():
     """One CROD (EA/L = 1e4) and a CONM2 of 100: sqrt(100)/(2 pi) = 1.5915494 Hz."""
-    with pytest.warns(nas.NastranWarning, match="no eigenvalue table"):
+    with pytest.warns(nas.NastranWarning) as record:
         model = nas.import_nastran(SDOF / "sdof_crod.bdf", units="SI",
                                    op2=SDOF / "sdof_crod_2014.op2", n_modes=1)
+    # this OP2 has no LAMA: the generalized mass of 1 is an assumption, and it says so
+    assert any("no eigenvalue table (LAMA)" in str(w.message) for w in record)
     np.testing.assert_allclose(model.frequencies_hz, [np.sqrt(1e4 / 100) / (2 * np.pi)],
                                rtol=1e-6)
 
@@ -311,3 +313,37 @@ def test_sol145_op2_says_what_to_rerun(tmp_path):
     with pytest.raises(nas.NastranError, match=r"aeroelastic results .* rerun the bulk data as "
                                                r"SOL 103 .*DISP\(PLOT\)=ALL"):
         nas.read_modes(op2, "in-lbf-s", 2)
+
+
+@pytest.mark.slow
+def test_beam_structure_fmu_static_deflection(tmp_path):
+    """The imported cantilever as a structure FMU in FMPy: a constant tip force settles
+    to the Timoshenko deflection (as the model's own static gain above).
+
+    Damping 70 % of critical on every mode so that the response settles within the run
+    (first mode 456 Hz: time constant 0.5 ms; 50 ms is 100 of them, e^-100 left).
+    """
+    import fmpy
+
+    from fmukit.units import INCH, LBF
+    from structfmu.fmuspec import build_structure_fmu
+    from structfmu.reduce import Damping
+
+    model = quiet_import(BEAM / "beam_modes.dat", units="in-lbf-s",
+                         op2=BEAM / "beam_modes_m1.op2", n_modes=10,
+                         loads=[nas.parse_point("fz=11:3", "force")],
+                         sensors=[nas.parse_point("uz=11:3")], damping=Damping(zeta=0.7))
+    npz = model.save(tmp_path / "beam.npz")
+    report = build_structure_fmu(npz, tmp_path / "fmus")
+    assert not report.problems, report.problems
+    force = 100.0  # N
+    signal = np.array([(0.0, force), (1.0, force)], dtype=[("time", float), ("fz", float)])
+    res = fmpy.simulate_fmu(str(report.fmus[0]), stop_time=0.05, output_interval=1e-4,
+                            input=signal, output=["uz"])
+    E, G, r, L = 3.0e7, 1.1628e7, 1.0, 10.0
+    nu = E / (2 * G) - 1
+    kappa = 6 * (1 + nu) / (7 + 6 * nu)
+    delta = (L**3 / (3 * E * np.pi * r**4 / 4) + L / (kappa * G * np.pi * r**2)) * INCH / LBF
+    dc = frf(model, [0.0], ["uz"], ["fz"])[0, 0, 0].real
+    np.testing.assert_allclose(res["uz"][-1], force * dc, rtol=1e-9)
+    assert 0.997 < res["uz"][-1] / (force * delta) < 1.0005

@@ -126,6 +126,11 @@ def fmi3_model_description(root: ET.Element) -> ET.Element:
             cs.set(new, cs2.get(old))
     for tag in ("UnitDefinitions", "TypeDefinitions", "LogCategories", "DefaultExperiment"):
         part = root.find(tag)
+        if tag == "UnitDefinitions":   # with the unit of time, the independent variable
+            part = ET.fromstring(ET.tostring(part)) if part is not None else ET.Element(tag)
+            if part.find("Unit[@name='s']") is None:
+                ET.SubElement(ET.SubElement(part, "Unit", {"name": "s"}), "BaseUnit",
+                              {"s": "1"})
         if part is None:
             continue
         if tag == "TypeDefinitions":

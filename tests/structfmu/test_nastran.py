@@ -232,7 +232,7 @@ def test_bar_and_beam_members_carry_stacks(tmp_path):
     m.add_grid(4, [0.0, 1.5, 0.0])
     m.add_cquad4(4, 40, [1, 2, 3, 4])  # present, but cannot carry a stack
     m.add_pshell(40, 1, t=0.001)
-    m.write_bdf(str(tmp_path / "bars.bdf"), size=16)
+    m.write_bdf(str(tmp_path / "bars.bdf"), size=16, enddata=True)
     rng = np.random.default_rng(7)
     A = rng.standard_normal((24, 24))
     # any SPD stiffness of the stacks' order (well conditioned after the replacement): the

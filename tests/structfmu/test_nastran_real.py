@@ -105,7 +105,7 @@ def quiet_import(*args, **kw):
 
 # -- beam_modes: SOL 103 cantilever, OP2 (MSC 2013) and F06 (Simcenter 2021) --------------
 
-def test_beam_frequencies_match_the_f06_table():
+def test_beam_frequencies_match_the_f06_table(capfd):
     table = f06_eigenvalues(BEAM / "beam_modes.f06")
     assert table.shape == (10, 7)
     with pytest.warns(nas.NastranWarning, match="modes only") as record:
@@ -117,6 +117,8 @@ def test_beam_frequencies_match_the_f06_table():
     # F06 prints 7 digits (half a unit in the last: 1.1e-7 relative at worst), and the
     # OP2 (float32 eigenvalues, 6e-8) is of an earlier run: the issue's 1e-6
     np.testing.assert_allclose(model.frequencies_hz, table[:, 4], rtol=1e-6)
+    captured = capfd.readouterr()
+    assert captured.out == "" and captured.err == ""  # pyNastran's log kept quiet
 
 
 def test_beam_mode_shapes_match_the_f06_vectors():
@@ -347,3 +349,26 @@ def test_beam_structure_fmu_static_deflection(tmp_path):
     dc = frf(model, [0.0], ["uz"], ["fz"])[0, 0, 0].real
     np.testing.assert_allclose(res["uz"][-1], force * dc, rtol=1e-9)
     assert 0.997 < res["uz"][-1] / (force * delta) < 1.0005
+
+
+def test_cli_imports_the_superelement_with_its_boundary_fixed(tmp_path, capfd):
+    """``import-nastran se.pch --op4 se.op4 --boundary fixed``: 39 fixed-interface modes,
+    nothing printed but the summary (the punch file needs no ENDDATA, EXTRN is read)."""
+    from orchestrator.cli import main
+    from structfmu.reduced import ReducedModel
+
+    out = tmp_path / "se.npz"
+    rc = main(["import-nastran", str(SE / "se_test_n11.pch"), "--op4", str(SE / "se_test_n11.op4"),
+               "--units", "SI", "--modes", "39", "--boundary", "fixed", "--ritz", "none",
+               "--sensor", "q1=20111101:0", "--out", str(out)])
+    assert rc == 0
+    captured = capfd.readouterr()
+    assert captured.err == "" and captured.out.count("\n") == 1
+    assert "39 modes (365.3-1976 Hz)" in captured.out
+    assert ReducedModel.load(out).meta["boundary"] == "fixed"
+    # fixed boundary and a load on it: one sentence
+    rc = main(["import-nastran", str(SE / "se_test_n11.pch"), "--op4", str(SE / "se_test_n11.op4"),
+               "--units", "SI", "--modes", "4", "--boundary", "fixed",
+               "--load", "f=20110010:1", "--out", str(tmp_path / "x.npz")])
+    assert rc == 2
+    assert "load 'f': every DOF it uses is constrained" in capfd.readouterr().err

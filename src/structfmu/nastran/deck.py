@@ -25,13 +25,14 @@ from structfmu.nastran.spec import (ACTUATOR_ELEMENTS, NastranError, NastranWarn
 __all__ = ["Deck", "Constraint", "read_deck", "read_dof_map", "gset", "dof_scale",
            "INTERPRETED_CARDS"]
 
-#: Cards the import reads, or whose whole effect is in the matrices it reads (elements,
-#: properties and materials of the members it knows, solution and output control).
+#: Cards the import reads, or whose whole effect is in the matrices or modes it reads
+#: (elements, properties and materials of the members it knows, solution and output
+#: control, residual-vector DOF).
 INTERPRETED_CARDS = frozenset("""
     GRID SPOINT CORD1R CORD2R CORD1C CORD2C CORD1S CORD2S SPC SPC1 SPCADD PARAM ENDDATA
     CROD CONROD CBAR CBEAM PROD PBAR PBARL PBEAM PBEAML MAT1 CONM2 RBE2 RBAR MPC MPCADD
     ASET ASET1 QSET QSET1 BSET BSET1 CSET CSET1 OMIT OMIT1 EIGRL EIGR USET USET1 PLOTEL DTI
-    EXTRN SEBULK SECONCT DMIG
+    EXTRN SEBULK SECONCT DMIG RVDOF RVDOF1
 """.split())
 #: Rigid elements refused by name (their equations are not built here).
 REFUSED_RIGID = ("RBE1", "RBE3", "RROD", "RBAR1", "RSPLINE", "RSSCON")

@@ -43,7 +43,7 @@ from orchestrator.cosim.fastloop import SOURCE as FASTLOOP_SOURCE
 from orchestrator.cosim.graph import AlgebraicLoopError
 from orchestrator.cosim.plan import prepare
 from orchestrator.cosim.schedule import MAX_PATTERN, Schedule
-from orchestrator.scenario import Scenario, ScenarioError, closest, load_scenario
+from orchestrator.scenario import Scenario, closest, load_scenario
 
 __all__ = ["ContainerError", "export_fmu"]
 

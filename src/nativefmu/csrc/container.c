@@ -707,7 +707,8 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
           1e-9 * fabs(communicationStepSize))) {
         ct_log(C, 3, "fmi2DoStep: communication step %.17g s is not a whole number of base "
                "steps; allowed steps are m x %.17g s for m = 1, 2, 3, ... (the scenario's base "
-               "step, the GCD of its periods)", communicationStepSize, CT_BASE_STEP);
+               "step: the GCD of its periods and output interval)", communicationStepSize,
+               CT_BASE_STEP);
         return fmi2Error;
     }
     t_now = tick_time(C->tick);

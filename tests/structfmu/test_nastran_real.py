@@ -274,6 +274,17 @@ def test_op2_of_another_model_is_an_error():
                      n_modes=1)
 
 
+def test_op2_of_a_moved_grid_is_an_error(tmp_path):
+    """Same ids, another geometry: the OP2's grid table (BGPDT) disagrees with the BDF."""
+    (tmp_path / "cbar_cbeam.blk").write_text((BEAM / "cbar_cbeam.blk").read_text().replace(
+        "GRID           6       0 5.00000", "GRID           6       0 5.10000"))
+    (tmp_path / "moved.dat").write_text((BEAM / "beam_modes.dat").read_text())
+    with pytest.raises(nas.NastranError, match=r"grid 6 is at \[5\.0, 0\.0, 0\.0\] in OP2 .* but "
+                                               r"at \[5\.1, 0\.0, 0\.0\] in .*another model"):
+        quiet_import(tmp_path / "moved.dat", units="in-lbf-s", op2=BEAM / "beam_modes_m1.op2",
+                     n_modes=4)
+
+
 def test_op4_of_another_model_is_an_error():
     with pytest.raises(nas.NastranError, match=r"have 105 rows, but .*beam_modes.dat has a "
                                                r"g-set of 72 DOFs.*different models"):

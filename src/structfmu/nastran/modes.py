@@ -98,6 +98,7 @@ def read_modes(op2_path, units, n_modes: int, deck=None):
     gtype = vec.node_gridtype[:, 1]
     if deck is not None:
         _check_same_model(deck, nodes, gtype, path)
+        _check_same_geometry(deck, op2, path, u)
     dofs = [(int(n), c if t == 1 else 0) for n, t in zip(nodes, gtype)
             for c in (range(1, 7) if t == 1 else (1,))]
     cols = [(k, c) for k, t in enumerate(gtype) for c in (range(6) if t == 1 else (0,))]
@@ -143,6 +144,31 @@ def _residual_flags(lam, eigrl, n):
     if v2:
         flags |= np.sqrt(np.maximum(lam, 0)) / (2 * np.pi) > float(v2) * (1 + 1e-6)
     return flags
+
+
+def _check_same_geometry(deck, op2, path, u):
+    """Grid positions of the OP2's BGPDT (basic, file units) against the BDF's."""
+    bgpdt = getattr(op2.op2_results, "bgpdt", None)
+    eqexin = getattr(op2.op2_results, "eqexin", None)
+    xyz = getattr(bgpdt, "xyz", None)
+    if xyz is None or eqexin is None or len(eqexin.nid) != len(xyz):
+        return
+    # BGPDT is in NASTRAN's internal order; EQEXIN gives each grid's first internal DOF
+    ids = np.asarray(eqexin.nid)[np.argsort(np.asarray(eqexin.dof), kind="stable")]
+    pts = {int(n): x for n, x in zip(ids, np.asarray(xyz, float)) if int(n) in deck.grids}
+    if not pts:
+        return
+    bdf = np.array([deck.grids[n] / u.length for n in pts])
+    op2_xyz = np.array(list(pts.values()))
+    size = max(float(np.ptp(bdf, axis=0).max()), 1e-30)
+    err = np.linalg.norm(op2_xyz - bdf, axis=1)
+    k = int(np.argmax(err))
+    if err[k] > 1e-4 * size:  # float32 positions and 8- or 16-character fields
+        n = list(pts)[k]
+        raise NastranError(f"grid {n} is at {np.round(op2_xyz[k], 6).tolist()} in OP2 "
+                           f"{str(path)!r} but at {np.round(bdf[k], 6).tolist()} in "
+                           f"{deck.path}: the OP2 is of another model (or another version of "
+                           "it); give the BDF it was run from")
 
 
 def _check_same_model(deck, nodes, gtype, path):

@@ -116,8 +116,19 @@ class Fmi3Slave:
         self._start, self._stop = 0.0, None
 
     def setupExperiment(self, startTime=0.0, stopTime=None, tolerance=None):
-        """Keep the experiment for :meth:`enterInitializationMode` (FMI 3.0 has no
-        setup call of its own)."""
+        """Keep the experiment for :meth:`enterInitializationMode`.
+
+        FMI 3.0 has no setup call of its own.
+
+        Parameters
+        ----------
+        startTime : float
+            Start time (s).
+        stopTime : float, optional
+            Stop time (s); None if undefined.
+        tolerance : float, optional
+            Relative tolerance; None if undefined.
+        """
         self._start, self._stop, self._tolerance = startTime, stopTime, tolerance
 
     def enterInitializationMode(self):
@@ -128,15 +139,51 @@ class Fmi3Slave:
         self.fmu.exitInitializationMode()
 
     def setReal(self, vr, values):
+        """``fmi3SetFloat64`` (raises on an error status).
+
+        Parameters
+        ----------
+        vr : sequence of int
+            Value references.
+        values : sequence
+            One value per value reference.
+        """
         self.fmu.setFloat64(vr, values)
 
     def setInteger(self, vr, values):
+        """``fmi3SetInt32`` (raises on an error status).
+
+        Parameters
+        ----------
+        vr : sequence of int
+            Value references.
+        values : sequence
+            One value per value reference.
+        """
         self.fmu.setInt32(vr, values)
 
     def setBoolean(self, vr, values):
+        """``fmi3SetBoolean`` (raises on an error status).
+
+        Parameters
+        ----------
+        vr : sequence of int
+            Value references.
+        values : sequence
+            One value per value reference.
+        """
         self.fmu.setBoolean(vr, values)
 
     def setString(self, vr, values):
+        """``fmi3SetString`` (raises on an error status).
+
+        Parameters
+        ----------
+        vr : sequence of int
+            Value references.
+        values : sequence
+            One value per value reference.
+        """
         self.fmu.setString(vr, values)
 
     def getFMUstate(self):

@@ -59,8 +59,9 @@ class _Rows:
             vals.append(float(w))
         if terms and not cols:
             raise NastranError(f"{what}: every DOF it uses is constrained or has neither "
-                               "stiffness nor mass (a grid of rods only has no rotations: "
-                               "read a line of sight from three grids instead)")
+                               "stiffness nor mass (an SPC or a fixed boundary holds it, or "
+                               "it is a rotation of a grid of rods only: read a line of sight "
+                               "from three grids instead)")
         self.rows.append((cols, vals))
 
     def matrix(self) -> sp.csr_matrix:

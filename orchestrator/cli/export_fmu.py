@@ -1,4 +1,4 @@
-"""``jitterfmu export-fmu``: write a scenario as one FMI 2.0 co-simulation FMU."""
+"""``jitterfmu export-fmu``: write a scenario as one FMI 2.0 or 3.0 co-simulation FMU."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import warnings
 
 COMMAND = "export-fmu"
 HELP = ("export a scenario as one FMU: its native FMUs and the master's schedule in C "
-        "(FMI 2.0 co-simulation)")
+        "(FMI 2.0 or 3.0 co-simulation)")
 
 
 def add_arguments(parser) -> None:
@@ -19,6 +19,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--parameter", action="append", default=[], metavar="INST.NAME",
                         help="an inner parameter exposed as the FMU's (repeatable)")
     parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
+    parser.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                        help="FMI version of the FMU (default 2; the inner FMUs are the "
+                             "FMI 2.0 native build either way)")
     parser.add_argument("--no-windows", action="store_true",
                         help="no win64 binary even when mingw-w64 is installed")
 
@@ -34,7 +37,7 @@ def run(args) -> int:
         warnings.simplefilter("always")
         path = export_fmu(args.scenario, args.out, outputs=args.output,
                           parameters=args.parameter, fmu_dir=args.fmu_dir,
-                          windows=False if args.no_windows else None)
+                          windows=False if args.no_windows else None, fmi=args.fmi)
     report_warnings(caught)
     print(f"wrote {path}")
     return 0

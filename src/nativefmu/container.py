@@ -1,4 +1,4 @@
-"""A scenario as one FMI 2.0 co-simulation FMU: its native FMUs and the master's schedule.
+"""A scenario as one FMI co-simulation FMU: its native FMUs and the master's schedule.
 
 :func:`export_fmu` (``jitterfmu export-fmu SCENARIO OUT.fmu``) writes one FMU whose
 binary holds every native FMU of the scenario, compiled from that FMU's own
@@ -16,6 +16,12 @@ The FMU carries:
   ``-std=c99 -Wall -Wextra -Werror -pedantic``;
 - ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll`` (with mingw-w64);
 - ``resources/uN/``: each inner FMU's resources.
+
+With ``fmi=3`` the container is an FMI 3.0 co-simulation FMU around the same FMI 2.0
+units: ``container.c`` is compiled with its FMI 2.0 API renamed (``container_fmi2.h``)
+behind ``csrc/container_fmi3.c``, the model description is the FMI 2.0 one written the
+FMI 3.0 way (:mod:`nativefmu.fmi3xml`), and the binaries are
+``binaries/x86_64-linux`` and ``x86_64-windows``.
 """
 
 from __future__ import annotations
@@ -38,6 +44,7 @@ from nativefmu.build import (
     mingw_compiler,
 )
 from nativefmu.container_tables import ContainerVariable, c_tables, model_description
+from nativefmu.fmi3xml import build_description, fmi3_model_description, fmi3_token
 from orchestrator.cosim.bus import Bus
 from orchestrator.cosim.fastloop import SOURCE as FASTLOOP_SOURCE
 from orchestrator.cosim.graph import AlgebraicLoopError
@@ -49,6 +56,11 @@ __all__ = ["ContainerError", "export_fmu"]
 
 _CSRC = Path(__file__).with_name("csrc")
 _FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+#: What an FMI 3.0 container adds to sources/: headers and its API layer.
+_FMI3_HEADERS = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
+_FMI3_LAYER = ("container_fmi3.c", "container_fmi2.h")
+#: Binary folders (Linux, Windows) of each FMI version.
+_PLATFORMS = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}
 _NATIVE_TOOL = "jitterfmu nativefmu"
 
 
@@ -63,6 +75,9 @@ def _inner_sources(path: Path) -> tuple[dict, list, dict, str]:
         root = ET.fromstring(z.read("modelDescription.xml"))
         tool = root.get("generationTool", "")
         cs = root.find("CoSimulation")
+        if tool.startswith(_NATIVE_TOOL) and root.get("fmiVersion", "").startswith("3"):
+            return ("an FMI 3.0 native FMU; a container holds the FMI 2.0 build of each "
+                    "(jitterfmu build, without --fmi 3), whatever its own FMI version")
         if not tool.startswith(_NATIVE_TOOL) or cs is None or "container" in tool:
             python = any(n.startswith("resources/fmuslave_") for n in names) or \
                 "pythonfmu" in tool.lower()
@@ -169,8 +184,9 @@ def _checked_plan(scenario: Scenario, outputs, fmu_dir):
 
 
 def export_fmu(scenario: Scenario | str | Path, out: str | Path, *, outputs=None,
-               parameters=(), fmu_dir=None, windows: bool | None = None) -> Path:
-    """Write ``scenario`` as one FMI 2.0 co-simulation FMU.
+               parameters=(), fmu_dir=None, windows: bool | None = None,
+               fmi: int = 2) -> Path:
+    """Write ``scenario`` as one FMI 2.0 (or 3.0) co-simulation FMU.
 
     Parameters
     ----------
@@ -185,7 +201,9 @@ def export_fmu(scenario: Scenario | str | Path, out: str | Path, *, outputs=None
     fmu_dir : path-like, optional
         Folder searched first for the scenario's FMUs.
     windows : bool, optional
-        Also build ``binaries/win64``; None: when mingw-w64 is installed.
+        Also build the Windows binary; None: when mingw-w64 is installed.
+    fmi : {2, 3}
+        FMI version of the container's API (the inner FMUs are FMI 2.0 units either way).
 
     Returns
     -------
@@ -202,6 +220,9 @@ def export_fmu(scenario: Scenario | str | Path, out: str | Path, *, outputs=None
     """
     out = Path(out)
     model_id = out.stem
+    if fmi not in (2, 3):
+        raise ContainerError(f"fmi={fmi!r} is not an FMI version a container is written in; "
+                             "use 2 or 3")
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", model_id):
         raise ContainerError(f"the file name {out.name!r} gives modelIdentifier {model_id!r}, "
                              "which is not a C identifier; name the FMU like truss10.fmu")
@@ -260,31 +281,40 @@ def export_fmu(scenario: Scenario | str | Path, out: str | Path, *, outputs=None
         work = Path(tmp) / "obj"
         work.mkdir()
         (src / "jfmu_names.h").write_text(_names_header(_renamed_symbols(unit_dirs, work)))
-        for name in _FMI_HEADERS:
+        for name in _FMI_HEADERS + (_FMI3_HEADERS if fmi == 3 else ()):
             (src / name).write_bytes((_fmi_header_dir() / name).read_bytes())
         (src / "fastloop.c").write_bytes(FASTLOOP_SOURCE.read_bytes())
-        (src / "container.c").write_bytes((_CSRC / "container.c").read_bytes())
+        for name in ("container.c", *(_FMI3_LAYER if fmi == 3 else ())):
+            (src / name).write_bytes((_CSRC / name).read_bytes())
         draft = c_tables(plan, bus, layout, units, variables, model_identifier=model_id,
-                         guid="")
+                         guid="", fmi=fmi)
         digest = hashlib.sha256(draft.encode())
         for p in sorted(src.rglob("*")):
             if p.is_file():
                 digest.update(p.relative_to(src).as_posix().encode() + p.read_bytes())
         guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "jitterfmu-container:"
                                     + digest.hexdigest())) + "}"
+        # FMI 3.0: the instantiation token fmi3xml derives from the FMI 2.0 GUID
         (src / "container_data.h").write_text(
             c_tables(plan, bus, layout, units, variables, model_identifier=model_id,
-                     guid=guid))
+                     guid=guid if fmi == 2 else fmi3_token(guid), fmi=fmi))
         c_files = sorted(p.name for p in src.glob("*.c"))
-        binaries = {f"binaries/linux64/{model_id}.so":
+        if fmi == 3:
+            (src / "buildDescription.xml").write_bytes(build_description(model_id, c_files))
+        linux, win = _PLATFORMS[fmi]
+        binaries = {f"binaries/{linux}/{model_id}.so":
                     compile_sources(src, Path(tmp) / f"{model_id}.so")}
         if windows:
-            binaries[f"binaries/win64/{model_id}.dll"] = compile_sources(
+            binaries[f"binaries/{win}/{model_id}.dll"] = compile_sources(
                 src, Path(tmp) / f"{model_id}.dll", compiler=mingw, windows=True)
         instances = ", ".join(i.name for i in sc.instances)
         xml = model_description(plan, bus, variables, model_identifier=model_id, guid=guid,
                                 source_files=c_files,
                                 description=f"scenario {sc.source} as one FMU: {instances}")
+        if fmi == 3:
+            root3 = fmi3_model_description(ET.fromstring(xml))
+            ET.indent(root3)
+            xml = ET.tostring(root3, encoding="UTF-8", xml_declaration=True)
         out.parent.mkdir(parents=True, exist_ok=True)
         with replaced_when_done(out) as part, \
                 zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:

@@ -1,4 +1,5 @@
-/* A scenario as one FMI 2.0 co-simulation FMU (C99, libc and libm only).
+/* A scenario as one FMI 2.0 co-simulation FMU (C99, libc and libm only); under FMI 3.0
+ * the same code behind container_fmi3.c (its FMI 2.0 API renamed, container_fmi2.h).
  *
  * The inner FMUs are the scenario's native FMUs, compiled into this binary with their
  * FMI functions and model symbols renamed (uN_fmi2DoStep, ...; jfmu_names.h).  The
@@ -118,6 +119,34 @@ typedef struct {
 } ct_action;
 
 #include "container_data.h"
+
+#ifndef CT_FMI_VERSION
+#define CT_FMI_VERSION 2
+#endif
+#if CT_FMI_VERSION == 3
+/* An FMI 3.0 container: the FMI 2.0 API below is internal (ct2_fmi2...), called by
+ * container_fmi3.c. */
+#include "container_fmi2.h"
+const unsigned int ct2_time_vr = CT_N_VARS;
+const char *const ct2_model_identifier = CT_MODEL_IDENTIFIER;
+#endif
+
+/* The host's names of the functions the messages below name. */
+#if CT_FMI_VERSION == 3
+#define CT_FN_DOSTEP "fmi3DoStep"
+#define CT_FN_SETUPEXPERIMENT "fmi3EnterInitializationMode"
+#define CT_FN_ENTERINITIALIZATIONMODE "fmi3EnterInitializationMode"
+#define CT_FN_INSTANTIATE "fmi3InstantiateCoSimulation"
+#define CT_FN_EXITINITIALIZATIONMODE "fmi3ExitInitializationMode"
+#define CT_FN_RESET "fmi3Reset"
+#else
+#define CT_FN_DOSTEP "fmi2DoStep"
+#define CT_FN_SETUPEXPERIMENT "fmi2SetupExperiment"
+#define CT_FN_ENTERINITIALIZATIONMODE "fmi2EnterInitializationMode"
+#define CT_FN_INSTANTIATE "fmi2Instantiate"
+#define CT_FN_EXITINITIALIZATIONMODE "fmi2ExitInitializationMode"
+#define CT_FN_RESET "fmi2Reset"
+#endif
 
 enum { PH_INSTANTIATED = 0, PH_INITIALIZATION = 1, PH_STEPPING = 2, PH_TERMINATED = 3,
        PH_FAILED = 4 };
@@ -424,9 +453,9 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
     (void)stopTime;
     if (c == NULL) return fmi2Error;
     if (C->phase != PH_INSTANTIATED)
-        return failed(C, "fmi2SetupExperiment: %s", "only allowed after fmi2Instantiate");
+        return failed(C, CT_FN_SETUPEXPERIMENT ": %s", "only allowed after " CT_FN_INSTANTIATE);
     if (!(fabs(startTime - CT_START_TIME) <= 1e-6 * CT_BASE_STEP)) {
-        ct_log(C, 3, "fmi2SetupExperiment: the container starts at its scenario's start time "
+        ct_log(C, 3, CT_FN_SETUPEXPERIMENT ": the container starts at its scenario's start time "
                "%.17g s; got %.17g s", CT_START_TIME, startTime);
         return fmi2Error;
     }
@@ -437,8 +466,8 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     int i;
     if (c == NULL) return fmi2Error;
     if (C->phase != PH_INSTANTIATED)
-        return failed(C, "fmi2EnterInitializationMode: %s", "only allowed once, after "
-                      "fmi2Instantiate");
+        return failed(C, CT_FN_ENTERINITIALIZATIONMODE ": %s", "only allowed once, after "
+                      CT_FN_INSTANTIATE);
     for (i = 0; i < CT_N_INST; i++) {
         const ct_unit *u = &CT_UNITS[CT_INSTS[i].unit];
         if (u->setup_experiment(C->comp[i], fmi2False, 0.0, CT_START_TIME, fmi2False, 0.0) >
@@ -487,7 +516,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     int i, code;
     if (c == NULL) return fmi2Error;
     if (C->phase != PH_INITIALIZATION)
-        return failed(C, "fmi2ExitInitializationMode: %s", "not in initialization mode");
+        return failed(C, CT_FN_EXITINITIALIZATIONMODE ": %s", "not in initialization mode");
     C->phase = PH_FAILED;
     for (i = 0; i < CT_N_INST; i++) {
         int m = CT_INIT_ORDER[i];
@@ -527,7 +556,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
     for (i = 0; i < CT_N_INST; i++)
         if (CT_UNITS[CT_INSTS[i].unit].reset(C->comp[i]) > fmi2Warning) {
             C->phase = PH_FAILED;
-            return failed(C, "fmi2Reset: %s", "an inner instance could not be reset");
+            return failed(C, CT_FN_RESET ": %s", "an inner instance could not be reset");
         }
     memset(C->values, 0, sizeof C->values);
     C->tick = 0;
@@ -699,13 +728,13 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     (void)noSetFMUStatePriorToCurrentPoint;
     if (c == NULL) return fmi2Error;
     if (C->phase != PH_STEPPING)
-        return failed(C, "fmi2DoStep: %s", "not in step mode (initialise first, and no step "
+        return failed(C, CT_FN_DOSTEP ": %s", "not in step mode (initialise first, and no step "
                       "after an error or fmi2Terminate)");
     m_real = nearbyint(communicationStepSize / CT_BASE_STEP);
     if (!isfinite(communicationStepSize) || !(m_real >= 1.0) || m_real > 1e15 ||
         !(fabs(communicationStepSize - m_real * CT_BASE_STEP) <=
           1e-9 * fabs(communicationStepSize))) {
-        ct_log(C, 3, "fmi2DoStep: communication step %.17g s is not a whole number of base "
+        ct_log(C, 3, CT_FN_DOSTEP ": communication step %.17g s is not a whole number of base "
                "steps; allowed steps are m x %.17g s for m = 1, 2, 3, ... (the scenario's base "
                "step: the GCD of its periods and output interval)", communicationStepSize,
                CT_BASE_STEP);
@@ -714,7 +743,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     t_now = tick_time(C->tick);
     if (!(fabs(currentCommunicationPoint - t_now) <=
           1e-6 * CT_BASE_STEP + 1e-12 * fabs(t_now))) {
-        ct_log(C, 3, "fmi2DoStep: the step starts at %.17g s but the container is at "
+        ct_log(C, 3, CT_FN_DOSTEP ": the step starts at %.17g s but the container is at "
                "t = %.17g s (tick %lld); step from where the last step ended",
                currentCommunicationPoint, t_now, (long long)C->tick);
         return fmi2Error;

@@ -452,7 +452,14 @@ class FastResponse:
             k += L
         # exact power-of-two balancing: the memory state mixes metres, volts and strains
         Phi_b, scale = balance(self.period_map())
-        T, Q = la.schur(Phi_b, output="complex")
+        # eigenvalues at 1 (rigid-body modes of an open attitude loop, integrators) last:
+        # a line whose z = exp(j 2 pi f P base) is 1 (f a multiple of 1 / (P base)) makes
+        # z I - T singular there.  The steady state still exists (a rigid body driven at
+        # f > 0 moves by F / (m w^2)); only a constant along the null direction is free,
+        # so that block is solved by least squares (minimum norm), the rest as before.
+        T, Q, k_top = la.schur(Phi_b, output="complex",
+                               sort=lambda v: abs(v - 1.0) > _UNIT_EIG_TOL)
+        n_top = int(k_top)
         zT, diag = -T, np.diag(T).copy()
         out = np.zeros((self.P, freqs.size, sel.size), complex)
         for c0 in range(0, freqs.size, chunk):
@@ -476,7 +483,7 @@ class FastResponse:
                     X0[:, i] = 0.0
                     continue
                 np.fill_diagonal(zT, z[i] - diag)                      # z I - T
-                X0[:, i] = la.solve_triangular(zT, y[:, i], check_finite=False)
+                X0[:, i] = _solve_deflated(zT, y[:, i], n_top)
             x = (Q @ X0) * scale[:, None]
             for (t, start), g in zip(units, forcing):
                 live = np.searchsorted(t.live, sel)
@@ -497,6 +504,31 @@ class FastResponse:
                 out[start:start + t.L, c0:c0 + chunk] = Y
                 x = t.ML @ x + g
         return out
+
+
+#: An eigenvalue of the super-period map within this of 1 is a unit eigenvalue.
+_UNIT_EIG_TOL = 1e-6
+#: Singular values of the unit block below this fraction of its largest are null.
+_UNIT_RCOND = 1e-8
+
+
+def _solve_deflated(A: np.ndarray, b: np.ndarray, n_top: int) -> np.ndarray:
+    """Solve the upper-triangular ``A x = b`` whose trailing block (from ``n_top``) holds
+    the unit eigenvalues: that block by least squares (minimum norm, singular values
+    below ``_UNIT_RCOND`` of its largest dropped), then the leading block by back
+    substitution with the trailing solution moved to the right-hand side."""
+    import scipy.linalg as la
+
+    x = np.empty_like(b)
+    if n_top < A.shape[0]:
+        x[n_top:] = la.lstsq(A[n_top:, n_top:], b[n_top:], cond=_UNIT_RCOND,
+                             check_finite=False)[0]
+        rhs = b[:n_top] - A[:n_top, n_top:] @ x[n_top:]
+    else:
+        rhs = b
+    if n_top:
+        x[:n_top] = la.solve_triangular(A[:n_top, :n_top], rhs, check_finite=False)
+    return x
 
 
 def balance(A: np.ndarray):

@@ -136,17 +136,23 @@ def steady_jitter(fr: FastResponse, freqs_hz, phasors, refs, metrics, duration: 
     n_samples = int(round(duration / dt)) + 1
     n_blocks = -(-((n_samples - 1) * every + 1) // fr.P)    # super-periods the record spans
     Y = fr.steady_state(freqs.ravel(), np.asarray(phasors).reshape(-1, fr.m), refs)
-    Y = Y.reshape(fr.P, n_p, n_h, len(refs))
+    Y = Y.reshape(fr.P, n_p, n_h, len(refs)).transpose(1, 2, 0, 3).reshape(n_p, n_h, -1)
+    Yr, Yi = np.ascontiguousarray(Y.real), np.ascontiguousarray(Y.imag)   # (n_p, n_h, P r)
     values = np.zeros((n_p, len(refs), len(metrics)))
-    z = np.exp(2j * np.pi * freqs * fr.P * float(tb.base))             # (n_p, n_h)
-    blocks = np.arange(n_blocks)
-    for c0 in range(0, n_p, chunk):
-        sl = slice(c0, c0 + chunk)
-        zn = z[sl, :, None] ** blocks                                  # (c, n_h, n_b)
-        Yc = Y[:, sl].transpose(1, 2, 0, 3).reshape(zn.shape[0], n_h, -1)   # (c, n_h, P r)
-        x = np.real(zn.transpose(0, 2, 1) @ Yc)                        # (c, n_b, P r)
+    # z_h^n = exp(j 2 pi f_h T n), T the hyperperiod, the phase taken in turns modulo 1
+    # (exact to ~1e-13 of a turn over the record) so that Re(z^n Y) is two real products
+    turns = freqs * (fr.P * float(tb.base))                            # (n_p, n_h)
+    blocks = np.arange(n_blocks, dtype=float)
+
+    def one_chunk(sl):
+        ang = 2 * np.pi * np.mod(turns[sl, :, None] * blocks, 1.0)     # (c, n_h, n_b)
+        c_, s_ = np.cos(ang).transpose(0, 2, 1), np.sin(ang).transpose(0, 2, 1)
+        x = np.matmul(c_, Yr[sl]) - np.matmul(s_, Yi[sl])              # (c, n_b, P r)
         x = x.reshape(x.shape[0], n_blocks * fr.P, len(refs))[:, ::every][:, :n_samples]
         values[sl] = M.metric_values(x.transpose(0, 2, 1), dt, metrics)
+
+    for c0 in range(0, n_p, chunk):
+        one_chunk(slice(c0, c0 + chunk))
     return values
 
 

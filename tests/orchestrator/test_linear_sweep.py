@@ -152,12 +152,52 @@ def test_shipped_rwa_sweep_runs_and_isolation_lowers_swir(rwa_sweep):
     for r in rows:
         k = (r["configuration"], r["instrument"], r["axis"])
         worst[k] = max(worst.get(k, 0.0), r["value"])
-    # isolation on never raises a worst value by more than the rounding of its own law
+    # the isolated instruments' worst speeds are lower with isolation on on every axis
+    # (elsewhere it may not be: MISR pitch, 0.004 arcsec, rises at 1383 rpm)
     for (cf, inst, axis), v in worst.items():
-        if cf == "isolation on":
-            assert v <= 1.05 * worst[("isolation off", inst, axis)], (inst, axis)
+        if cf == "isolation on" and inst in ("SWIR", "VNIR"):
+            assert v < worst[("isolation off", inst, axis)], (inst, axis)
     assert worst[("isolation on", "SWIR", "yaw")] < 0.8 * worst[("isolation off", "SWIR", "yaw")]
     assert (out / "wheel_sweeps_worst.csv").is_file()
+
+
+@pytest.mark.parametrize("sweep,rpm", [(0, 6000.0), (0, 3000.0 + 1e-6), (0, 6000.0 - 1e-4),
+                                       (0, 4321.0), (1, 6000.0), (1, 4321.0)])
+def test_rwa_steady_state_with_free_rigid_modes_equals_the_one_tick_response(rwa_sweep,
+                                                                              sweep, rpm):
+    """The ACS open, the spacecraft's rigid-body modes are free: the super-period map has
+    twelve eigenvalues at 1, and at 6000 rpm every wheel line is a multiple of
+    1 / (P base) = 10 Hz, where z I - Phi is singular (before the fix the steady state
+    there was ~5e6 times the line of sight, its jitter noise).  Reference, independent of
+    the super-period solve: with the ACS's outputs held at zero the loop is single-rate,
+    so each line's steady state is ``(e^{jwh} I - M)^-1 N a`` on the one-tick map (no
+    eigenvalue of M is e^{jwh} for 0 < f < 1 kHz), summed into the 7 s record.  At a
+    commensurate speed the rigid-body position is free up to a constant, which the
+    windowed peak-to-peak does not see; near one the solve loses digits (1e-8)."""
+    from orchestrator.analysis.fast import FastResponse
+    from orchestrator.analysis.sweep import RPM
+    from orchestrator import metrics as Mt
+    camp, _, _, runner = rwa_sweep
+    sw = camp.wheel_sweeps[sweep]
+    refs = [var for axes in camp.instruments.values() for var in axes.values()]
+    fr = FastResponse(runner.compiled(sw["scenario"]).lin.opened(sw["open"]), refs)
+    M, N, C, D = fr._maps[fr._signature(1)]      # a tick without the (opened) ACS
+    C, D = C[:len(refs)], D[:len(refs)]
+    h = float(fr.lin.plan.timebase.base)
+    cfg = fr.lin.blocks[sw["instance"]].source
+    off = fr._in_off[sw["instance"]]
+    f, a = cfg.source.lines(rpm * RPM)
+    ph = np.zeros((len(f), fr.m), complex)
+    ph[:, off:off + 6] = cfg.scale * a
+    got = steady_jitter(fr, np.asarray(f)[None], ph[None], refs, camp.metrics, 7.0)[0]
+    k = np.arange(7001)
+    rec = np.zeros((k.size, len(refs)))
+    for fi, pi in zip(f, ph):
+        z = np.exp(2j * np.pi * fi * h)
+        Y = C @ np.linalg.solve(z * np.eye(M.shape[0]) - M, N @ pi) + D @ pi
+        rec += np.real(z ** k[:, None] * Y[None, :])
+    ref = Mt.metric_values(rec.T[None], h, camp.metrics)[0]
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-8 * np.abs(ref).max())
 
 
 def test_rwa_sweep_with_the_acs_is_refused(rwa_sweep):

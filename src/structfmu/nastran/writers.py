@@ -183,3 +183,83 @@ def write_truss_deck(truss, bdf_path, op4_path, *, units="SI", rotated=(), e_ref
             for k, v in mats.items():
                 _write_sparse_matrix_ascii(f, k, v, form=6, is_big_mat=True)
     return Path(bdf_path), Path(op4_path)
+
+
+def write_matrices_op2(op2_path, matrices, *, precision="double"):
+    """Write real matrices as OUTPUT2 matrix data blocks (``OUTPUT2 KAA,MAA//0/12``).
+
+    pyNastran 1.4.1 reads OP2 matrices but cannot write them; this writes the layout
+    its reader (``read_matrix_mat``) and NASTRAN's OUTPUT2 documentation describe, 32-bit
+    little-endian, after the header pyNastran's own writer gives.  Per data block: the
+    name record, record -1 (the 7-word trailer: ``101 + k``, columns, rows, form, type,
+    the largest column in words, density x 10000), records -2 (name), then one record
+    per column (markers ``[-3 - j, 1, 1]`` followed by its strings, each ``[first row,
+    values...]`` over consecutive non-zero rows, its key the number of value words as
+pyNastran reads it; a null column has none), closed by
+    ``[-3 - ncols, 1, 0]`` and the end-of-block ``0``.  Test data: no NASTRAN run wrote
+    these files.
+
+    Parameters
+    ----------
+    op2_path : path-like
+        File to write.
+    matrices : dict of str to array_like or scipy.sparse matrix
+        Name (up to 8 characters) to real matrix, in the order to write.
+    precision : {"double", "single"}
+        Type 2 (float64) or 1 (float32) words.
+    """
+    import struct
+
+    if precision not in ("double", "single"):
+        raise ValueError(f"precision={precision!r}; expected 'double' or 'single'")
+    OP2 = pynastran()[1]
+    op2 = OP2(log=QuietLog().log)
+    op2.set_mode("msc")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        op2.write_op2(str(op2_path), nastran_format="msc")
+    path = Path(op2_path)
+    head = path.read_bytes()
+    close = struct.pack("<3i", 4, 0, 4)
+    if not head.endswith(close):  # pragma: no cover - another writer
+        raise RuntimeError(f"{path}: unexpected OP2 ending; cannot append matrices")
+    tout, ftype, fsize = (2, "d", 8) if precision == "double" else (1, "f", 4)
+
+    def marker(*values):
+        return b"".join(struct.pack("<3i", 4, v, 4) for v in values)
+
+    def record(payload, words=None):
+        words = len(payload) // 4 if words is None else words
+        return marker(words) + struct.pack("<i", len(payload)) + payload \
+            + struct.pack("<i", len(payload))
+
+    out = [head[:-len(close)]]
+    for k, (name, A) in enumerate(matrices.items()):
+        A = sp.csc_matrix(A)
+        A.eliminate_zeros()
+        A.sort_indices()
+        nrows, ncols = A.shape
+        form = 6 if nrows == ncols and abs(A - A.T).max() == 0 else (1 if nrows == ncols else 2)
+        words = np.diff(A.indptr) * (fsize // 4)
+        density = int(10000 * A.nnz / max(nrows * ncols, 1))
+        label = name.encode("ascii").ljust(8)[:8]
+        out.append(record(label))
+        out.append(marker(-1))
+        out.append(record(struct.pack("<7i", 101 + k, ncols, nrows, form, tout,
+                                      int(words.max(initial=0)), density)))
+        out.append(marker(-2, 1, 0))
+        out.append(record(label + struct.pack("<2i", 170, 170)))
+        for j in range(ncols):
+            out.append(marker(-3 - j, 1, 1))
+            rows = A.indices[A.indptr[j]:A.indptr[j + 1]]
+            vals = A.data[A.indptr[j]:A.indptr[j + 1]]
+            breaks = np.flatnonzero(np.diff(rows) != 1) + 1
+            for r, v in zip(np.split(rows, breaks), np.split(vals, breaks)):
+                if r.size:
+                    out.append(record(struct.pack(f"<i{r.size}{ftype}", int(r[0]) + 1,
+                                                  *v.tolist()), r.size * fsize // 4))
+        out.append(marker(-3 - ncols, 1, 0))
+        out.append(close)
+    out.append(close)
+    path.write_bytes(b"".join(out))
+    return path

@@ -21,8 +21,9 @@ import scipy.sparse as sp
 
 from structfmu.errors import ReductionError
 from structfmu.nastran.deck import Deck, gset, read_deck, read_dof_map
-from structfmu.nastran.matrices import pick, read_dmig_matrices, read_op4, to_si
-from structfmu.nastran.modes import read_modes
+from structfmu.nastran.matrices import (STANDARD_SETS, op2_matrices, pick,
+                                        read_dmig_matrices, read_op4, to_si)
+from structfmu.nastran.modes import MATRICES, load_op2, read_modes
 from structfmu.nastran.rigid import transform
 from structfmu.nastran.spec import (SENSOR_KINDS, Actuator, LineOfSight, NastranError,
                                     NastranWarning, unit_system)
@@ -195,14 +196,9 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
     """
     u = unit_system(units)
     sources = [s for s in (op4, op2, dmig) if s is not None]
-    if op2 is not None and ritz is not None and (ritz != "none" if isinstance(ritz, str)
-                                                 else list(ritz)):
-        raise NastranError("static Ritz vectors need the stiffness matrix; the OP2 gives "
-                           "modes only: give --op4 with K and M, or ritz='none' (residual "
-                           "vectors of a RESVEC run are read from the OP2 as they are)")
     if len(sources) != 1:
-        raise NastranError("give the matrices (op4, --op4, or dmig, --dmig) or the SOL 103 "
-                           "modes (op2, --op2), exactly one of them")
+        raise NastranError("give the matrices (op4, --op4, dmig, --dmig, or an OP2 holding "
+                           "them) or the SOL 103 modes (op2, --op2), exactly one of them")
     if isinstance(ritz, str) and ritz not in ("all", "actuators", "none"):
         raise NastranError(f"ritz={ritz!r}; expected 'all', 'actuators', 'none' or a list "
                            "of input names")
@@ -210,6 +206,16 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
         raise NastranError(f"boundary={boundary!r}; expected 'free' or 'fixed'")
     deck = read_deck(bdf, u)
     name = name or Path(bdf).stem
+    loaded, op2_mats = None, None
+    if op2 is not None:
+        loaded = load_op2(op2)
+        op2_mats = _op2_stiffness_mass(loaded, op2, k_name, m_name)
+    if op2 is not None and op2_mats is None and ritz is not None and (
+            ritz != "none" if isinstance(ritz, str) else list(ritz)):
+        raise NastranError("static Ritz vectors need the stiffness matrix; the OP2 gives "
+                           "modes only: give --op4 with K and M (or an OP2 with them), or "
+                           "ritz='none' (residual vectors of a RESVEC run are read from the "
+                           "OP2 as they are)")
     acts = list(actuators)
     labels = [a.label for a in acts]
     if len(set(labels)) != len(labels):
@@ -226,8 +232,9 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
             deck.check_grid(g, f"line of sight {line.name!r}: ")
 
     info = {}
-    if op2 is None:
-        K, M, dofs, is_aset = _matrices(deck, u, op4, dmig, dof_map, k_name, m_name)
+    if op2 is None or op2_mats is not None:
+        K, M, dofs, is_aset = _matrices(deck, u, op4, dmig, dof_map, k_name, m_name,
+                                        op2, op2_mats)
         index = {d: i for i, d in enumerate(dofs)}
         for a in acts:
             dK, dM = _actuator_update(deck, a, index, len(dofs))
@@ -257,7 +264,7 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
         _check_massless(Mn, cols)
         basis = None
     else:
-        basis = read_modes(op2, u, n_modes, deck)
+        basis = read_modes(op2, u, n_modes, deck, loaded=loaded)
         dofs = list(basis[2])
         removed = set(deck.constrained)
         T = sp.identity(len(dofs), format="csc")
@@ -323,7 +330,8 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
     meta = {"model": name, "source": {"bdf": Path(bdf).name,
                                       "op4": Path(op4).name if op4 else None,
                                       "op2": Path(op2).name if op2 else None,
-                                      "dmig": Path(dmig).name if dmig else None},
+                                      "dmig": Path(dmig).name if dmig else None,
+                                      "op2_matrices": list(op2_mats[:2]) if op2_mats else None},
             "units": u.name, "n_dof": len(dofs), "input_units": in_units,
             "wtmass": deck.wtmass, "boundary": boundary, "n_rigid": len(deck.rigid),
             "actuators": {a.label: {"stack": a.stack.name, "ch": float(a.stack.ch),
@@ -392,18 +400,61 @@ def _modal_model(basis, E, H, acts, deck, name, meta, damping, in_names, out_nam
     return model
 
 
-def _matrices(deck: Deck, u, op4, dmig, dof_map, k_name, m_name):
+def _op2_stiffness_mass(loaded, op2, k_name, m_name):
+    """``(K name, M name, matrices)`` of an OP2's matrix data blocks, or None for modes.
+
+    The matrices are taken when ``k_name``/``m_name`` is given or the OP2 holds a
+    standard stiffness and mass pair (KGG/MGG, KNN/MNN, KFF/MFF, KAA/MAA); one of a pair
+    without the other, or a named matrix that is not there, is an error.
+    """
+    mats = op2_matrices(loaded, op2)
+    std = {n.upper(): n for n in mats if n.upper()[:1] in "KM" and n.upper()[1:] in STANDARD_SETS
+           and mats[n].shape[0] == mats[n].shape[1] and mats[n].shape[0] > 1}
+    ks = sorted(n for n in std if n[0] == "K")
+    ms = sorted(n for n in std if n[0] == "M")
+    if k_name is None and m_name is None and not ks and not ms:
+        return None
+    kn = k_name or (std[ks[0]] if len(ks) == 1 else None)
+    mn = m_name or (std[ms[0]] if len(ms) == 1 else None)
+    have = ", ".join(mats) or "no matrices"
+    for nm, label, own, other in ((kn, "stiffness", ks, ms), (mn, "mass", ms, ks)):
+        if nm is None and len(own) > 1:
+            raise NastranError(f"OP2 {str(op2)!r} has the {label} matrices {', '.join(own)}; "
+                               "name the one to use (k_name/m_name, CLI --k-name/--m-name)")
+        if nm is None or nm not in mats:
+            want = nm or label[0].upper().replace("S", "K") + (other[0][1:] if other else "AA")
+            raise NastranError(f"OP2 {str(op2)!r} has no {label} matrix {want} (it has "
+                               f"{have}); write the stiffness and the mass into it and rerun "
+                               f"({MATRICES}), or give them as OP4 (--op4) or DMIG (--dmig)")
+    if getattr(loaded, "eigenvectors", None):
+        warnings.warn(f"OP2 {str(op2)!r} holds both the matrices {kn}, {mn} and eigenvectors: "
+                      "the matrices are used (eigenvectors and Ritz vectors computed here), "
+                      "the eigenvectors are not read", NastranWarning, stacklevel=4)
+    for nm in (kn, mn):
+        if nm in mats.single:
+            warnings.warn(f"matrix {nm} in OP2 {str(op2)!r} is single precision (7 digits): a "
+                          "free-free model's rigid-body eigenvalues may come out far from zero; "
+                          "write it from a double-precision run", NastranWarning, stacklevel=4)
+    return kn, mn, mats
+
+
+def _matrices(deck: Deck, u, op4, dmig, dof_map, k_name, m_name, op2=None, op2_mats=None):
     """K, M (SI) on their DOF map, and whether that map is an a-set."""
     if dmig is not None:
         K, M, dofs = read_dmig_matrices(dmig, u, k_name, m_name)
         for g, _ in dofs:
             deck.check_grid(g, f"DMIG {str(dmig)!r}: ")
         return K, M, dofs, True
-    mats = read_op4(op4)
-    kn, mn = k_name or pick(mats, "K", op4), m_name or pick(mats, "M", op4)
+    if op2_mats is not None:
+        kn, mn, mats = op2_mats
+        src, kind = op2, "OP2"
+    else:
+        mats, src, kind = read_op4(op4), op4, "OP4"
+        kn = k_name or pick(mats, "K", op4)
+        mn = m_name or pick(mats, "M", op4)
     for nm in (kn, mn):
         if nm not in mats:
-            raise NastranError(f"OP4 {str(op4)!r} has no matrix {nm!r}; it has "
+            raise NastranError(f"{kind} {str(src)!r} has no matrix {nm!r}; it has "
                                f"{', '.join(mats)}")
     n = mats[kn].shape[0]
     g = gset(deck)
@@ -416,13 +467,17 @@ def _matrices(deck: Deck, u, op4, dmig, dof_map, k_name, m_name):
         dofs, is_aset = aset, True
     else:
         extra = f" and an a-set (ASET/QSET/BSET) of {len(aset)}" if aset else ""
-        raise NastranError(f"the matrices of OP4 {str(op4)!r} have {n} rows, but {deck.path} "
+        raise NastranError(f"the matrices of {kind} {str(src)!r} have {n} rows, but {deck.path} "
                            f"has a g-set of {len(g)} DOFs ({len(deck.grids)} grids x 6 + "
                            f"{len(deck.spoints)} scalar points){extra}: the files are of "
                            "different models, or give the DOF map of the matrices (dof_map, "
                            "--dof-map)")
-    K = to_si(mats[kn], dofs, u, f"stiffness matrix {kn}", op4)
-    M = to_si(mats[mn], dofs, u, f"mass matrix {mn}", op4)
+    if mats[mn].shape != mats[kn].shape:
+        raise NastranError(f"stiffness matrix {kn} is {mats[kn].shape[0]} x {mats[kn].shape[1]} "
+                           f"but mass matrix {mn} is {mats[mn].shape[0]} x {mats[mn].shape[1]} "
+                           f"in {kind} {str(src)!r}: write both matrices of one model")
+    K = to_si(mats[kn], dofs, u, f"stiffness matrix {kn}", src)
+    M = to_si(mats[mn], dofs, u, f"mass matrix {mn}", src)
     return K, M, dofs, is_aset
 
 

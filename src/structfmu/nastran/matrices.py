@@ -20,7 +20,10 @@ from structfmu.nastran.pyn import QuietLog, pynastran, reason
 from structfmu.nastran.spec import NastranError, unit_system
 
 __all__ = ["read_matrices", "read_op4", "read_dmig", "read_dmig_matrices", "op4_precision",
-           "pick", "to_si"]
+           "pick", "to_si", "op2_matrices", "STANDARD_SETS"]
+
+#: Set suffixes of the standard stiffness and mass names (KGG/MGG ... KAA/MAA).
+STANDARD_SETS = ("GG", "NN", "FF", "AA")
 
 
 def op4_precision(op4_path) -> str:
@@ -66,6 +69,52 @@ def read_op4(op4_path) -> dict:
         A = sp.csc_matrix(data) if sp.issparse(data) else sp.csc_matrix(np.asarray(data))
         out[name.strip()] = A.astype(complex if np.iscomplexobj(A.data) else float)
     return out
+
+
+def op2_matrices(op2, op2_path) -> dict:
+    """The matrix data blocks of an OP2 (``OUTPUT2 KAA,MAA//0/12``), as read by pyNastran.
+
+    Double-precision matrices (type 2) stay float64; single-precision ones (type 1) are
+    widened exactly and their names listed in the result's ``single`` attribute.
+
+    Parameters
+    ----------
+    op2 : pyNastran.op2.op2.OP2
+        The file as read (:func:`structfmu.nastran.modes.load_op2`).
+    op2_path : path-like
+        The file, for messages.
+
+    Returns
+    -------
+    dict of str to scipy.sparse.csc_matrix
+        Name to matrix, in the file's own units (complex matrices as complex128).
+    """
+    out = _Mats()
+    for name, m in getattr(op2, "matrices", {}).items():
+        name = name.decode() if isinstance(name, bytes) else str(name)
+        if getattr(m, "is_matpool", False):
+            if name.upper()[:1] in "KM":
+                raise NastranError(f"matrix {name} in OP2 {str(op2_path)!r} is in DMIG (MATPOOL) "
+                                   "form, which this import does not read from an OP2; punch it "
+                                   "with PARAM,EXTOUT,DMIGPCH (--dmig) or write it with OUTPUT2 "
+                                   "in matrix form")
+            continue
+        data = m.data
+        if data is None:
+            continue
+        A = sp.csc_matrix(data) if sp.issparse(data) else sp.csc_matrix(np.asarray(data))
+        if A.dtype in (np.float32, np.complex64):
+            out.single.append(name.strip())
+        out[name.strip()] = A.astype(complex if np.iscomplexobj(A.data) else float)
+    return out
+
+
+class _Mats(dict):
+    """Name to matrix, with the names of the single-precision ones in ``single``."""
+
+    def __init__(self):
+        super().__init__()
+        self.single: list = []
 
 
 def read_dmig(pch_path) -> dict:
@@ -186,14 +235,29 @@ def to_si(A, dofs, units, what, path):
         raise DimensionError(f"{what} has shape {A.shape}; expected a square matrix")
     if A.shape[0] != len(dofs):
         raise DimensionError(f"{what} has {A.shape[0]} rows but the DOF map has {len(dofs)} "
-                             "entries: the OP4 and the BDF are of different models, or the "
+                             "entries: the matrix file and the BDF are of different models, or the "
                              "matrices are an a-set; give the DOF map of the matrices "
                              "(dof_map / --dof-map)")
+    A = A.astype(float).tocsc()
+    big = abs(A).max() if A.nnz else 0.0
+    D = (A - A.T).tocoo()
+    if D.nnz and abs(D.data).max() > SYMMETRY * big:
+        k = int(np.argmax(abs(D.data)))
+        raise NastranError(f"{what} in {str(path)!r} is not symmetric: A - A^T reaches "
+                           f"{abs(D.data[k]) / big:.2g} of its largest entry (rows {D.row[k] + 1} "
+                           f"and {D.col[k] + 1}); give the structure's stiffness and mass (not a "
+                           "damping or load matrix), or name them (k_name/m_name, CLI "
+                           "--k-name/--m-name)")
     S = sp.diags(1.0 / dof_scale(dofs, u))
-    return ((S @ A.astype(float) @ S) * u.energy).tocsc()
+    return ((S @ A @ S) * u.energy).tocsc()
 
 
-def pick(mats, letter, path):
+#: ``max|A - A^T| / max|A|`` accepted as symmetric: above one float32 rounding of the
+#: largest entry (1.2e-7; a single-precision file), far below any real asymmetry.
+SYMMETRY = 1e-6
+
+
+def pick(mats, letter, path, kind="OP4"):
     """The stiffness (``letter`` K) or mass (M) matrix's name among ``mats``.
 
     A standard name (``KGG``, ``KNN``, ``KFF``, ``KAA``) when exactly one is there, else
@@ -208,16 +272,18 @@ def pick(mats, letter, path):
         ``"K"`` or ``"M"``.
     path : path-like
         The file, for the message.
+    kind : str
+        ``"OP4"``, ``"OP2"`` or ``"DMIG file"``, for the message.
     """
     names = list(mats)
     cand = [n for n in names if n.upper().startswith(letter) and mats[n].shape[0] > 1
             and mats[n].shape[0] == mats[n].shape[1]]
-    standard = [n for n in cand if n.upper()[1:] in ("GG", "NN", "FF", "AA")]
+    standard = [n for n in cand if n.upper()[1:] in STANDARD_SETS]
     if len(standard) == 1:
         return standard[0]
     if len(cand) != 1:
         what = "stiffness" if letter == "K" else "mass"
-        raise NastranError(f"OP4 {str(path)!r} has matrices {', '.join(names)}; name the "
+        raise NastranError(f"{kind} {str(path)!r} has matrices {', '.join(names)}; name the "
                            f"{what} matrix (k_name/m_name, CLI --k-name/--m-name)")
     return cand[0]
 

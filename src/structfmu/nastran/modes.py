@@ -21,10 +21,14 @@ from structfmu.nastran.deck import dof_scale
 from structfmu.nastran.pyn import QuietLog, pynastran, reason
 from structfmu.nastran.spec import NastranError, NastranWarning, unit_system
 
-__all__ = ["read_modes", "Modes"]
+__all__ = ["read_modes", "load_op2", "Modes"]
 
 RERUN = ("rerun the bulk data as SOL 103 (METHOD = an EIGRL id, DISP(PLOT)=ALL, "
          "PARAM,POST,-1; RESVEC=YES for residual vectors at the loads) and import that OP2")
+
+
+MATRICES = ("DMAP: ASSIGN OUTPUT2='model.op2',UNIT=12,UNFORMATTED and OUTPUT2 KAA,MAA,,,//0/12 "
+            "for a superelement's a-set, or KGG,MGG for the g-set")
 
 
 class Modes(tuple):
@@ -46,11 +50,41 @@ def _real_eigenvectors(op2, path):
                            "of SOL 145 flutter or SOL 146 responses), not the structure's "
                            f"normal modes; {RERUN}")
     if not real:
-        raise NastranError(f"OP2 {str(path)!r} has no eigenvectors; {RERUN}")
+        raise NastranError(f"OP2 {str(path)!r} has neither eigenvectors nor stiffness and mass "
+                           f"matrices; {RERUN}, or write the matrices into it ({MATRICES})")
     return real[sorted(real, key=str)[0]]
 
 
-def read_modes(op2_path, units, n_modes: int, deck=None):
+def load_op2(op2_path):
+    """An OP2 file read by pyNastran (results, eigenvalues and matrix data blocks).
+
+    Parameters
+    ----------
+    op2_path : path-like
+        The OP2 file.
+
+    Returns
+    -------
+    pyNastran.op2.op2.OP2
+        The file's contents (``eigenvectors``, ``eigenvalues``, ``matrices``...).
+    """
+    OP2 = pynastran()[1]
+    path = Path(op2_path)
+    if not path.is_file():
+        raise NastranError(f"OP2 file {str(path)!r} does not exist")
+    log = QuietLog()
+    op2 = OP2(log=log.log)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # np.chararray in pyNastran
+            op2.read_op2(str(path))
+    except Exception as exc:
+        raise NastranError(f"cannot read OP2 {str(path)!r}: {reason(exc, log)}; check that it "
+                           "is a NASTRAN OP2 (PARAM,POST,-1, or OUTPUT2 of matrices)") from None
+    return op2
+
+
+def read_modes(op2_path, units, n_modes: int, deck=None, loaded=None):
     """Eigenvalues and eigenvectors (SI) from a SOL 103 OP2.
 
     Parameters
@@ -65,6 +99,8 @@ def read_modes(op2_path, units, n_modes: int, deck=None):
         vectors when the run had RESVEC).
     deck : Deck, optional
         The BDF; its grids and scalar points must be those of the OP2.
+    loaded : pyNastran.op2.op2.OP2, optional
+        The file as :func:`load_op2` read it (not read again).
 
     Returns
     -------
@@ -75,19 +111,8 @@ def read_modes(op2_path, units, n_modes: int, deck=None):
         and ``residual`` (bool per vector).
     """
     u = unit_system(units)
-    OP2 = pynastran()[1]
     path = Path(op2_path)
-    if not path.is_file():
-        raise NastranError(f"OP2 file {str(path)!r} does not exist")
-    log = QuietLog()
-    op2 = OP2(log=log.log)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # np.chararray in pyNastran
-            op2.read_op2(str(path))
-    except Exception as exc:
-        raise NastranError(f"cannot read OP2 {str(path)!r}: {reason(exc, log)}; check that it "
-                           "is a NASTRAN OP2 (PARAM,POST,-1)") from None
+    op2 = load_op2(path) if loaded is None else loaded
     vec = _real_eigenvectors(op2, path)
     data = np.asarray(vec.data, float)  # (n_modes, n_nodes, 6)
     if data.shape[0] < n_modes:

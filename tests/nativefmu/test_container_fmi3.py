@@ -8,6 +8,8 @@ the FMI 2.0 container (``test_container.py``); only the outer API differs.  Refe
 
 from __future__ import annotations
 
+import re
+import subprocess
 import warnings
 import zipfile
 from pathlib import Path
@@ -18,6 +20,7 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.validation import validate_fmu
 
+from nativefmu.build import _fmi_header_dir, mingw_compiler
 from nativefmu.container import ContainerError, export_fmu
 from orchestrator import load_scenario, run_scenario
 
@@ -90,7 +93,7 @@ def small(suite_fmus, suite_fmu_dir, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("container3_small")
     (tmp / "small.toml").write_text(SMALL)
     return _quiet(export_fmu, tmp / "small.toml", tmp / "small3.fmu", fmi=3,
-                  parameters=["ctrl_diag.gain"], fmu_dir=suite_fmu_dir, windows=False)
+                  parameters=["ctrl_diag.gain"], fmu_dir=suite_fmu_dir, windows=None)
 
 
 def _assert_master_table(table, times, columns, names, base=1e-3):
@@ -241,3 +244,41 @@ def test_an_unknown_fmi_version_and_an_fmi3_inner_fmu_are_refused(truss, tmp_pat
     with pytest.raises(ContainerError, match=r"excitation \(excitation\.fmu: an FMI 3\.0 "
                        r"native FMU; a container holds the FMI 2\.0 build"):
         _quiet(export_fmu, sc, tmp_path / "x.fmu", fmi=3, fmu_dir=fmi3_dir)
+
+
+def _fmi3_functions() -> set:
+    text = (_fmi_header_dir() / "fmi3Functions.h").read_text()
+    return set(re.findall(r"^FMI3_Export fmi3(\w+)TYPE", text, re.M))
+
+
+def test_linux_binary_exports_every_fmi3_function_and_no_fmi2_one(truss, tmp_path):
+    """Every function of fmi3Functions.h, no fmi2 function of the container's own (its
+    FMI 2.0 API is ct2_fmi2..., the inner units' uN_fmi2...), libc and libm only."""
+    _, _, fmu = truss
+    lib = tmp_path / "t.so"
+    with zipfile.ZipFile(fmu) as z:
+        lib.write_bytes(z.read("binaries/x86_64-linux/truss3.so"))
+    names = set(subprocess.run(["nm", "-D", "--defined-only", str(lib)], capture_output=True,
+                               text=True, check=True).stdout.split())
+    assert {f"fmi3{f}" for f in _fmi3_functions()} <= names
+    assert not {n for n in names if n.startswith("fmi2")}
+    assert "ct2_fmi2DoStep" in names and "u1_fmi2DoStep" in names
+    dump = subprocess.run(["objdump", "-p", str(lib)], capture_output=True, text=True).stdout
+    libs = {line.split()[1] for line in dump.splitlines() if line.strip().startswith("NEEDED")}
+    assert libs <= {"libc.so.6", "libm.so.6"}, libs
+    assert str(REPO).encode() not in lib.read_bytes()
+
+
+@pytest.mark.skipif(mingw_compiler() is None, reason="x86_64-w64-mingw32-gcc is not "
+                    "installed (make native-deps); the x86_64-windows binary is not built")
+def test_windows_dll_of_the_fmi3_container_exports_the_fmi3_functions(small, tmp_path):
+    dll = tmp_path / "c.dll"
+    with zipfile.ZipFile(small) as z:
+        dll.write_bytes(z.read("binaries/x86_64-windows/small3.dll"))
+    assert dll.read_bytes()[:2] == b"MZ"
+    dump = subprocess.run(["x86_64-w64-mingw32-objdump", "-p", str(dll)], capture_output=True,
+                          text=True).stdout
+    exported = set(re.findall(r"\]\s+(\w+)$", dump, re.M)) | set(re.findall(r"\s(fmi\w+)$",
+                                                                          dump, re.M))
+    assert {f"fmi3{f}" for f in _fmi3_functions()} <= exported
+    assert not {n for n in exported if n.startswith("fmi2")}

@@ -282,3 +282,35 @@ def test_windows_dll_of_the_fmi3_container_exports_the_fmi3_functions(small, tmp
                                                                           dump, re.M))
     assert {f"fmi3{f}" for f in _fmi3_functions()} <= exported
     assert not {n for n in exported if n.startswith("fmi2")}
+
+
+def test_a_resource_path_with_a_space_and_a_percent_sign_reaches_the_inner_units(small,
+                                                                                 tmp_path):
+    """resourcePath is a native path; the inner FMI 2.0 units get it as a percent-encoded
+    file URI and read their resources (the structure's matrices) from it: the same
+    outputs as from a plain path, where a path passed on unencoded would be decoded to
+    another folder ("%41" is "A") and the structure could not load."""
+    from fmpy.fmi3 import FMU3Slave
+
+    md = read_model_description(str(small))
+    vrs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+    r1 = next(v.valueReference for v in md.modelVariables if v.name == "ctrl_diag.r1")
+
+    def run(folder):
+        s = FMU3Slave(guid=md.guid, unzipDirectory=extract(str(small), str(folder)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="c")
+        s.instantiate()
+        s.setFloat64([r1], [20.0])
+        s.enterInitializationMode(startTime=0.0)
+        s.exitInitializationMode()
+        rows = []
+        for k in range(400):
+            s.doStep(k * 1e-3, 1e-3)
+            rows.append(s.getFloat64(vrs))
+        s.terminate()
+        s.freeInstance()
+        return np.array(rows)
+
+    plain = run(tmp_path / "plain")
+    assert np.max(np.abs(plain)) > 0
+    np.testing.assert_array_equal(run(tmp_path / "a b%41c"), plain)

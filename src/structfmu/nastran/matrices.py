@@ -243,9 +243,10 @@ def to_si(A, dofs, units, what, path):
     D = (A - A.T).tocoo()
     if D.nnz and abs(D.data).max() > SYMMETRY * big:
         k = int(np.argmax(abs(D.data)))
+        i, j = sorted((int(D.row[k]) + 1, int(D.col[k]) + 1))
         raise NastranError(f"{what} in {str(path)!r} is not symmetric: A - A^T reaches "
-                           f"{abs(D.data[k]) / big:.2g} of its largest entry (rows {D.row[k] + 1} "
-                           f"and {D.col[k] + 1}); give the structure's stiffness and mass (not a "
+                           f"{abs(D.data[k]) / big:.2g} of its largest entry (rows {i} "
+                           f"and {j}); give the structure's stiffness and mass (not a "
                            "damping or load matrix), or name them (k_name/m_name, CLI "
                            "--k-name/--m-name)")
     S = sp.diags(1.0 / dof_scale(dofs, u))

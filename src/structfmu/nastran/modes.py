@@ -77,7 +77,9 @@ def load_op2(op2_path):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # np.chararray in pyNastran
-            op2.read_op2(str(path))
+            # tables pyNastran does not know are read as matrices (OUTPUT2 of any data
+            # block: GPXX, KAAX...), as its module-level read_op2 does
+            op2.read_op2(str(path), skip_undefined_matrices=True)
     except Exception as exc:
         raise NastranError(f"cannot read OP2 {str(path)!r}: {reason(exc, log)}; check that it "
                            "is a NASTRAN OP2 (PARAM,POST,-1, or OUTPUT2 of matrices)") from None

@@ -372,9 +372,12 @@ def test_massless_dof_is_named(tmp_path):
         nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4)
 
 
-def test_modes_only_refuses_ritz_vectors(deck):
+def test_modes_only_refuses_ritz_vectors(deck, tmp_path):
+    n = len(strut_truss().nodes)
+    op2 = nas.write_modes_op2(tmp_path / "modes.op2", np.array([1.0, 4.0]),
+                              np.ones((6 * n, 2)), np.arange(1, n + 1), units="in-lbf-s")
     with pytest.raises(ValueError, match="static Ritz vectors need the stiffness matrix"):
-        nas.import_nastran(deck[0], units="in-lbf-s", op2=deck[1], n_modes=4, ritz="actuators",
+        nas.import_nastran(deck[0], units="in-lbf-s", op2=op2, n_modes=2, ritz="actuators",
                            actuators=[nas.Actuator(LONG, nas.Stack.preset("P-243.30"))])
 
 

@@ -3,7 +3,8 @@
 Pipeline (:func:`import_nastran`), one module per stage::
 
     BDF (grids, frames, members, SPCs, RBE2/RBAR/MPC, ASET/QSET)  deck.py
-    OP4 K, M (KGG/MGG, KAA/MAA; ASCII read in double) or DMIG     matrices.py
+    OP4 K, M (KGG/MGG, KAA/MAA; ASCII read in double), DMIG, or OP2
+    matrix data blocks (OUTPUT2 of KAA/MAA, KGG/MGG)              matrices.py
         -> declared units to SI -> piezo stacks replace members (Eq. 1)
         -> rigid elements and MPCs: u_g = T u_n                    rigid.py
         -> constrained (SPC, a fixed boundary) and empty DOFs removed, massless
@@ -48,12 +49,12 @@ from structfmu.nastran.pyn import pynastran
 from structfmu.nastran.spec import (UNIT_SYSTEMS, Actuator, Channel, LineOfSight,
                                     NastranError, NastranWarning, Point, Stack, UnitSystem,
                                     parse_actuator, parse_los, parse_point, unit_system)
-from structfmu.nastran.writers import write_modes_op2, write_truss_deck
+from structfmu.nastran.writers import write_matrices_op2, write_modes_op2, write_truss_deck
 
 __all__ = ["UNIT_SYSTEMS", "UnitSystem", "Stack", "Actuator", "Point", "LineOfSight",
            "Channel", "NastranError", "NastranWarning", "import_nastran",
            "parse_actuator", "parse_point", "parse_los", "write_truss_deck", "read_deck",
-           "write_modes_op2", "read_modes", "read_matrices", "read_op4", "read_dmig",
+           "write_modes_op2", "write_matrices_op2", "read_modes", "read_matrices", "read_op4", "read_dmig",
            "read_dof_map", "op4_precision", "unit_system", "Deck", "Constraint"]
 
 # names the tests and benchmarks used before the split into modules

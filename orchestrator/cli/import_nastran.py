@@ -16,8 +16,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--op4", help="OUTPUT4 file with the stiffness and mass matrices "
                      "(KGG/MGG, or KAA/MAA with --dof-map)")
-    src.add_argument("--op2", help="SOL 103 OP2 (eigenvalues and eigenvectors, and residual "
-                     "vectors of a RESVEC run as the Ritz block)")
+    src.add_argument("--op2", help="OP2: a SOL 103 run (eigenvalues and eigenvectors, and "
+                     "residual vectors of a RESVEC run as the Ritz block), or stiffness and "
+                     "mass matrix blocks (KAA/MAA, KGG/MGG, ... written by OUTPUT2)")
     src.add_argument("--dmig", help="DMIG punch file (PARAM,EXTOUT,DMIGPCH) with the stiffness "
                      "and mass on the DOFs its cards name")
     parser.add_argument("--units", required=True, choices=["SI", "in-lbf-s", "mm-t-s"],

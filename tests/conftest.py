@@ -30,3 +30,19 @@ def suite_fmus(suite_fmu_dir):
     def get(*names, kind="native"):
         return ensure_fmus(names, suite_fmu_dir, kind=kind)
     return get
+
+
+@pytest.fixture(autouse=True)
+def _working_folder_kept():
+    """Every test leaves the working folder where it found it: the suite runs from the
+    repository root, and a test that moves it breaks every later relative path of its
+    worker (seen: test_reference's scenarios/... not found)."""
+    import os
+
+    before = os.getcwd()
+    yield
+    after = os.getcwd()
+    if after != before:
+        os.chdir(before)
+        pytest.fail(f"the test changed the working folder to {after} and left it there",
+                    pytrace=False)

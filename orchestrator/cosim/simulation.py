@@ -94,10 +94,14 @@ class Simulation:
             key = str(info.path)
             if key not in unzipped:
                 unzipped[key] = extracted(info)
+            # fmpy changes into the binary's folder to load it and does not change back
+            # when the load fails: the caller's working folder is kept here
+            cwd = os.getcwd()
             try:
                 self.slaves[inst.name] = FmuInstance(inst.name, info, unzipped[key], inst,
                                                      plan.timebase)
             except Exception as exc:
+                os.chdir(cwd)
                 raise SimulationError(
                     f"instance {inst.name!r} could not be loaded from {info.path.name}: {exc}",
                     inst.name, float(sc.experiment.start)) from exc

@@ -55,6 +55,8 @@ FMI_VERSIONS = (2, 3)
 #: Binary folders (Linux, Windows) of each FMI version.
 _PLATFORMS = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}
 _COMMON = ("jfcore.c", "data.c", "linalg.c")
+#: Headers of the API layer of each FMI version (fmi3.c's refused functions).
+_LAYER_HEADERS = {2: (), 3: ("fmi3_refusals.h",)}
 _GENERATION_TOOL = "jitterfmu nativefmu 1"
 _TYPES = {"Real": "JF_REAL", "Integer": "JF_INTEGER", "Boolean": "JF_BOOLEAN",
           "String": "JF_STRING"}
@@ -175,7 +177,7 @@ def _sources(root: ET.Element, kernel: str, fmi: int = 2) -> dict[str, bytes]:
     ``root``), and for FMI 3.0 ``buildDescription.xml``."""
     csrc = _res.files("nativefmu") / "csrc"
     out = {name: (_fmi_header_dir() / name).read_bytes() for name in _FMI_HEADERS[fmi]}
-    for name in (*source_files(kernel, fmi), "jfmu.h", "jfcore.h"):
+    for name in (*source_files(kernel, fmi), "jfmu.h", "jfcore.h", *_LAYER_HEADERS[fmi]):
         out[name] = (csrc / name).read_bytes()
     config = root if fmi == 2 else _with_guid(root, fmi3_model_description(root)
                                                .get("instantiationToken"))

@@ -58,7 +58,7 @@ _CSRC = Path(__file__).with_name("csrc")
 _FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 #: What an FMI 3.0 container adds to sources/: headers and its API layer.
 _FMI3_HEADERS = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
-_FMI3_LAYER = ("container_fmi3.c", "container_fmi2.h")
+_FMI3_LAYER = ("container_fmi3.c", "container_fmi2.h", "fmi3_refusals.h")
 #: Binary folders (Linux, Windows) of each FMI version.
 _PLATFORMS = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}
 _NATIVE_TOOL = "jitterfmu nativefmu"

@@ -39,7 +39,6 @@ from _measure import cpu_s, emit, peak_rss_mb, run_worker
 
 def worker(case: str, n_bays: int, section: int, modes: int, profile: bool) -> dict:
     """Run one case in this process and return its measurements."""
-    import numpy as np
     import scipy.linalg as la
 
     from structfmu.fem import assemble

@@ -11,18 +11,19 @@ pyNastran's own OP2 reader.  The same matrices must give the same model as the O
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from structfmu import nastran as nas
+from tests.support.nastran_data import nastran_data
 from structfmu.nastran.writers import write_matrices_op2
 
-SE = Path(__file__).resolve().parents[3] / "shared" / "nastran" / "superelement_n11"
+SE = nastran_data() / "superelement_n11"
 PCH, OP4 = SE / "se_test_n11.pch", SE / "se_test_n11.op4"
-pytestmark = pytest.mark.skipif(not OP4.is_file(), reason=f"real NASTRAN files not at {SE}")
+pytestmark = pytest.mark.skipif(not OP4.is_file(), reason=f"real NASTRAN files not at {SE}: set "
+                                "JITTERFMU_NASTRAN_DATA to the shared/nastran folder")
 
 FREE = dict(units="SI", n_modes=12, shift=-1e3, boundary="free",
             loads=[nas.parse_point("fx=20110010:1", "force")],

@@ -18,13 +18,15 @@ import pytest
 import scipy.linalg as la
 
 from structfmu import nastran as nas
+from tests.support.nastran_data import nastran_data
 from structfmu.statespace import frf
 
-SHARED = Path(__file__).resolve().parents[3] / "shared" / "nastran"
+SHARED = nastran_data()
 BEAM = SHARED / "beam_modes"
 SDOF = SHARED / "sdof_crod"
 SE = SHARED / "superelement_n11"
-pytestmark = pytest.mark.skipif(not SHARED.is_dir(), reason=f"real NASTRAN files not at {SHARED}")
+pytestmark = pytest.mark.skipif(not SHARED.is_dir(), reason=f"real NASTRAN files not at {SHARED}: set "
+                                "JITTERFMU_NASTRAN_DATA to the shared/nastran folder")
 
 
 def f06_eigenvalues(path):

@@ -334,7 +334,6 @@ def build(eta_bus: float | None = None, ea_array: float | None = None, *,
     # -- instrument stations -------------------------------------------------------------
     active: list = []
     legs: dict = {}  # name -> (bus node, payload node)
-    zn = NZ * a
     for inst in INSTRUMENTS:
         if MOUNTS[inst] == "isolator":
             _misr_station(inst, stack, B, add_node, rod, springs, xyz, active, legs,

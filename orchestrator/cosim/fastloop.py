@@ -106,6 +106,41 @@ def _address(fn) -> int | None:
     return ctypes.cast(fn, ctypes.c_void_p).value
 
 
+def flatten_programs(programs, part_of) -> tuple:
+    """The hyperperiod's programs as the flat tables ``fastloop.c`` reads.
+
+    Parameters
+    ----------
+    programs : sequence of (snapshot indices or None, calls, calls)
+        From :meth:`Schedule.layout`: per program the bus slots to snapshot, the calls
+        before the snapshot and those after.
+    part_of : dict of (str, str) to list of int
+        The part numbers of each call ``(kind, instance)``.
+
+    Returns
+    -------
+    (ops, prog, snap) : tuple of list of int
+        The parts in order; per program ``(first, middle, end, snap_start, snap_end)``;
+        the snapshot slots.
+    """
+    ops, prog, snap = [], [], []
+    for snap_idx, first, then in programs:
+        p0 = len(ops)
+        for call in first:
+            ops.extend(part_of[call])
+        mid = len(ops)
+        for call in then:
+            ops.extend(part_of[call])
+        if snap_idx is None:
+            s0 = s1 = -1
+        else:
+            s0 = len(snap)
+            snap.extend(int(i) for i in snap_idx)
+            s1 = len(snap)
+        prog.extend((p0, mid, len(ops), s0, s1))
+    return ops, prog, snap
+
+
 class FastLoop:
     """Programs of raw FMI calls for every tick of the hyperperiod, run in C.
 
@@ -181,21 +216,7 @@ class FastLoop:
             for key, v in p.items():
                 setattr(arr_parts[i], key, v)
         keep.append(arr_parts)
-        ops, prog, snap = [], [], []
-        for snap_idx, first, then in programs:
-            p0 = len(ops)
-            for call in first:
-                ops.extend(part_of[call])
-            mid = len(ops)
-            for call in then:
-                ops.extend(part_of[call])
-            if snap_idx is None:
-                s0 = s1 = -1
-            else:
-                s0 = len(snap)
-                snap.extend(int(i) for i in snap_idx)
-                s1 = len(snap)
-            prog.extend((p0, mid, len(ops), s0, s1))
+        ops, prog, snap = flatten_programs(programs, part_of)
         self.rec = rec
         self.loop = _Loop(
             values=values.ctypes.data, n=bus.n, parts=ctypes.addressof(arr_parts),

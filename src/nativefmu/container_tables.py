@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from xml.etree import ElementTree as ET
 
 from orchestrator.cosim.bus import Bus
+from orchestrator.cosim.fastloop import flatten_programs
 from orchestrator.cosim.graph import init_order
 
 __all__ = ["ContainerVariable", "c_tables", "model_description"]
@@ -106,21 +107,7 @@ def _parts(plan, bus: Bus, layout):
         part_of[("step", name)] = sets + step + read
         per_inst[name] = (read, sets)
     programs, prog_of_tick = layout
-    ops, prog, snap = [], [], []
-    for snap_idx, first, then in programs:
-        p0 = len(ops)
-        for call in first:
-            ops.extend(part_of[call])
-        mid = len(ops)
-        for call in then:
-            ops.extend(part_of[call])
-        if snap_idx is None:
-            s0 = s1 = -1
-        else:
-            s0 = len(snap)
-            snap.extend(int(i) for i in snap_idx)
-            s1 = len(snap)
-        prog.extend((p0, mid, len(ops), s0, s1))
+    ops, prog, snap = flatten_programs(programs, part_of)
     return parts, ops, prog, snap, list(prog_of_tick), per_inst
 
 

@@ -150,3 +150,29 @@ def test_dmig_punch_gives_the_same_model_as_the_op4(tmp_path):
     np.testing.assert_allclose(via_dmig.omega, via_op4.omega, rtol=1e-12)
     np.testing.assert_allclose(np.abs(via_dmig.B_o), np.abs(via_op4.B_o), rtol=1e-8)
     assert sp.issparse(nas.read_dmig(tmp_path / "rigid.pch")["KAAX"][0])
+
+
+def test_an_unsymmetric_square_dmig_is_refused(tmp_path):
+    """A square DMIG (IFO 1) is taken as written, so it is checked for symmetry as an OP4
+    is: one entry off its mirror by 1e-3 of the largest is one sentence naming the rows."""
+    bdf, _, K, M = write_model(tmp_path, rigid=False)
+    BDF = nas.pynastran()[0]
+    d = BDF(log=nas.pyn.QuietLog().log)
+    dofs = [(g, c) for g in XYZ if g != 1 for c in range(1, 7)]
+    idx = [6 * (g - 1) + c - 1 for g, c in dofs]
+    Kb = K[np.ix_(idx, idx)].copy()
+    Kb[0, 1] += 1e-3 * np.abs(Kb).max()
+    for name, A in (("KAAX", Kb), ("MAAX", M[np.ix_(idx, idx)])):
+        GCj, GCi, Real = [], [], []
+        for j, dj in enumerate(dofs):
+            for i, di in enumerate(dofs):   # every entry (square, IFO 1)
+                if A[i, j] != 0:
+                    GCj.append(dj)
+                    GCi.append(di)
+                    Real.append(float(A[i, j]))
+        d.add_dmig(name, 1, 1, 2, 0, len(dofs), GCj, GCi, Real)
+    d.write_bdf(str(tmp_path / "bad.pch"), size=16, is_double=True, enddata=False)
+    with pytest.raises(nas.NastranError, match=r"DMIG KAAX .* is not symmetric: A - A\^T "
+                                               r"reaches 0.001 of its largest entry \(rows 1 "
+                                               r"and 2\)"):
+        nas.import_nastran(bdf, units="SI", dmig=tmp_path / "bad.pch", n_modes=6)

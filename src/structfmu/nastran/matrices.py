@@ -330,5 +330,6 @@ def read_dmig_matrices(pch_path, units, k_name=None, m_name=None):
                       shape=(len(dofs), len(mdofs)))
     M = (P @ M @ P.T).tocsc()
     del pos
-    S = sp.diags(1.0 / dof_scale(dofs, u))
-    return ((S @ K @ S) * u.energy).tocsc(), ((S @ M @ S) * u.energy).tocsc(), list(dofs)
+    # a square DMIG (IFO 1) is taken as written: checked for symmetry as an OP4 is
+    return (to_si(K, dofs, u, f"DMIG {k_name}", pch_path),
+            to_si(M, dofs, u, f"DMIG {m_name}", pch_path), list(dofs))

@@ -170,6 +170,7 @@ class FastResponse:
             self._runs.append((sigs[k], j - k + 1))
             k = j + 1
         self._types = {}
+        self._schur = None
         self._times = {}
         self._kernels = {}
 
@@ -404,6 +405,32 @@ class FastResponse:
             Phi = self._type(sig, L).ML @ Phi
         return Phi
 
+    def period_schur(self) -> tuple:
+        """Sorted complex Schur form of the balanced super-period map, kept once computed
+        (a second sweep or steady state on this loop reuses it).
+
+        Exact power-of-two balancing first (the memory state mixes metres, volts and
+        strains).  Eigenvalues at 1 (rigid-body modes of an open attitude loop,
+        integrators) come last: a line whose ``z = exp(j 2 pi f P base)`` is 1 makes
+        ``z I - T`` singular there, and :meth:`steady_state` solves that block by least
+        squares (the steady state exists; only a constant along the null direction is
+        free).
+
+        Returns
+        -------
+        (T, Q, n_top, scale)
+            ``D^-1 Phi D = Q T Q^H`` with ``D = diag(scale)``; ``T[:n_top, :n_top]``
+            holds the eigenvalues away from 1.
+        """
+        if self._schur is None:
+            import scipy.linalg as la
+
+            Phi_b, scale = balance(self.period_map())
+            T, Q, k_top = la.schur(Phi_b, output="complex",
+                                   sort=lambda v: abs(v - 1.0) > _UNIT_EIG_TOL)
+            self._schur = (T, Q, int(k_top), scale)
+        return self._schur
+
     def ref_rows(self, refs) -> np.ndarray:
         """Rows of the computed outputs (``Y`` columns) holding ``refs``."""
         computed = [self.refs[j] for j in self._computed]
@@ -439,7 +466,6 @@ class FastResponse:
         ndarray, shape (P, n_f, len(refs)), complex
             ``Y[p]`` per frequency.
         """
-        import scipy.linalg as la
 
         freqs = np.atleast_1d(np.asarray(freqs_hz, float))
         A = np.asarray(phasors, complex).reshape(freqs.size, self.m)
@@ -450,16 +476,7 @@ class FastResponse:
         for sig, L in self._runs:
             units.append((self._type(sig, L), k))
             k += L
-        # exact power-of-two balancing: the memory state mixes metres, volts and strains
-        Phi_b, scale = balance(self.period_map())
-        # eigenvalues at 1 (rigid-body modes of an open attitude loop, integrators) last:
-        # a line whose z = exp(j 2 pi f P base) is 1 (f a multiple of 1 / (P base)) makes
-        # z I - T singular there.  The steady state still exists (a rigid body driven at
-        # f > 0 moves by F / (m w^2)); only a constant along the null direction is free,
-        # so that block is solved by least squares (minimum norm), the rest as before.
-        T, Q, k_top = la.schur(Phi_b, output="complex",
-                               sort=lambda v: abs(v - 1.0) > _UNIT_EIG_TOL)
-        n_top = int(k_top)
+        T, Q, n_top, scale = self.period_schur()
         zT, diag = -T, np.diag(T).copy()
         out = np.zeros((self.P, freqs.size, sel.size), complex)
         for c0 in range(0, freqs.size, chunk):

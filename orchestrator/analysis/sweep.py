@@ -85,8 +85,11 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
     list of complex
         Largest magnitude first.
     """
-    Phi_b, _ = balance(fr.period_map())
-    ev = np.linalg.eigvals(Phi_b)
+    if fr._schur is not None:   # a steady state has been solved on this loop
+        ev = np.diag(fr._schur[0])
+    else:
+        Phi_b, _ = balance(fr.period_map())
+        ev = np.linalg.eigvals(Phi_b)
     return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True)
 
 

@@ -62,6 +62,7 @@ class LinearRunner:
         self._sources = {}
         self._source_blocks = {}
         self._series_cache = {}
+        self._responses = {}
         self._extracted = {}
         self._tmp = None
 
@@ -107,6 +108,29 @@ class LinearRunner:
         fr = FastResponse(lin, tuple(sc.record))
         self._compiled[self._config_key(scenario, lin.sources)] = fr
         return fr
+
+    def response(self, scenario: dict, refs, opened=()) -> FastResponse:
+        """The compiled loop of a case's configuration with ``opened`` instances taken
+        out and ``refs`` recorded (kept: a second sweep on it reuses its factorisation).
+
+        Parameters
+        ----------
+        scenario : dict
+            A case's scenario data.
+        refs : sequence of str
+            Outputs to record.
+        opened : sequence of str
+            Instances whose outputs are held at zero (e.g. the ACS).
+        """
+        fr = self.compiled(scenario)
+        if not opened and tuple(fr.refs) == tuple(refs):
+            return fr
+        key = (id(fr), tuple(opened), tuple(refs))
+        got = self._responses.get(key)
+        if got is None or got[0] is not fr:
+            lin = fr.lin.opened(opened) if opened else fr.lin
+            got = self._responses[key] = (fr, FastResponse(lin, tuple(refs)))
+        return got[1]
 
     def _source_block(self, fr: FastResponse, inst, cache: bool = True):
         """The block of a source instance with its parameters (kept unless ``cache``

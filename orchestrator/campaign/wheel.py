@@ -57,7 +57,6 @@ def run_wheel_sweeps(campaign, out_dir, runner=None, progress=None) -> Path | No
     progress : callable, optional
         ``progress(text)`` after each sweep and configuration.
     """
-    from ..analysis.fast import FastResponse
     from ..analysis.sweep import wheel_sweep
     from .linear import LinearRunner
 
@@ -70,10 +69,7 @@ def run_wheel_sweeps(campaign, out_dir, runner=None, progress=None) -> Path | No
     refs = [var for _, _, var in pairs]
     rows, worst = [], []
     for sw in campaign.wheel_sweeps:
-        fr = runner.compiled(sw["scenario"])
-        if sw["open"] or tuple(fr.refs) != tuple(refs):
-            lin = fr.lin.opened(sw["open"]) if sw["open"] else fr.lin
-            fr = FastResponse(lin, refs)
+        fr = runner.response(sw["scenario"], refs, sw["open"])
         stop = float(sw["scenario"]["experiment"]["stop"])
         speeds = np.linspace(sw["rpm"][0], sw["rpm"][1], sw["points"])
         res = wheel_sweep(fr, sw["instance"], speeds, refs, campaign.metrics,

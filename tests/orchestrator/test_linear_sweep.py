@@ -152,8 +152,11 @@ def test_shipped_rwa_sweep_runs_and_isolation_lowers_swir(rwa_sweep):
     for r in rows:
         k = (r["configuration"], r["instrument"], r["axis"])
         worst[k] = max(worst.get(k, 0.0), r["value"])
-    # the isolated instruments' worst speeds are lower with isolation on on every axis
-    # (elsewhere it may not be: MISR pitch, 0.004 arcsec, rises at 1383 rpm)
+    # A regression pin, not a physical law: today's worst speeds with isolation on are
+    # lower than off for SWIR and VNIR on every axis.  Not for every instrument: MISR
+    # pitch rises, 0.0030 -> 0.0040 arcsec at 1383 rpm.  (The steady state itself is
+    # checked against an independent computation in
+    # test_rwa_steady_state_with_free_rigid_modes_equals_the_one_tick_response.)
     for (cf, inst, axis), v in worst.items():
         if cf == "isolation on" and inst in ("SWIR", "VNIR"):
             assert v < worst[("isolation off", inst, axis)], (inst, axis)

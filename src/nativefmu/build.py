@@ -177,7 +177,7 @@ def _sources(root: ET.Element, kernel: str, fmi: int = 2) -> dict[str, bytes]:
     ``root``), and for FMI 3.0 ``buildDescription.xml``."""
     csrc = _res.files("nativefmu") / "csrc"
     out = {name: (_fmi_header_dir() / name).read_bytes() for name in _FMI_HEADERS[fmi]}
-    for name in (*source_files(kernel, fmi), "jfmu.h", "jfcore.h", *_LAYER_HEADERS[fmi]):
+    for name in (*source_files(kernel, fmi), "jfmu.h", "jfcore.h", "jfstate.h", *_LAYER_HEADERS[fmi]):
         out[name] = (csrc / name).read_bytes()
     config = root if fmi == 2 else _with_guid(root, fmi3_model_description(root)
                                                .get("instantiationToken"))

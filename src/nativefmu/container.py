@@ -284,7 +284,7 @@ def export_fmu(scenario: Scenario | str | Path, out: str | Path, *, outputs=None
         for name in _FMI_HEADERS + (_FMI3_HEADERS if fmi == 3 else ()):
             (src / name).write_bytes((_fmi_header_dir() / name).read_bytes())
         (src / "fastloop.c").write_bytes(FASTLOOP_SOURCE.read_bytes())
-        for name in ("container.c", *(_FMI3_LAYER if fmi == 3 else ())):
+        for name in ("container.c", "jfstate.h", *(_FMI3_LAYER if fmi == 3 else ())):
             (src / name).write_bytes((_CSRC / name).read_bytes())
         draft = c_tables(plan, bus, layout, units, variables, model_identifier=model_id,
                          guid="", fmi=fmi)

@@ -44,6 +44,7 @@
 #define FASTLOOP_TYPES_ONLY
 #include "fastloop.c"
 #include "fmi2Functions.h"
+#include "jfstate.h"
 
 enum { CT_REAL = 0, CT_INTEGER = 1, CT_BOOLEAN = 2, CT_STRING = 3 };
 enum { CT_OUTPUT = 0, CT_INPUT = 1, CT_PARAMETER = 2 };
@@ -843,23 +844,12 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
 
 #define STATE_MAGIC "JFCONTNR"
 #define STATE_VERSION 1u
-#define STATE_BOM 0x01020304u
-#define STATE_HEADER 104u
+#define STATE_HEADER JF_STATE_HEADER
 
 typedef struct {
     size_t size;
     unsigned char bytes[1];
 } StateBlob;
-
-static uint64_t fnv1a(const unsigned char *p, size_t n) {
-    uint64_t h = 0xcbf29ce484222325u;
-    size_t i;
-    for (i = 0; i < n; i++) {
-        h ^= p[i];
-        h *= 0x100000001b3u;
-    }
-    return h;
-}
 
 /* Serialised state of inner instance i in a new allocation (*size bytes), or NULL. */
 static unsigned char *inner_bytes(Container *ct, int i, size_t *size) {
@@ -882,7 +872,6 @@ static StateBlob *state_write(Container *ct) {
     unsigned char *parts[CT_N_INST];
     size_t sizes[CT_N_INST], n = STATE_HEADER + 3u * CT_N_SLOTS * 8u + 8u, off;
     uint32_t head[6];
-    char guid[64];
     uint64_t sum;
     StateBlob *blob = NULL;
     int i, ok = 1;
@@ -900,13 +889,7 @@ static StateBlob *state_write(Container *ct) {
     if (blob != NULL) {
         unsigned char *p = blob->bytes;
         blob->size = n;
-        memcpy(p, STATE_MAGIC, 8);
-        head[0] = STATE_VERSION;
-        head[1] = STATE_BOM;
-        memcpy(p + 8, head, 8);
-        memset(guid, 0, sizeof guid);
-        strncpy(guid, CT_GUID, sizeof guid - 1);
-        memcpy(p + 16, guid, 64);
+        jf_state_head_write(p, STATE_MAGIC, STATE_VERSION, CT_GUID);
         head[2] = (uint32_t)CT_N_INST;
         head[3] = (uint32_t)(3 * CT_N_SLOTS);
         head[4] = (uint32_t)ct->phase;
@@ -921,7 +904,7 @@ static StateBlob *state_write(Container *ct) {
             memcpy(p + off + 8, parts[i], sizes[i]);
             off += 8u + sizes[i];
         }
-        sum = fnv1a(p, n - 8u);
+        sum = jf_state_sum(p, n - 8u);
         memcpy(p + off, &sum, 8);
     }
     for (i = 0; i < CT_N_INST; i++) free(parts[i]);
@@ -932,33 +915,16 @@ static StateBlob *state_write(Container *ct) {
 static int state_check(Container *ct, const unsigned char *p, size_t n) {
     uint32_t head[6];
     uint64_t sum, sz;
-    char guid[64];
+    char why[160];
     int64_t tick;
     size_t off, i;
-    if (n < STATE_HEADER + 8u || memcmp(p, STATE_MAGIC, 8) != 0) {
-        ct_log(ct, 3, "FMU state rejected: not a jitterfmu container state (%lu bytes)",
-               (unsigned long)n);
-        return 1;
-    }
-    memcpy(head, p + 8, 8);
-    if (head[1] != STATE_BOM) {
-        ct_log(ct, 3, "FMU state rejected: saved on a machine of another byte order");
-        return 1;
-    }
-    if (head[0] != STATE_VERSION) {
-        ct_log(ct, 3, "FMU state rejected: layout version %u; expected %u", (unsigned)head[0],
-               STATE_VERSION);
-        return 1;
-    }
-    memset(guid, 0, sizeof guid);
-    strncpy(guid, CT_GUID, sizeof guid - 1);
-    if (memcmp(p + 16, guid, 64) != 0) {
-        ct_log(ct, 3, "FMU state rejected: saved by another model (GUID differs from %s)",
-               CT_GUID);
+    if (jf_state_head_check(p, n, STATE_MAGIC, STATE_VERSION, CT_GUID, "container", why,
+                            sizeof why)) {
+        ct_log(ct, 3, "FMU state rejected: %s", why);
         return 1;
     }
     memcpy(&sum, p + n - 8u, 8);
-    if (sum != fnv1a(p, n - 8u)) {
+    if (sum != jf_state_sum(p, n - 8u)) {
         ct_log(ct, 3, "FMU state rejected: checksum mismatch (corrupted bytes)");
         return 1;
     }

@@ -34,13 +34,13 @@
 #include <string.h>
 
 #include "jfcore.h"
+#include "jfstate.h"
 #include "jfmu.h"
 #include "model_config.h"
 
 #define STATE_MAGIC "JFMUSTAT"
 #define STATE_VERSION 1u
-#define STATE_BOM 0x01020304u
-#define STATE_HEADER 104u
+#define STATE_HEADER JF_STATE_HEADER
 
 /* ------------------------------------------------------------------ logging, memory */
 
@@ -263,16 +263,6 @@ int jf_set_string(JfInstance *inst, unsigned int vr, const char *s) {
 
 /* ------------------------------------------------------------------ FMU state */
 
-static uint64_t fnv1a(const unsigned char *p, size_t n) {
-    uint64_t h = 0xcbf29ce484222325u;
-    size_t i;
-    for (i = 0; i < n; i++) {
-        h ^= p[i];
-        h *= 0x100000001b3u;
-    }
-    return h;
-}
-
 static size_t state_size(const JfInstance *inst) {
     return STATE_HEADER + JF_N_VR * (8u + 4u + 4u) + inst->n_state * 8u + 8u;
 }
@@ -283,18 +273,11 @@ JfState *jf_state_save(JfInstance *inst) {
     int32_t word;
     unsigned char *p;
     uint64_t sum;
-    char guid[64];
     JfState *blob = (JfState *)jf_alloc(inst, 1, sizeof(JfState) + n);
     if (blob == NULL) return NULL;
     blob->size = n;
     p = blob->bytes;
-    memcpy(p, STATE_MAGIC, 8);
-    head[0] = STATE_VERSION;
-    head[1] = STATE_BOM;
-    memcpy(p + 8, head, 8);
-    memset(guid, 0, sizeof guid);
-    strncpy(guid, JF_GUID, sizeof guid - 1);
-    memcpy(p + 16, guid, 64);
+    jf_state_head_write(p, STATE_MAGIC, STATE_VERSION, JF_GUID);
     head[2] = (uint32_t)JF_N_VR;
     head[3] = (uint32_t)inst->n_state;
     head[4] = (uint32_t)inst->phase;
@@ -314,7 +297,7 @@ JfState *jf_state_save(JfInstance *inst) {
     }
     if (inst->n_state) memcpy(p, inst->state, inst->n_state * 8u);
     p += inst->n_state * 8u;
-    sum = fnv1a(blob->bytes, n - 8u);
+    sum = jf_state_sum(blob->bytes, n - 8u);
     memcpy(p, &sum, 8);
     return blob;
 }
@@ -324,29 +307,12 @@ static int state_check(JfInstance *inst, const unsigned char *p, size_t n) {
     const unsigned char *start = p;
     uint32_t head[6];
     uint64_t sum;
-    char guid[64];
+    char why[160];
     int32_t word;
     size_t i;
-    if (n < STATE_HEADER + 8u || memcmp(p, STATE_MAGIC, 8) != 0) {
-        jf_log(inst, 3, "FMU state rejected: not a jitterfmu native state (%lu bytes)",
-               (unsigned long)n);
-        return 1;
-    }
-    memcpy(head, p + 8, 8);
-    if (head[1] != STATE_BOM) {
-        jf_log(inst, 3, "FMU state rejected: saved on a machine of another byte order");
-        return 1;
-    }
-    if (head[0] != STATE_VERSION) {
-        jf_log(inst, 3, "FMU state rejected: layout version %u; expected %u", (unsigned)head[0],
-               STATE_VERSION);
-        return 1;
-    }
-    memset(guid, 0, sizeof guid);
-    strncpy(guid, JF_GUID, sizeof guid - 1);
-    if (memcmp(p + 16, guid, 64) != 0) {
-        jf_log(inst, 3, "FMU state rejected: saved by another model (GUID differs from %s)",
-               JF_GUID);
+    if (jf_state_head_check(p, n, STATE_MAGIC, STATE_VERSION, JF_GUID, "native", why,
+                            sizeof why)) {
+        jf_log(inst, 3, "FMU state rejected: %s", why);
         return 1;
     }
     memcpy(head + 2, p + 80, 16);
@@ -358,7 +324,7 @@ static int state_check(JfInstance *inst, const unsigned char *p, size_t n) {
         return 1;
     }
     memcpy(&sum, p + n - 8u, 8);
-    if (sum != fnv1a(p, n - 8u)) {
+    if (sum != jf_state_sum(p, n - 8u)) {
         jf_log(inst, 3, "FMU state rejected: checksum mismatch (corrupted bytes)");
         return 1;
     }

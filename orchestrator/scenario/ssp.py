@@ -198,6 +198,9 @@ def _parse(data: bytes, where: str):
         line, col = exc.position
         raise ScenarioError(f"{where} is not well-formed XML at line {line}, column {col}: "
                             f"{exc.msg if hasattr(exc, 'msg') else exc}") from None
+    except LookupError as exc:   # the XML declaration names an encoding that does not exist
+        raise ScenarioError(f"{where} declares an encoding Python does not know ({exc}); "
+                            "write it as UTF-8") from None
 
 
 def _typed(el, where: str):

@@ -294,6 +294,12 @@ def copy_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, sink, where: str,
     return n
 
 
+#: What reading a damaged member raises: a bad header or CRC, a broken deflate stream, a
+#: cut file, a local name that is not the UTF-8 it claims, a flag for a feature zipfile
+#: has not (strong encryption, patched data).
+CORRUPT = (zipfile.BadZipFile, zlib.error, RuntimeError, EOFError, UnicodeDecodeError,
+           NotImplementedError)
+
 def read_member(zf: zipfile.ZipFile, name: str, where: str,
                 limits: SizeLimits | None = None) -> bytes:
     """The bytes of member ``name``, read within the member limit.
@@ -366,7 +372,7 @@ def unpack(zf: zipfile.ZipFile, where: str, target_of,
         except (IsADirectoryError, NotADirectoryError, FileExistsError):
             raise ArchiveError(f"{where} holds {short_repr(info.filename)} both as a file and "
                                "as a folder; expected each path once") from None
-        except (zipfile.BadZipFile, zlib.error, RuntimeError, EOFError) as exc:
+        except CORRUPT as exc:
             raise ArchiveError(f"{where} is corrupt: member {info.filename!r} cannot be read "
                                f"({exc or exc.__class__.__name__})") from None
         digests[info.filename] = h.hexdigest()

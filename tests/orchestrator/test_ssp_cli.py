@@ -258,3 +258,33 @@ def test_written_archive_follows_the_ssp_schemas_and_reads_in_fmpy(fmu_dir, tmp_
     assert conns == {(c["from"], c["to"]) for c in mixed()["connections"]}
     mine = read_ssp(ssp)
     assert {i.name for i in mine.instances} == comps
+
+
+def test_a_member_name_that_is_not_its_utf8_is_one_sentence(ssp_file, tmp_path):
+    """A local header that flags its name as UTF-8 and holds other bytes (the damage a
+    random byte flip at offset 30 made: zipfile raised UnicodeDecodeError)."""
+    blob = bytearray(ssp_file.read_bytes())
+    assert blob[:4] == b"PK\x03\x04"
+    blob[7] |= 0x08                # general-purpose flag bit 11 (0x800): a UTF-8 name
+    blob[30] = 0xD3                # a lead byte without its continuation
+    blob[31] = 0x41
+    bad = tmp_path / "badname.ssp"
+    bad.write_bytes(bytes(blob))
+    with pytest.raises(ScenarioError) as exc:
+        read_ssp(bad)
+    assert "\n" not in str(exc.value).strip()
+
+
+def test_an_ssd_declaring_an_unknown_encoding_is_one_sentence(ssp_file, tmp_path):
+    import zipfile
+
+    bad = tmp_path / "enc.ssp"
+    with zipfile.ZipFile(ssp_file) as zin, zipfile.ZipFile(bad, "w") as zout:
+        for item in zin.infolist():
+            body = zin.read(item.filename)
+            if item.filename == "SystemStructure.ssd":
+                body = body.replace(b"encoding='utf-8'", b"encoding='u0f-8'", 1)
+                assert b"u0f-8" in body
+            zout.writestr(item.filename, body)
+    with pytest.raises(ScenarioError, match="declares an encoding Python does not know"):
+        read_ssp(bad)

@@ -60,7 +60,8 @@ def main(argv=None) -> int:
         a, b = _summary(tmp / "cosim"), _summary(tmp / "linear")
         worst = max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k])
         fr = next(iter(runner._compiled.values()))
-        mem = sum(t.G.nbytes + t.O.nbytes + t.h.nbytes + t.ML.nbytes
+        mem = sum(t.O.nbytes + t.ML.nbytes + sum(g.nbytes + h.nbytes for g, h in
+                                                 t.cols.values())
                   for t in fr._types.values()) / 2**20
     n = len(camp.cases)
     print(f"EOS budget, {n} cases, 8 s at 1 kHz; failed: cosim {co.n_failed}, "

@@ -14,7 +14,12 @@ structure of the problem instead:
   ``y_q = C M^q x_0 + sum_{l<=q} h_(q-l) w_l`` with the Markov parameters
   ``h_0 = D``, ``h_p = C M^(p-1) N``: a causal convolution, computed for every run at
   once by FFT.  The matrices of each run type are computed once per closed loop.
-* **Only what drives.**  Source channels that are zero over the record drop out.
+* **Only what drives.**  Source channels that are zero over the record drop out; the
+  input side of a run type (its column Krylov products) is built per channel, on first
+  use, so a loop driven by one source pays for that source alone.
+* **Records together.**  The events of one configuration share its loop:
+  :meth:`FastResponse.run_many` runs their state recursions as one product per run and
+  their free responses as one product per run type.
 
 The state recursion is then one small product per run (80 for an 8 s record at a 0.1 s
 hyperperiod) and everything else is a few large matrix products: the cost of a record
@@ -41,6 +46,8 @@ __all__ = ["FastResponse", "NonlinearError", "Record"]
 # ticks a super-period covers at least: short hyperperiods (a single-rate loop has one
 # tick) are repeated so that runs are long and few
 _MIN_TICKS = 64
+# runs up to this long convolve with their block-Toeplitz matrix, longer ones by FFT
+_TOEPLITZ_TICKS = 256
 
 
 class NonlinearError(AnalysisError):
@@ -63,12 +70,15 @@ class Record:
     limits : dict of str to float
         Per checked output, the largest fraction of its allowed range used (1 = at the
         rail).
+    reached : tuple of str
+        The checked outputs that left their range (a record run with ``check=False``).
     """
 
     values: np.ndarray
     times: np.ndarray
     refs: tuple
     limits: dict
+    reached: tuple = ()
 
     def __iter__(self):
         return iter((self.values, self.times))
@@ -80,14 +90,20 @@ class Record:
 
 @dataclass(frozen=True)
 class _RunType:
-    """Matrices of a run of ``L`` ticks with one map (memory state ``s``, ``r`` rows)."""
+    """Matrices of a run of ``L`` ticks with one map (memory state ``s``, ``r`` rows).
+
+    The input side is per source channel and built on first use (:meth:`FastResponse.
+    _columns`): a record driven by a few channels pays the Krylov products of those
+    only."""
 
     L: int
     ML: np.ndarray      # (s, s)       M^L
-    G: np.ndarray       # (s, L, m)    M^(L-1-l) N
     O: np.ndarray       # (L * r_live, s)  C M^q, the rows that are not zero by structure
-    h: np.ndarray       # (L, r_live, m)   Markov parameters, h_0 = D
     live: np.ndarray    # (r_live,)    those rows (e.g. a loop at gain 0 leaves its own out)
+    M: np.ndarray       # (s, s)       the tick map
+    N: np.ndarray       # (s, m)       its input columns
+    D: np.ndarray       # (r_live, m)  feedthrough of the live rows
+    cols: dict          # channel -> (M^(L-1-l) N_c (s, L), Markov parameters (L, r_live))
 
 
 class FastResponse:
@@ -198,45 +214,69 @@ class FastResponse:
         X = lin._tick(X, k, w_next)   # k < the super-period, a multiple of every period
         return X[:, :n], X[:, n:]
 
-    def _conv(self, key, t: _RunType, active, Wu):
-        """The Markov convolution of a run type with the active inputs (kernel cached)."""
-        if t.L <= 8:
-            return _causal_conv(t.h[:, :, active], Wu)
-        ck = (key, active.tobytes())
-        Hf = self._kernels.get(ck)
-        if Hf is None:
-            Hf = sfft.rfft(t.h[:, :, active], _fft_length(t.L), axis=0)
-            if len(self._kernels) > 64:
-                self._kernels.clear()
-            self._kernels[ck] = Hf
-        return _causal_conv(t.h[:, :, active], Wu, Hf)
-
     def _type(self, sig, L: int) -> _RunType:
         key = (sig, L)
         t = self._types.get(key)
         if t is not None:
             return t
         M, N, C, D = self._maps[sig]
-        s, m, r = M.shape[0], N.shape[1], C.shape[0]
-        # column Krylov K_q = M^q N and row Krylov C M^q, q = 0 .. L-1
-        K = np.empty((L, s, m))
-        O = np.empty((L, r, s))
-        K[0], O[0] = N, C
+        s = M.shape[0]
+        # a row is zero by structure when its C and D rows are: C M^q and C M^(p-1) N
+        live = np.flatnonzero(np.any(C != 0, axis=1) | np.any(D != 0, axis=1))
+        # row Krylov C M^q, q = 0 .. L-1, of the live rows
+        O = np.empty((L, live.size, s))
+        O[0] = C[live]
         for q in range(1, L):
-            K[q] = M @ K[q - 1]
             O[q] = O[q - 1] @ M
-        ML = np.linalg.matrix_power(M, L)
-        G = K[::-1].transpose(1, 0, 2)                       # (s, L, m): M^(L-1-l) N
-        h = np.empty((L, r, m))
-        h[0] = D
-        if L > 1:
-            h[1:] = np.einsum("qrs,sm->qrm", O[:L - 1], N)   # C M^(p-1) N
-        live = np.flatnonzero(np.any(O != 0, axis=(0, 2)) | np.any(h != 0, axis=(0, 2)))
-        t = _RunType(L, ML, np.ascontiguousarray(G),
-                     np.ascontiguousarray(O[:, live]).reshape(L * live.size, s),
-                     np.ascontiguousarray(h[:, live]), live)
+        t = _RunType(L, np.linalg.matrix_power(M, L), O.reshape(L * live.size, s), live,
+                     M, N, np.ascontiguousarray(D[live]), {})
         self._types[key] = t
         return t
+
+    def _columns(self, t: _RunType, active) -> tuple:
+        """``(G, h)`` of a run type for the source channels ``active``: ``G`` (s, L, k)
+        ``M^(L-1-l) N``, ``h`` (L, r_live, k) the Markov parameters ``h_0 = D``,
+        ``h_p = C M^(p-1) N`` (column Krylov of the channels not built before)."""
+        miss = [int(c) for c in active if int(c) not in t.cols]
+        if miss:
+            L, s = t.L, t.M.shape[0]
+            K = np.empty((L, s, len(miss)))
+            K[0] = t.N[:, miss]
+            for q in range(1, L):
+                K[q] = t.M @ K[q - 1]
+            h = np.empty((L, t.live.size, len(miss)))
+            h[0] = t.D[:, miss]
+            if L > 1:
+                h[1:] = t.O.reshape(L, t.live.size, s)[:L - 1] @ t.N[:, miss]
+            for j, c in enumerate(miss):
+                t.cols[c] = (np.ascontiguousarray(K[::-1, :, j].T), h[:, :, j].copy())
+        G = np.stack([t.cols[int(c)][0] for c in active], axis=-1)
+        h = np.stack([t.cols[int(c)][1] for c in active], axis=-1)
+        return G, h
+
+    def _forced(self, key, t: _RunType, active, Wu) -> np.ndarray:
+        """The Markov convolution ``sum_(l<=q) h_(q-l) w_l`` of every run, ``(n_u, L
+        r_live)``: one product with the block-Toeplitz matrix of ``h`` (kept per run type
+        and channels) for runs of up to ``_TOEPLITZ_TICKS`` ticks, by FFT beyond."""
+        L, k, r = t.L, active.size, t.live.size
+        ck = (key, active.tobytes())
+        T = self._kernels.get(ck)
+        if T is None:
+            _, h = self._columns(t, active)                              # (L, r, k)
+            if L > _TOEPLITZ_TICKS:
+                T = ("fft", h, sfft.rfft(h, _fft_length(L), axis=0))
+            else:   # Tt[l, c, q, j] = h[q - l, j, c] for q >= l
+                Tt = np.zeros((L, k, L, r))
+                hT = h.transpose(0, 2, 1)                                 # (L, k, r)
+                for d in range(L):
+                    Tt[np.arange(L - d), :, np.arange(d, L), :] = hT[d]
+                T = ("toeplitz", Tt.reshape(L * k, L * r))
+            if len(self._kernels) > 64:
+                self._kernels.clear()
+            self._kernels[ck] = T
+        if T[0] == "fft":
+            return _causal_conv(T[1], Wu, T[2]).reshape(Wu.shape[0], L * r)
+        return Wu.reshape(Wu.shape[0], L * k) @ T[1]
 
     # ------------------------------------------------------------------ running
     def times(self, n_ticks: int, every: int = 1) -> np.ndarray:
@@ -328,13 +368,38 @@ class FastResponse:
         -------
         Record
         """
-        W = np.asarray(W, float)
-        K = W.shape[0]
-        active = np.flatnonzero(np.any(W != 0.0, axis=0))
-        Wa = W[:, active]
+        return self.run_many([W], check)[0]
+
+    def run_many(self, Ws, check: bool = True) -> list:
+        """The records driven by each ``W`` of ``Ws``, from rest, computed together.
+
+        The events of one configuration share its loop: their state recursions are one
+        product per run for all of them, and their free responses one product per run
+        type.  The result equals :meth:`run` of each.
+
+        Parameters
+        ----------
+        Ws : sequence of ndarray, each of shape (n_ticks + 1, m)
+            Source values at every tick (:meth:`input_matrix`), the same ``n_ticks``.
+        check : bool
+            Raise :class:`NonlinearError` when a limited output of a record leaves its
+            range (the first such record); else each record's ``limits`` say how much
+            of each range it used (above 1: reached).
+
+        Returns
+        -------
+        list of Record
+        """
+        Ws = [np.asarray(W, float) for W in Ws]
+        if not Ws:
+            return []
+        K = Ws[0].shape[0]
+        if any(W.shape != (K, self.m) for W in Ws):
+            raise AnalysisError(f"every input matrix of a batch must have shape ({K}, "
+                                f"{self.m}); got {', '.join(str(W.shape) for W in Ws)}")
+        E, s = len(Ws), self.n_memory
+        actives = [np.flatnonzero(np.any(W != 0.0, axis=0)) for W in Ws]
         r = len(self._computed) + len(set(self._check_col) - set(range(len(self._computed))))
-        Y = np.zeros((K, r))
-        s = self.n_memory
         # the runs of the record, in order: (type key, start)
         units = []
         k = 0
@@ -347,42 +412,58 @@ class FastResponse:
         by_type = {}
         for i, (key, start) in enumerate(units):
             by_type.setdefault(key, []).append(i)
-        # input contribution to each run's end state, per run type
-        g = np.zeros((len(units), s))
-        for key, idx in by_type.items():
-            t = self._type(*key)
+        types = {key: self._type(*key) for key in by_type}
+        windows = {key: np.array([units[i][1] for i in idx])[:, None] + np.arange(types[key].L)
+                   for key, idx in by_type.items()}
+        # input contribution to each run's end state, per run type and record
+        Was = [W[:, active] for W, active in zip(Ws, actives)]
+        union = np.unique(np.concatenate(actives))
+        if union.size:   # the column Krylov of every channel a record drives, at once
+            for t in types.values():
+                self._columns(t, union)
+        g = np.zeros((len(units), s, E))
+        for e, (Wa, active) in enumerate(zip(Was, actives)):
             if active.size == 0:
                 continue
-            starts = np.array([units[i][1] for i in idx])
-            Wu = Wa[starts[:, None] + np.arange(t.L)]            # (n_u, L, m_a)
-            Ga = t.G[:, :, active].reshape(s, -1)
-            g[idx] = Wu.reshape(len(idx), -1) @ Ga.T
-        # the state recursion, one product per run
-        X0 = np.empty((len(units), s))
-        x = np.zeros(s)
+            for key, idx in by_type.items():
+                G, _ = self._columns(types[key], active)
+                Wu = Wa[windows[key]]                                  # (n_u, L, k)
+                g[idx, :, e] = Wu.reshape(len(idx), -1) @ G.reshape(s, -1).T
+        # the state recursion, one product per run for every record
+        X0 = np.empty((E, len(units), s))
+        x = np.zeros((s, E))
         for i, (key, _) in enumerate(units):
-            X0[i] = x
-            x = self._types[key].ML @ x + g[i]
+            X0[:, i] = x.T
+            x = types[key].ML @ x + g[i]
         # outputs: C M^q x_0 + (h * w), per run type
+        Y = np.zeros((E, K, r))
         for key, idx in by_type.items():
-            t = self._type(*key)
-            starts = np.array([units[i][1] for i in idx])
-            free = (t.O @ X0[idx].T).T.reshape(len(idx), t.L, t.live.size)
-            if active.size:
-                Wu = Wa[starts[:, None] + np.arange(t.L)]
-                free += self._conv(key, t, active, Wu)
-            rows = (starts[:, None] + np.arange(t.L)).ravel()
+            t, n_u = types[key], len(idx)
+            X = X0[:, idx].reshape(E * n_u, s)
+            out = (X @ t.O.T).reshape(E, n_u, t.L * t.live.size)          # free response
+            for e, (Wa, active) in enumerate(zip(Was, actives)):
+                if active.size:
+                    out[e] += self._forced(key, t, active, Wa[windows[key]])
+            rows = windows[key].ravel()
+            out = out.reshape(E, n_u * t.L, t.live.size)
             if t.live.size == r:
-                Y[rows] = free.reshape(-1, r)
+                Y[:, rows] = out
             else:
-                Y[rows[:, None], t.live] = free.reshape(-1, t.live.size)
+                Y[:, rows[:, None], t.live] = out
+        return [self._record(y, check) for y in Y]
+
+    def _record(self, Y: np.ndarray, check: bool) -> Record:
+        """A record from the computed rows ``Y`` (n_ticks + 1, r): limits checked."""
+        K = Y.shape[0]
         times = self.times(K - 1)
         n_ref = len(self._computed)
-        limits = {}
+        limits, reached = {}, []
         top, bottom = Y.max(axis=0)[self._check_col], Y.min(axis=0)[self._check_col]
         for j, (ref, lo, hi, what) in enumerate(self._checks):
             used = max(top[j] / hi if hi > 0 else 0.0, bottom[j] / lo if lo < 0 else 0.0)
             limits[ref] = float(used)
+            if top[j] > hi or bottom[j] < lo:
+                reached.append(ref)
             if check and (top[j] > hi or bottom[j] < lo):
                 y = Y[:, self._check_col[j]]
                 bad = np.flatnonzero((y > hi) | (y < lo))[0]
@@ -394,8 +475,8 @@ class FastResponse:
             values = np.zeros((K, len(self.refs)))
             values[:, self._computed] = Y[:, :n_ref]
         else:
-            values = Y[:, :n_ref]
-        return Record(values, times, self.refs, limits)
+            values = np.ascontiguousarray(Y[:, :n_ref])
+        return Record(values, times, self.refs, limits, tuple(reached))
 
     # ------------------------------------------------------------------ steady state
     def period_map(self) -> np.ndarray:
@@ -477,7 +558,6 @@ class FastResponse:
             units.append((self._type(sig, L), k))
             k += L
         T, Q, n_top, scale = self.period_schur()
-        zT, diag = -T, np.diag(T).copy()
         out = np.zeros((self.P, freqs.size, sel.size), complex)
         for c0 in range(0, freqs.size, chunk):
             f = freqs[c0:c0 + chunk]
@@ -487,20 +567,17 @@ class FastResponse:
             for t, start in units:
                 E = np.exp(1j * np.outer(np.arange(t.L), wv))          # (L, n_c)
                 B = E[:, None, :] * a.T[None, :, :]                    # (L, m_a, n_c)
-                G = t.G[:, :, active].reshape(self.n_memory, -1)
+                G = self._columns(t, active)[0].reshape(self.n_memory, -1)
                 forcing.append(np.exp(1j * wv * start) * (G @ B.reshape(-1, f.size)))
             x = np.zeros((self.n_memory, f.size), complex)
             for (t, _), g in zip(units, forcing):
                 x = t.ML @ x + g                                       # forced, from rest
             z = np.exp(1j * wv * self.P)
             y = Q.conj().T @ (x / scale[:, None])
-            X0 = np.empty_like(y)
-            for i in range(f.size):
-                if not np.any(a[i]):   # nothing drives (a wheel at rest): no solve at z = 1
-                    X0[:, i] = 0.0
-                    continue
-                np.fill_diagonal(zT, z[i] - diag)                      # z I - T
-                X0[:, i] = _solve_deflated(zT, y[:, i], n_top)
+            X0 = np.zeros_like(y)
+            on = np.flatnonzero(np.any(a != 0, axis=1))   # a wheel at rest: no solve at z = 1
+            if on.size:
+                X0[:, on] = _solve_shifted(T, z[on], y[:, on], n_top)   # (z I - T) X0 = y
             x = (Q @ X0) * scale[:, None]
             for (t, start), g in zip(units, forcing):
                 live = np.searchsorted(t.live, sel)
@@ -510,7 +587,7 @@ class FastResponse:
                 O = t.O.reshape(t.L, t.live.size, -1)[:, rows].reshape(t.L * rows.size, -1)
                 Yq = (O @ x).reshape(t.L, rows.size, f.size)          # (L, r, n_c)
                 if active.size:
-                    h = t.h[:, rows][:, :, active]                     # (L, r, m_a)
+                    h = self._columns(t, active)[1][:, rows]          # (L, r, m_a)
                     E = np.exp(-1j * np.outer(np.arange(t.L), wv))     # (L, n_c)
                     B = E[:, None, :] * a.T[None, :, :]                # (L, m_a, n_c)
                     conv = np.cumsum(h @ B, axis=0)                    # (L, r, n_c)
@@ -529,23 +606,49 @@ _UNIT_EIG_TOL = 1e-6
 _UNIT_RCOND = 1e-8
 
 
-def _solve_deflated(A: np.ndarray, b: np.ndarray, n_top: int) -> np.ndarray:
-    """Solve the upper-triangular ``A x = b`` whose trailing block (from ``n_top``) holds
-    the unit eigenvalues: that block by least squares (minimum norm, singular values
-    below ``_UNIT_RCOND`` of its largest dropped), then the leading block by back
-    substitution with the trailing solution moved to the right-hand side."""
-    import scipy.linalg as la
+#: Rows of a back-substitution block (the rest of the triangle is one product per block).
+_BLOCK_ROWS = 32
 
-    x = np.empty_like(b)
-    if n_top < A.shape[0]:
-        x[n_top:] = la.lstsq(A[n_top:, n_top:], b[n_top:], cond=_UNIT_RCOND,
-                             check_finite=False)[0]
-        rhs = b[:n_top] - A[:n_top, n_top:] @ x[n_top:]
-    else:
-        rhs = b
-    if n_top:
-        x[:n_top] = la.solve_triangular(A[:n_top, :n_top], rhs, check_finite=False)
-    return x
+
+def _solve_shifted(T: np.ndarray, z: np.ndarray, Y: np.ndarray, n_top: int) -> np.ndarray:
+    """Solve ``(z_j I - T) x_j = y_j`` for every column ``j``, ``T`` upper triangular with
+    its unit eigenvalues from ``n_top`` on (:meth:`FastResponse.period_schur`).
+
+    The trailing block by least squares (minimum norm, singular values below
+    ``_UNIT_RCOND`` of the largest dropped, one SVD per column, all at once), then the
+    leading block by back substitution for every column together: blocks of
+    ``_BLOCK_ROWS`` rows, each updated by one product with the solved rows below it.
+
+    Parameters
+    ----------
+    T : ndarray, shape (n, n), complex
+    z : ndarray, shape (n_f,), complex
+    Y : ndarray, shape (n, n_f), complex
+
+    Returns
+    -------
+    ndarray, shape (n, n_f), complex
+    """
+    n = T.shape[0]
+    X = np.empty(Y.shape, complex)
+    R = Y.astype(complex, copy=True)
+    if n_top < n:
+        A = -T[n_top:, n_top:][None] + np.eye(n - n_top)[None] * z[:, None, None]
+        U, sv, Vh = np.linalg.svd(A)                              # (n_f, u, u), (n_f, u)
+        keep = sv > _UNIT_RCOND * sv[:, :1]
+        c = np.einsum("fji,jf->fi", U.conj(), R[n_top:])         # U^H y
+        c = np.where(keep, c / np.where(keep, sv, 1.0), 0.0)
+        X[n_top:] = np.einsum("fji,fj->if", Vh.conj(), c)        # V c
+        R[:n_top] += T[:n_top, n_top:] @ X[n_top:]
+    diag = np.diag(T)
+    for i1 in range(n_top, 0, -_BLOCK_ROWS):
+        i0 = max(0, i1 - _BLOCK_ROWS)
+        if i1 < n_top:
+            R[i0:i1] += T[i0:i1, i1:n_top] @ X[i1:n_top]
+        for i in range(i1 - 1, i0 - 1, -1):
+            r = R[i] + T[i, i + 1:i1] @ X[i + 1:i1] if i + 1 < i1 else R[i]
+            X[i] = r / (z - diag[i])
+    return X
 
 
 def balance(A: np.ndarray):

@@ -86,7 +86,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     ``inf``: it exceeds every requirement), 2 the closed loop is unstable, 4 so unstable
     that it more than doubles over the record."""
     from ..analysis.blocks import structure_block
-    from ..analysis.fast import FastResponse, NonlinearError
+    from ..analysis.fast import FastResponse
     from ..analysis.sweep import unstable_poles
     from ..metrics import metric_values
 
@@ -117,12 +117,11 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                 if bad:   # reported; the record is what the co-simulation would give
                     growth = abs(bad[0]) ** (record_ticks / fr.P)
                     status[row, ci] |= 2 | (4 if growth > 2.0 else 0)
-            for ei, ev in enumerate(ctx["events"]):
-                sc, W = ctx["inputs"][(cf, ev)]
-                W = _sample_input(runner, fr, sc, W, draws, items, s)
-                try:
-                    rec = fr.run(W)
-                except NonlinearError:   # a rail or limit: outside the linear model
+            # the events of a configuration share its loop: computed together
+            Ws = [_sample_input(runner, fr, *ctx["inputs"][(cf, ev)], draws, items, s)
+                  for ev in ctx["events"]]
+            for ei, rec in enumerate(fr.run_many(Ws, check=False)):
+                if rec.reached:   # a rail or limit: outside the linear model
                     values[row, ci] = np.inf
                     status[row, ci] |= 1
                     break

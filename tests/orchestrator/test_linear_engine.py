@@ -91,13 +91,17 @@ def test_linear_record_equals_cosimulated_record(eos_pair, eos_fmus):
         assert np.max(np.abs(x - y)) <= 1e-9 * scale, name
 
 
+def _isolation_on_loop(eos_pair):
+    """The compiled loop of the short EOS campaign with isolation on."""
+    runner = eos_pair[-1]
+    case = next(c for c in _eos_campaign().cases if c.configuration == "isolation on")
+    return runner.compiled(case.scenario)
+
+
 def test_fast_response_equals_the_tick_by_tick_map(eos_pair, eos_fmus):
     """All sources driven at once with seeded noise; the ACS at 10 Hz makes the tick map
     periodic over 100 ticks, run as one tick plus a run of 99."""
-    _, _, _, _, runner = eos_pair
-    camp = _eos_campaign()
-    case = next(c for c in camp.cases if c.configuration == "isolation on")
-    fr = runner.compiled(case.scenario)
+    fr = _isolation_on_loop(eos_pair)
     n_ticks = 450
     rng = np.random.default_rng(7)
     W = rng.standard_normal((n_ticks + 1, fr.m))
@@ -115,6 +119,29 @@ def test_fast_response_equals_the_tick_by_tick_map(eos_pair, eos_fmus):
     assert [L for _, L in fr._runs] == [1, 99]
 
 
+def test_records_computed_together_equal_each_alone(eos_pair):
+    """run_many (one state recursion and one free-response product for a configuration's
+    events) against run of each record: different channels driven, one record at rest,
+    one driving every channel."""
+    fr = _isolation_on_loop(eos_pair)
+    n_ticks = 350
+    rng = np.random.default_rng(11)
+    Ws = []
+    for cols in ([0], [3, 7, 8], [], list(range(fr.m))):
+        W = np.zeros((n_ticks + 1, fr.m))
+        W[:, cols] = rng.standard_normal((n_ticks + 1, len(cols)))
+        Ws.append(W)
+    together = fr.run_many(Ws, check=False)
+    for W, got in zip(Ws, together):
+        want = fr.run(W, check=False)
+        scale = np.maximum(np.abs(want.values).max(axis=0), 1e-300)
+        assert np.max(np.abs(got.values - want.values) / scale) < 1e-12
+        # fractions of each rail used: what decides is the distance to the rail (1), so
+        # the tolerance is absolute in units of the rail
+        assert got.limits == pytest.approx(want.limits, rel=0, abs=1e-12)
+    assert not np.any(together[2].values) and together[2].reached == ()
+
+
 def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):
     """A rail the linear record crosses fails the case in one sentence; nothing else."""
     camp = _eos_campaign(events=("SWIR pointing",), stop=1.5)
@@ -126,6 +153,11 @@ def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):
     with pytest.raises(AnalysisError, match=r"piezo_swir_mount1\.voltage reaches its voltage "
                                             r"rail .* at t = .* s.*--engine cosim"):
         runner(sc, tmp_path / "rail")
+    # unchecked, the record says which outputs left their range (what Monte Carlo reads)
+    fr = runner.compiled(sc)
+    rec = fr.run_many([runner.inputs(fr, sc)], check=False)[0]
+    assert "piezo_swir_mount1.voltage" in rec.reached
+    assert rec.limits["piezo_swir_mount1.voltage"] > 1.0
 
 
 @pytest.mark.parametrize("param, value, words", [

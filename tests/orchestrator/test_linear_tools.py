@@ -327,3 +327,30 @@ def test_transfer_from_an_opened_controller_is_the_settled_response(suite_fmus, 
     np.testing.assert_allclose(np.abs(H), settled, rtol=1e-3)
     tr = transfer(FastResponse(op, refs), ["ctrl_long.u1"], refs, [f]).H[:, 0, 0]
     np.testing.assert_allclose(np.abs(tr), settled, rtol=1e-3)
+
+
+def test_shifted_triangular_solve_against_a_solve_per_frequency():
+    """(z_j I - T) x_j = y_j for many z at once against numpy's solve per column, with a
+    trailing block of unit eigenvalues solved by least squares (scipy's lstsq, as the
+    per-frequency solve did), z = 1 included (singular there: the minimum-norm answer)."""
+    import scipy.linalg as la
+
+    from orchestrator.analysis.fast import _UNIT_RCOND, _solve_shifted
+
+    rng = np.random.default_rng(5)
+    n, u = 70, 4                   # 66 eigenvalues inside the circle, 4 at 1
+    ev = np.r_[0.9 * np.exp(2j * np.pi * rng.random(n - u)), np.ones(u)]
+    T = np.triu(rng.standard_normal((n, n)) + 1j * rng.standard_normal((n, n)), 1) * 0.3
+    T[np.diag_indices(n)] = ev
+    z = np.r_[np.exp(2j * np.pi * rng.random(40)), 1.0]
+    Y = rng.standard_normal((n, z.size)) + 1j * rng.standard_normal((n, z.size))
+    got = _solve_shifted(T, z, Y, n - u)
+    for j, zj in enumerate(z):
+        A = zj * np.eye(n) - T
+        if zj == 1.0:
+            tail = la.lstsq(A[-u:, -u:], Y[-u:, j], cond=_UNIT_RCOND)[0]
+            head = np.linalg.solve(A[:-u, :-u], Y[:-u, j] - A[:-u, -u:] @ tail)
+            want = np.r_[head, tail]
+        else:
+            want = np.linalg.solve(A, Y[:, j])
+        assert np.max(np.abs(got[:, j] - want)) <= 1e-10 * np.max(np.abs(want)), j

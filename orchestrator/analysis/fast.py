@@ -40,6 +40,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from .blocks import AnalysisError
+from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
 
@@ -106,7 +107,7 @@ class _RunType:
     cols: dict          # channel -> (M^(L-1-l) N_c (s, L), Markov parameters (L, r_live))
 
 
-class FastResponse:
+class FastResponse(SteadyState):
     """A linear scenario compiled for whole records.
 
     Parameters
@@ -254,29 +255,63 @@ class FastResponse:
         h = np.stack([t.cols[int(c)][1] for c in active], axis=-1)
         return G, h
 
-    def _forced(self, key, t: _RunType, active, Wu) -> np.ndarray:
+    def _forced(self, key, t: _RunType, active, Wu, sel=None) -> np.ndarray:
         """The Markov convolution ``sum_(l<=q) h_(q-l) w_l`` of every run, ``(n_u, L
-        r_live)``: one product with the block-Toeplitz matrix of ``h`` (kept per run type
-        and channels) for runs of up to ``_TOEPLITZ_TICKS`` ticks, by FFT beyond."""
-        L, k, r = t.L, active.size, t.live.size
-        ck = (key, active.tobytes())
+        r_sel)``, of the live rows ``sel`` (default all): one product with the
+        block-Toeplitz matrix of ``h`` (kept per run type, channels and rows) for runs of
+        up to ``_TOEPLITZ_TICKS`` ticks, by FFT beyond."""
+        L, k = t.L, active.size
+        sel = np.arange(t.live.size) if sel is None else sel
+        r = sel.size
+        ck = ("forced", key, active.tobytes(), sel.tobytes())
         T = self._kernels.get(ck)
         if T is None:
-            _, h = self._columns(t, active)                              # (L, r, k)
+            h = self._columns(t, active)[1][:, sel]                     # (L, r, k)
             if L > _TOEPLITZ_TICKS:
                 T = ("fft", h, sfft.rfft(h, _fft_length(L), axis=0))
-            else:   # Tt[l, c, q, j] = h[q - l, j, c] for q >= l
-                Tt = np.zeros((L, k, L, r))
-                hT = h.transpose(0, 2, 1)                                 # (L, k, r)
-                for d in range(L):
-                    Tt[np.arange(L - d), :, np.arange(d, L), :] = hT[d]
-                T = ("toeplitz", Tt.reshape(L * k, L * r))
-            if len(self._kernels) > 64:
-                self._kernels.clear()
-            self._kernels[ck] = T
+            else:   # Tt[l, c, q, j] = h[q - l, j, c] for q >= l, from a sliding view
+                hp = np.concatenate([np.zeros((L - 1, k, r)), h.transpose(0, 2, 1)])
+                win = np.lib.stride_tricks.sliding_window_view(hp, L, axis=0)  # (L, k, r, L)
+                T = ("toeplitz", np.ascontiguousarray(
+                    win[::-1].transpose(0, 1, 3, 2)).reshape(L * k, L * r))
+            self._keep(ck, T)
         if T[0] == "fft":
             return _causal_conv(T[1], Wu, T[2]).reshape(Wu.shape[0], L * r)
         return Wu.reshape(Wu.shape[0], L * k) @ T[1]
+
+    def _keep(self, key, value):
+        """Keep a derived matrix of this loop (a bounded cache)."""
+        if len(self._kernels) > 64:
+            self._kernels.clear()
+        self._kernels[key] = value
+
+    def _rows(self, key, t: _RunType, sel) -> np.ndarray:
+        """``C M^q`` of the live rows ``sel`` of a run type, ``(L r_sel, s)`` (kept)."""
+        if sel.size == t.live.size:
+            return t.O
+        ck = ("rows", key, sel.tobytes())
+        O = self._kernels.get(ck)
+        if O is None:
+            O = np.ascontiguousarray(t.O.reshape(t.L, t.live.size, -1)[:, sel]).reshape(
+                t.L * sel.size, -1)
+            self._keep(ck, O)
+        return O
+
+    def _limit_bounds(self, key, t: _RunType, pos, X, Wu, active) -> np.ndarray:
+        """Upper bounds of ``|y|`` over the runs of one type for the live rows ``pos``,
+        ``(len(pos),)``: ``max_q |C_q M^q x_0| <= sum_j max_q |(C M^q)_ij| |x_0j|`` and
+        ``|sum h_(q-l) w_l| <= sum_c (sum_p |h_p|_ic) max_l |w_lc|`` (Hoelder), rigorous
+        whatever the scales of the states."""
+        ck = ("absmax", key, pos.tobytes())
+        A = self._kernels.get(ck)
+        if A is None:
+            A = np.abs(t.O.reshape(t.L, t.live.size, -1)[:, pos]).max(axis=0)   # (p, s)
+            self._keep(ck, A)
+        b = A @ np.abs(X).T                                              # (p, n_u)
+        if active.size:
+            h1 = np.abs(self._columns(t, active)[1][:, pos]).sum(axis=0)  # (p, k)
+            b += h1 @ np.abs(Wu).max(axis=1).T                            # (p, n_u)
+        return b.max(axis=1)
 
     # ------------------------------------------------------------------ running
     def times(self, n_ticks: int, every: int = 1) -> np.ndarray:
@@ -370,7 +405,7 @@ class FastResponse:
         """
         return self.run_many([W], check)[0]
 
-    def run_many(self, Ws, check: bool = True) -> list:
+    def run_many(self, Ws, check: bool = True, bound_limits: bool = False) -> list:
         """The records driven by each ``W`` of ``Ws``, from rest, computed together.
 
         The events of one configuration share its loop: their state recursions are one
@@ -385,6 +420,12 @@ class FastResponse:
             Raise :class:`NonlinearError` when a limited output of a record leaves its
             range (the first such record); else each record's ``limits`` say how much
             of each range it used (above 1: reached).
+        bound_limits : bool
+            Checked outputs that are not recorded are computed only where a rigorous
+            bound (:meth:`_limit_bounds`) does not keep them inside their range; where
+            it does, ``limits`` holds that bound (an upper bound of the fraction used).
+            ``reached`` is exact either way.  What Monte Carlo uses: its records need
+            their references and the knowledge that no rail is reached.
 
         Returns
         -------
@@ -435,31 +476,55 @@ class FastResponse:
         for i, (key, _) in enumerate(units):
             X0[:, i] = x.T
             x = types[key].ML @ x + g[i]
+        # checked outputs that are not recorded, bounded instead of computed where the
+        # bound keeps them inside their range
+        n_ref = len(self._computed)
+        bounds = np.zeros((E, r))
+        skip = np.zeros(r, bool)
+        if bound_limits and r > n_ref:
+            for key, idx in by_type.items():
+                t = types[key]
+                pos = np.flatnonzero(t.live >= n_ref)
+                for e, (Wa, active) in enumerate(zip(Was, actives)):
+                    b = self._limit_bounds(key, t, pos, X0[e, idx], Wa[windows[key]], active)
+                    bounds[e, t.live[pos]] = np.maximum(bounds[e, t.live[pos]], b)
+            room = np.full(r, -np.inf)
+            for j, (_, lo, hi, _) in enumerate(self._checks):
+                c = self._check_col[j]
+                if c >= n_ref and hi > 0 and lo < 0:
+                    room[c] = min(hi, -lo)
+            # a margin far above the round-off of the bound itself
+            skip = np.all(bounds * (1.0 + 1e-6) < room, axis=0)
         # outputs: C M^q x_0 + (h * w), per run type
         Y = np.zeros((E, K, r))
         for key, idx in by_type.items():
             t, n_u = types[key], len(idx)
+            sel = np.flatnonzero(~skip[t.live])
             X = X0[:, idx].reshape(E * n_u, s)
-            out = (X @ t.O.T).reshape(E, n_u, t.L * t.live.size)          # free response
+            out = (X @ self._rows(key, t, sel).T).reshape(E, n_u, t.L * sel.size)   # free
             for e, (Wa, active) in enumerate(zip(Was, actives)):
                 if active.size:
-                    out[e] += self._forced(key, t, active, Wa[windows[key]])
+                    out[e] += self._forced(key, t, active, Wa[windows[key]], sel)
             rows = windows[key].ravel()
-            out = out.reshape(E, n_u * t.L, t.live.size)
-            if t.live.size == r:
+            out = out.reshape(E, n_u * t.L, sel.size)
+            if sel.size == r:
                 Y[:, rows] = out
             else:
-                Y[:, rows[:, None], t.live] = out
-        return [self._record(y, check) for y in Y]
+                Y[:, rows[:, None], t.live[sel]] = out
+        return [self._record(y, check, np.where(skip, b, np.nan)) for y, b in zip(Y, bounds)]
 
-    def _record(self, Y: np.ndarray, check: bool) -> Record:
-        """A record from the computed rows ``Y`` (n_ticks + 1, r): limits checked."""
+    def _record(self, Y: np.ndarray, check: bool, bounds=None) -> Record:
+        """A record from the computed rows ``Y`` (n_ticks + 1, r): limits checked.
+        ``bounds`` (r,): where not NaN, the row was not computed and this bounds it."""
         K = Y.shape[0]
         times = self.times(K - 1)
         n_ref = len(self._computed)
         limits, reached = {}, []
         top, bottom = Y.max(axis=0)[self._check_col], Y.min(axis=0)[self._check_col]
         for j, (ref, lo, hi, what) in enumerate(self._checks):
+            if bounds is not None and not np.isnan(bounds[self._check_col[j]]):
+                limits[ref] = float(bounds[self._check_col[j]] / min(hi, -lo))
+                continue
             used = max(top[j] / hi if hi > 0 else 0.0, bottom[j] / lo if lo < 0 else 0.0)
             limits[ref] = float(used)
             if top[j] > hi or bottom[j] < lo:
@@ -478,40 +543,6 @@ class FastResponse:
             values = np.ascontiguousarray(Y[:, :n_ref])
         return Record(values, times, self.refs, limits, tuple(reached))
 
-    # ------------------------------------------------------------------ steady state
-    def period_map(self) -> np.ndarray:
-        """The memory state's map over one super-period, ``(n_memory, n_memory)``."""
-        Phi = np.eye(self.n_memory)
-        for sig, L in self._runs:
-            Phi = self._type(sig, L).ML @ Phi
-        return Phi
-
-    def period_schur(self) -> tuple:
-        """Sorted complex Schur form of the balanced super-period map, kept once computed
-        (a second sweep or steady state on this loop reuses it).
-
-        Exact power-of-two balancing first (the memory state mixes metres, volts and
-        strains).  Eigenvalues at 1 (rigid-body modes of an open attitude loop,
-        integrators) come last: a line whose ``z = exp(j 2 pi f P base)`` is 1 makes
-        ``z I - T`` singular there, and :meth:`steady_state` solves that block by least
-        squares (the steady state exists; only a constant along the null direction is
-        free).
-
-        Returns
-        -------
-        (T, Q, n_top, scale)
-            ``D^-1 Phi D = Q T Q^H`` with ``D = diag(scale)``; ``T[:n_top, :n_top]``
-            holds the eigenvalues away from 1.
-        """
-        if self._schur is None:
-            import scipy.linalg as la
-
-            Phi_b, scale = balance(self.period_map())
-            T, Q, k_top = la.schur(Phi_b, output="complex",
-                                   sort=lambda v: abs(v - 1.0) > _UNIT_EIG_TOL)
-            self._schur = (T, Q, int(k_top), scale)
-        return self._schur
-
     def ref_rows(self, refs) -> np.ndarray:
         """Rows of the computed outputs (``Y`` columns) holding ``refs``."""
         computed = [self.refs[j] for j in self._computed]
@@ -520,159 +551,6 @@ class FastResponse:
             raise AnalysisError(f"{missing[0]!r} is not among the recorded outputs of the "
                                 f"compiled scenario ({', '.join(computed[:8])} ...)")
         return np.array([computed.index(r) for r in refs], int)
-
-    def steady_state(self, freqs_hz, phasors, refs, chunk: int = 256) -> np.ndarray:
-        """Periodic steady state of ``refs`` under harmonic sources, one per frequency.
-
-        Source channel ``c`` publishes ``Re(a_c exp(j 2 pi f t_k))`` at its due ticks.
-        With mixed rates the response to one frequency is not one sinusoid (the slow
-        instances alias it), but it is periodic in the super-period ``P`` up to the
-        factor ``z = exp(j 2 pi f P base)``: the record is
-        ``y(t_(nP + p)) = Re(z^n Y[p])``, exact.
-
-        Parameters
-        ----------
-        freqs_hz : array_like, shape (n_f,)
-            Frequencies (Hz).
-        phasors : array_like, shape (n_f, m)
-            Complex amplitude of every source channel at each frequency (the columns of
-            :meth:`input_matrix`).
-        refs : sequence of str
-            Recorded outputs to return.
-        chunk : int
-            Frequencies computed together (memory ``~ P r m chunk``).
-
-        Returns
-        -------
-        ndarray, shape (P, n_f, len(refs)), complex
-            ``Y[p]`` per frequency.
-        """
-
-        freqs = np.atleast_1d(np.asarray(freqs_hz, float))
-        A = np.asarray(phasors, complex).reshape(freqs.size, self.m)
-        sel = self.ref_rows(refs)
-        active = np.flatnonzero(np.any(A != 0, axis=0))
-        base = float(self.lin.plan.timebase.base)
-        units, k = [], 0
-        for sig, L in self._runs:
-            units.append((self._type(sig, L), k))
-            k += L
-        T, Q, n_top, scale = self.period_schur()
-        out = np.zeros((self.P, freqs.size, sel.size), complex)
-        for c0 in range(0, freqs.size, chunk):
-            f = freqs[c0:c0 + chunk]
-            a = A[c0:c0 + chunk][:, active]                           # (n_c, m_a)
-            wv = 2 * np.pi * f * base                                  # rad per tick
-            forcing = []
-            for t, start in units:
-                E = np.exp(1j * np.outer(np.arange(t.L), wv))          # (L, n_c)
-                B = E[:, None, :] * a.T[None, :, :]                    # (L, m_a, n_c)
-                G = self._columns(t, active)[0].reshape(self.n_memory, -1)
-                forcing.append(np.exp(1j * wv * start) * (G @ B.reshape(-1, f.size)))
-            x = np.zeros((self.n_memory, f.size), complex)
-            for (t, _), g in zip(units, forcing):
-                x = t.ML @ x + g                                       # forced, from rest
-            z = np.exp(1j * wv * self.P)
-            y = Q.conj().T @ (x / scale[:, None])
-            X0 = np.zeros_like(y)
-            on = np.flatnonzero(np.any(a != 0, axis=1))   # a wheel at rest: no solve at z = 1
-            if on.size:
-                X0[:, on] = _solve_shifted(T, z[on], y[:, on], n_top)   # (z I - T) X0 = y
-            x = (Q @ X0) * scale[:, None]
-            for (t, start), g in zip(units, forcing):
-                live = np.searchsorted(t.live, sel)
-                present = (live < t.live.size) & (t.live[np.minimum(live, t.live.size - 1)]
-                                                  == sel)
-                rows = live[present]
-                O = t.O.reshape(t.L, t.live.size, -1)[:, rows].reshape(t.L * rows.size, -1)
-                Yq = (O @ x).reshape(t.L, rows.size, f.size)          # (L, r, n_c)
-                if active.size:
-                    h = self._columns(t, active)[1][:, rows]          # (L, r, m_a)
-                    E = np.exp(-1j * np.outer(np.arange(t.L), wv))     # (L, n_c)
-                    B = E[:, None, :] * a.T[None, :, :]                # (L, m_a, n_c)
-                    conv = np.cumsum(h @ B, axis=0)                    # (L, r, n_c)
-                    phase = np.exp(1j * np.outer(start + np.arange(t.L), wv))   # (L, n_c)
-                    Yq = Yq + phase[:, None, :] * conv
-                Y = np.zeros((t.L, f.size, sel.size), complex)
-                Y[:, :, present] = Yq.transpose(0, 2, 1)
-                out[start:start + t.L, c0:c0 + chunk] = Y
-                x = t.ML @ x + g
-        return out
-
-
-#: An eigenvalue of the super-period map within this of 1 is a unit eigenvalue.
-_UNIT_EIG_TOL = 1e-6
-#: Singular values of the unit block below this fraction of its largest are null.
-_UNIT_RCOND = 1e-8
-
-
-#: Rows of a back-substitution block (the rest of the triangle is one product per block).
-_BLOCK_ROWS = 32
-
-
-def _solve_shifted(T: np.ndarray, z: np.ndarray, Y: np.ndarray, n_top: int) -> np.ndarray:
-    """Solve ``(z_j I - T) x_j = y_j`` for every column ``j``, ``T`` upper triangular with
-    its unit eigenvalues from ``n_top`` on (:meth:`FastResponse.period_schur`).
-
-    The trailing block by least squares (minimum norm, singular values below
-    ``_UNIT_RCOND`` of the largest dropped, one SVD per column, all at once), then the
-    leading block by back substitution for every column together: blocks of
-    ``_BLOCK_ROWS`` rows, each updated by one product with the solved rows below it.
-
-    Parameters
-    ----------
-    T : ndarray, shape (n, n), complex
-    z : ndarray, shape (n_f,), complex
-    Y : ndarray, shape (n, n_f), complex
-
-    Returns
-    -------
-    ndarray, shape (n, n_f), complex
-    """
-    n = T.shape[0]
-    X = np.empty(Y.shape, complex)
-    R = Y.astype(complex, copy=True)
-    if n_top < n:
-        A = -T[n_top:, n_top:][None] + np.eye(n - n_top)[None] * z[:, None, None]
-        U, sv, Vh = np.linalg.svd(A)                              # (n_f, u, u), (n_f, u)
-        keep = sv > _UNIT_RCOND * sv[:, :1]
-        c = np.einsum("fji,jf->fi", U.conj(), R[n_top:])         # U^H y
-        c = np.where(keep, c / np.where(keep, sv, 1.0), 0.0)
-        X[n_top:] = np.einsum("fji,fj->if", Vh.conj(), c)        # V c
-        R[:n_top] += T[:n_top, n_top:] @ X[n_top:]
-    diag = np.diag(T)
-    for i1 in range(n_top, 0, -_BLOCK_ROWS):
-        i0 = max(0, i1 - _BLOCK_ROWS)
-        if i1 < n_top:
-            R[i0:i1] += T[i0:i1, i1:n_top] @ X[i1:n_top]
-        for i in range(i1 - 1, i0 - 1, -1):
-            r = R[i] + T[i, i + 1:i1] @ X[i + 1:i1] if i + 1 < i1 else R[i]
-            X[i] = r / (z - diag[i])
-    return X
-
-
-def balance(A: np.ndarray):
-    """Exact power-of-two diagonal balancing: ``(D^-1 A D, diag(D))``.
-
-    The memory state of a loop mixes metres, volts and strains; without it a Schur form
-    or an eigenvalue of the loop loses digits to the spread of scales.  A state whose row
-    or column of ``A`` is zero up to round-off (a source's held output, written afresh
-    each period and never carried over) cannot be balanced: the iteration drives its
-    scale to 1e-50 or so, which a vector with that state non-zero does not survive, so
-    it keeps scale 1.
-    """
-    import scipy.linalg as la
-
-    with np.errstate(invalid="ignore"):   # scipy casts its unused permutation
-        Ab, T = la.matrix_balance(A, permute=False)
-    d = np.diag(T).copy()
-    # zero up to round-off of the products that made A (1e-53 against 3 seen)
-    tiny = np.finfo(float).eps ** 2 * np.abs(A).max()
-    idle = (np.abs(A).max(axis=0) <= tiny) | (np.abs(A).max(axis=1) <= tiny)
-    if np.any(idle & (d != 1.0)):
-        d[idle] = 1.0
-        Ab = A / d[:, None] * d[None, :]      # powers of two: exact
-    return Ab, d
 
 
 def _causal_conv(h: np.ndarray, w: np.ndarray, Hf=None) -> np.ndarray:

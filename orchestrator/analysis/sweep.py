@@ -20,7 +20,8 @@ import numpy as np
 
 from .. import metrics as M
 from .blocks import AnalysisError
-from .fast import FastResponse, balance
+from .fast import FastResponse
+from .steady import balance
 
 __all__ = ["WheelSweep", "steady_jitter", "unstable_poles", "wheel_sweep"]
 

@@ -69,15 +69,29 @@ def _setup(campaign, runner):
     ctx = _layout(campaign)
     refs, configs, events = ctx["refs"], ctx["configs"], ctx["events"]
     case_of = {(c.configuration, c.event): c for c in campaign.cases if not c.sweep}
-    base, inputs = {}, {}
+    base, inputs, models = {}, {}, {}
     for cf in configs:
         fr0 = runner.compiled(case_of[(cf, events[0])].scenario)
         structs = [n for n, b in fr0.lin.blocks.items() if b.kind == "structure"]
         base[cf] = (fr0.lin, structs, FastResponse(fr0.lin, refs))
+        for name in structs:   # configurations with equal structures share its blocks
+            b = fr0.lin.blocks[name]
+            models[(cf, name)] = (name, _digest(b.model), b.period, b.feedthrough.tobytes())
         for ev in events:
             sc = case_of[(cf, ev)].scenario
             inputs[(cf, ev)] = (sc, runner.inputs(runner.compiled(sc), sc))
-    return {**ctx, "base": base, "inputs": inputs}
+    return {**ctx, "base": base, "inputs": inputs, "models": models}
+
+
+def _digest(model) -> str:
+    """A digest of a reduced model's arrays and numbers (equal models, equal digests)."""
+    h = hashlib.sha256()
+    for f in dataclasses.fields(model):
+        v = getattr(model, f.name)
+        h.update(f.name.encode())
+        h.update(np.ascontiguousarray(v).tobytes() if isinstance(v, np.ndarray)
+                 else repr(v).encode())
+    return h.hexdigest()
 
 
 def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
@@ -100,14 +114,18 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                       len(ctx["pairs"]), len(campaign.metrics)), np.nan)
     status = np.zeros((len(samples), len(ctx["configs"])), int)
     for row, s in enumerate(samples):
+        blocks = {}   # the sample's structure blocks: the configurations share them
         for ci, cf in enumerate(ctx["configs"]):
             lin, structs, fr = ctx["base"][cf]
             if structural:
                 for name in structs:
                     b = lin.blocks[name]
-                    lin = lin.with_block(structure_block(
-                        _perturbed(b.model, draws, items, s), name, b.period,
-                        b.period * lin.base, b.feedthrough))
+                    key = ctx["models"][(cf, name)]
+                    if key not in blocks:
+                        blocks[key] = structure_block(_perturbed(b.model, draws, items, s),
+                                                      name, b.period, b.period * lin.base,
+                                                      b.feedthrough)
+                    lin = lin.with_block(blocks[key])
                 for it in items:
                     if it.kind == "gain":
                         for j, inst in enumerate(it.instances):
@@ -120,7 +138,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
             # the events of a configuration share its loop: computed together
             Ws = [_sample_input(runner, fr, *ctx["inputs"][(cf, ev)], draws, items, s)
                   for ev in ctx["events"]]
-            for ei, rec in enumerate(fr.run_many(Ws, check=False)):
+            for ei, rec in enumerate(fr.run_many(Ws, check=False, bound_limits=True)):
                 if rec.reached:   # a rail or limit: outside the linear model
                     values[row, ci] = np.inf
                     status[row, ci] |= 1

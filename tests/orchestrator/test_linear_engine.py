@@ -140,6 +140,17 @@ def test_records_computed_together_equal_each_alone(eos_pair):
         # the tolerance is absolute in units of the rail
         assert got.limits == pytest.approx(want.limits, rel=0, abs=1e-12)
     assert not np.any(together[2].values) and together[2].reached == ()
+    # checked outputs bounded instead of computed: the same references, and every bound
+    # at or above the fraction of its range the record uses
+    bounded = fr.run_many(Ws, check=False, bound_limits=True)
+    for got, want in zip(bounded, together):
+        np.testing.assert_array_equal(got.values, want.values)
+        assert got.reached == want.reached
+        for ref, used in want.limits.items():
+            assert got.limits[ref] >= used * (1 - 1e-12), ref
+    # and some were bounded, not computed (a bound is above the exact fraction)
+    assert any(got.limits[ref] > want.limits[ref] * (1 + 1e-9)
+               for got, want in zip(bounded, together) for ref in want.limits)
 
 
 def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):
@@ -155,9 +166,10 @@ def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):
         runner(sc, tmp_path / "rail")
     # unchecked, the record says which outputs left their range (what Monte Carlo reads)
     fr = runner.compiled(sc)
-    rec = fr.run_many([runner.inputs(fr, sc)], check=False)[0]
-    assert "piezo_swir_mount1.voltage" in rec.reached
-    assert rec.limits["piezo_swir_mount1.voltage"] > 1.0
+    for bound in (False, True):   # a bound that does not clear the rail: computed
+        rec = fr.run_many([runner.inputs(fr, sc)], check=False, bound_limits=bound)[0]
+        assert "piezo_swir_mount1.voltage" in rec.reached
+        assert rec.limits["piezo_swir_mount1.voltage"] > 1.0
 
 
 @pytest.mark.parametrize("param, value, words", [

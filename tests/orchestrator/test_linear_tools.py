@@ -335,7 +335,7 @@ def test_shifted_triangular_solve_against_a_solve_per_frequency():
     per-frequency solve did), z = 1 included (singular there: the minimum-norm answer)."""
     import scipy.linalg as la
 
-    from orchestrator.analysis.fast import _UNIT_RCOND, _solve_shifted
+    from orchestrator.analysis.steady import _UNIT_RCOND, _solve_shifted
 
     rng = np.random.default_rng(5)
     n, u = 70, 4                   # 66 eigenvalues inside the circle, 4 at 1

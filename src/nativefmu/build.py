@@ -84,11 +84,12 @@ def _c_string(text: str) -> str:
 def _model_config(root: ET.Element) -> str:
     """``model_config.h``: identifier, GUID and the variable table of ``root``."""
     model_id = root.find("CoSimulation").get("modelIdentifier")
-    rows, max_vr = [], -1
+    rows, max_vr, first = [], -1, {}
     for sv in root.iterfind("ModelVariables/ScalarVariable"):
         typed = next(child for child in sv if child.tag in _TYPES)
         vr = int(sv.get("valueReference"))
         max_vr = max(max_vr, vr)
+        first.setdefault(vr, len(rows))
         start = typed.get("start")
         number, text = "0.0", "NULL"
         if typed.tag == "Real" and start is not None:
@@ -104,6 +105,7 @@ def _model_config(root: ET.Element) -> str:
         causality = _CAUSALITIES.get(sv.get("causality", "local"), "JF_OTHER")
         rows.append(f"    {{{_c_string(sv.get('name'))}, {vr}u, {_TYPES[typed.tag]}, "
                     f"{causality}, {tunable}, {number}, {text}}},")
+    index = [first.get(v, -1) for v in range(max_vr + 1)] + [-1]
     return "\n".join([
         f"/* Generated from the model description of {model_id} (do not edit). */",
         "#ifndef MODEL_CONFIG_H",
@@ -114,6 +116,12 @@ def _model_config(root: ET.Element) -> str:
         f"#define JF_N_VR {max_vr + 1}u",
         "static const JfVar JF_VARS[JF_N_VARS] = {",
         *rows,
+        "};",
+        "/* per value reference, its first row of JF_VARS (-1: none): a lookup per call;",
+        "   one entry more, -1, so that the table is never empty */",
+        "static const int JF_VAR_INDEX[JF_N_VR + 1u] = {",
+        *[f"    {', '.join(str(index[i:i + 16]).strip('[]').split(', '))},"
+          for i in range(0, len(index), 16)],
         "};",
         "#endif",
         "",

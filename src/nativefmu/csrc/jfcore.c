@@ -65,11 +65,10 @@ void *jf_alloc(JfInstance *inst, size_t n, size_t size) {
     return p;
 }
 
+/* The variable of value reference vr (< JF_N_VR), its first row as the table lists it. */
 static const JfVar *var_of(unsigned int vr) {
-    size_t i;
-    for (i = 0; i < JF_N_VARS; i++)
-        if (JF_VARS[i].vr == vr) return &JF_VARS[i];
-    return NULL;
+    int i = JF_VAR_INDEX[vr];
+    return i < 0 ? NULL : &JF_VARS[i];
 }
 
 long jf_vr(JfInstance *inst, const char *name, int type) {

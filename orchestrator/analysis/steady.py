@@ -97,24 +97,24 @@ class SteadyState:
                 E = np.exp(1j * np.outer(np.arange(t.L), wv))          # (L, n_c)
                 B = E[:, None, :] * a.T[None, :, :]                    # (L, m_a, n_c)
                 G = self._columns(t, active)[0].reshape(self.n_memory, -1)
-                forcing.append(np.exp(1j * wv * start) * (G @ B.reshape(-1, f.size)))
+                forcing.append(np.exp(1j * wv * start) * _rc(G, B.reshape(-1, f.size)))
             x = np.zeros((self.n_memory, f.size), complex)
             for (t, _), g in zip(units, forcing):
-                x = t.ML @ x + g                                       # forced, from rest
+                x = _rc(t.ML, x) + g                                   # forced, from rest
             z = np.exp(1j * wv * self.P)
             y = Q.conj().T @ (x / scale[:, None])
             X0 = np.zeros_like(y)
             on = np.flatnonzero(np.any(a != 0, axis=1))   # a wheel at rest: no solve at z = 1
             if on.size:
                 X0[:, on] = _solve_shifted(T, z[on], y[:, on], n_top)   # (z I - T) X0 = y
-            x = (Q @ X0) * scale[:, None]
+            x = np.ascontiguousarray((Q @ X0) * scale[:, None])
             for (t, start), g in zip(units, forcing):
                 live = np.searchsorted(t.live, sel)
                 present = (live < t.live.size) & (t.live[np.minimum(live, t.live.size - 1)]
                                                   == sel)
                 rows = live[present]
-                O = t.O.reshape(t.L, t.live.size, -1)[:, rows].reshape(t.L * rows.size, -1)
-                Yq = (O @ x).reshape(t.L, rows.size, f.size)          # (L, r, n_c)
+                O = self._rows(("steady", t.L, id(t)), t, rows)
+                Yq = _rc(O, x).reshape(t.L, rows.size, f.size)        # (L, r, n_c)
                 if active.size:
                     h = self._columns(t, active)[1][:, rows]          # (L, r, m_a)
                     E = np.exp(-1j * np.outer(np.arange(t.L), wv))     # (L, n_c)
@@ -122,11 +122,23 @@ class SteadyState:
                     conv = np.cumsum(h @ B, axis=0)                    # (L, r, n_c)
                     phase = np.exp(1j * np.outer(start + np.arange(t.L), wv))   # (L, n_c)
                     Yq = Yq + phase[:, None, :] * conv
-                Y = np.zeros((t.L, f.size, sel.size), complex)
-                Y[:, :, present] = Yq.transpose(0, 2, 1)
-                out[start:start + t.L, c0:c0 + chunk] = Y
-                x = t.ML @ x + g
+                if present.all():
+                    out[start:start + t.L, c0:c0 + chunk] = Yq.transpose(0, 2, 1)
+                else:
+                    Y = np.zeros((t.L, f.size, sel.size), complex)
+                    Y[:, :, present] = Yq.transpose(0, 2, 1)
+                    out[start:start + t.L, c0:c0 + chunk] = Y
+                x = _rc(t.ML, x) + g
         return out
+
+
+def _rc(A: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """``A @ X`` for a real ``A`` and a complex ``X``: one real product on the interleaved
+    real and imaginary parts (half the work of a complex product, no complex copy of
+    ``A``)."""
+    X = np.ascontiguousarray(X, complex)
+    n, k = X.shape
+    return (A @ X.view(float).reshape(n, 2 * k)).view(complex).reshape(A.shape[0], k)
 
 
 #: An eigenvalue of the super-period map within this of 1 is a unit eigenvalue.

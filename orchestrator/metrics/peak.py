@@ -26,6 +26,9 @@ Cost
 ----
 Running maxima and minima come from :func:`scipy.ndimage.maximum_filter1d` and
 :func:`~scipy.ndimage.minimum_filter1d`, which take O(N) time whatever the window length.
+:func:`peak_to_peak` takes the largest range in one compiled pass instead
+(:mod:`orchestrator.metrics._window`, monotone queues, the same values) when a C compiler
+is there and the record is finite.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
 from ._checks import RecordTooShortError, as_record, intervals
+from ._window import window_range_max
 
 __all__ = ["peak_to_peak", "peak_to_peak_series", "window_samples"]
 
@@ -142,5 +146,7 @@ def peak_to_peak(x, dt: float, window: float, *, axis: int = -1, short: str = "r
             )
         out = arr.max(axis=-1) - arr.min(axis=-1)
     else:
-        out = peak_to_peak_series(arr, dt, window).max(axis=-1)
+        out = window_range_max(arr, n)   # compiled, one pass; the same values
+        if out is None:
+            out = peak_to_peak_series(arr, dt, window).max(axis=-1)
     return out[()] if out.ndim == 0 else out

@@ -308,3 +308,29 @@ def test_campaign_ecss_kinds_on_a_ramp():
     # linear and even in e, as a budget's RSS over events assumes
     np.testing.assert_allclose(metric_values(-3 * e, dt, [("ape", None), ("pde", T)]),
                                [3 * want[0], 3 * want[3]], rtol=1e-12)
+
+
+def test_compiled_window_range_against_the_definition_and_the_filters(monkeypatch):
+    """The one-pass compiled maximum of window ranges against the definition (every
+    window by brute force) and against the running filters it replaces, value for value;
+    without the library, or for a record that is not finite, the filters answer."""
+    from orchestrator.metrics import _window
+    from orchestrator.metrics.peak import peak_to_peak, peak_to_peak_series
+
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal((4, 400)).cumsum(axis=1)
+    x[1] = np.sin(0.3 * np.arange(400))
+    x[2, 100:200] = 1.5                                   # plateaus: ties in the queues
+    for n in (1, 2, 3, 17, 399, 400):
+        want = np.array([max(np.ptp(row[i:i + n]) for i in range(400 - n + 1)) for row in x])
+        got = _window.window_range_max(x, n)
+        assert got is not None and np.array_equal(got, want), n
+    dt, window = 1e-3, 0.05
+    np.testing.assert_array_equal(peak_to_peak(x, dt, window),
+                                  peak_to_peak_series(x, dt, window).max(axis=-1))
+    y = x.copy()
+    y[0, 5] = np.nan
+    assert _window.window_range_max(y, 10) is None
+    monkeypatch.setattr(_window, "_library", lambda: None)
+    np.testing.assert_array_equal(peak_to_peak(x, dt, window),
+                                  peak_to_peak_series(x, dt, window).max(axis=-1))

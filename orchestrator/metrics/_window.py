@@ -1,0 +1,82 @@
+"""The windowed peak-to-peak maximum compiled to C (``window.c``), when a compiler is.
+
+:func:`window_range_max` is what :func:`orchestrator.metrics.peak.peak_to_peak` returns
+for complete windows: the largest ``max - min`` over every window of ``n`` consecutive
+samples, by monotone queues in one pass (about 4x the speed of the two running filters
+it replaces).  The library is compiled once per configuration into the private cache
+(:func:`fmutools.compiled.compiled_once`); without a C compiler, or for a record that is
+not finite, the caller's filters run instead.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import hashlib
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+from fmutools.compiled import compiled_once, compiler_version
+
+__all__ = ["window_range_max"]
+
+SOURCE = Path(__file__).with_name("window.c")
+CFLAGS = ("-std=c99", "-O2", "-fno-fast-math", "-fPIC", "-shared", "-Wall")
+
+
+@functools.cache
+def _library() -> ctypes.CDLL | None:
+    """``window.c`` compiled once, or None without a usable C compiler."""
+    cc = shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        return None
+    h = hashlib.sha256(SOURCE.read_bytes())
+    h.update(json.dumps({"cc": cc, "cc_version": compiler_version(cc), "flags": CFLAGS},
+                        sort_keys=True).encode())
+
+    def compile_to(out):
+        proc = subprocess.run([cc, *CFLAGS, str(SOURCE), "-o", str(out)],
+                              capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            raise OSError(proc.stderr.strip())
+
+    try:
+        lib = ctypes.CDLL(str(compiled_once("window", h.hexdigest(), compile_to)))
+    except OSError:
+        return None
+    lib.window_range_max.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long,
+                                     ctypes.c_long, ctypes.c_void_p]
+    lib.window_range_max.restype = ctypes.c_int
+    return lib
+
+
+def window_range_max(arr: np.ndarray, n: int) -> np.ndarray | None:
+    """Largest ``max - min`` over the windows of ``n`` samples along the last axis.
+
+    Parameters
+    ----------
+    arr : ndarray, shape (..., n_samples)
+        Finite samples, ``n_samples >= n >= 1``.
+    n : int
+        Samples per window.
+
+    Returns
+    -------
+    ndarray, shape (...), or None
+        None when the compiled kernel cannot run (no compiler, a value not finite): the
+        caller computes it another way.
+    """
+    lib = _library()
+    if lib is None or arr.shape[-1] < n or n < 1 or not np.isfinite(arr).all():
+        return None
+    x = np.ascontiguousarray(arr, dtype=float)
+    rows = int(np.prod(x.shape[:-1], dtype=np.int64))
+    out = np.empty(rows)
+    if rows and lib.window_range_max(x.ctypes.data, rows, x.shape[-1], n,
+                                     out.ctypes.data) != 0:
+        return None
+    return out.reshape(x.shape[:-1])

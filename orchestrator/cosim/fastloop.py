@@ -16,15 +16,11 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import hashlib
-import json
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 
-from fmutools.compiled import compiled_once, compiler_version
+from fmutools.compiled import c_library
 
 __all__ = ["RUN_FMI_STATUS", "RUN_NOT_FINITE", "RUN_OK", "RUN_OUT_OF_RANGE", "FastLoop", "compiled_library",
            "fast_loop"]
@@ -75,24 +71,9 @@ def compiled_library() -> ctypes.CDLL | None:
     compiler (path and version) and its flags; it is compiled in a temporary folder
     and renamed into place, so a killed build never leaves half a library.
     """
-    cc = shutil.which("gcc") or shutil.which("cc")
-    if cc is None:
+    lib = c_library("fastloop", SOURCE, CFLAGS, LIBS)
+    if lib is None:   # no usable compiler: the Python loop runs
         return None
-    h = hashlib.sha256(SOURCE.read_bytes())
-    h.update(json.dumps({"cc": cc, "cc_version": compiler_version(cc),
-                         "flags": [*CFLAGS, *LIBS]}, sort_keys=True).encode())
-
-    def compile_to(out):
-        proc = subprocess.run([cc, *CFLAGS, str(SOURCE), "-o", str(out), *LIBS],
-                              capture_output=True, text=True, check=False)
-        if proc.returncode != 0:
-            raise OSError(proc.stderr.strip())
-
-    try:
-        dest = compiled_once("fastloop", h.hexdigest(), compile_to)
-    except OSError:   # no usable compiler: the Python loop runs
-        return None
-    lib = ctypes.CDLL(str(dest))
     lib.fastloop_run.argtypes = [ctypes.POINTER(_Loop), ctypes.c_int64, ctypes.c_int64,
                                  ctypes.c_void_p, ctypes.POINTER(_Result)]
     lib.fastloop_run.restype = ctypes.c_int

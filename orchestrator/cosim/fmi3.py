@@ -18,11 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import hashlib
 import itertools
-import json
-import shutil
-import subprocess
 from pathlib import Path
 
 from fmpy.fmi3 import (
@@ -32,7 +28,7 @@ from fmpy.fmi3 import (
     fmi3ValueReference,
 )
 
-from fmutools.compiled import compiled_once, compiler_version
+from fmutools.compiled import c_library
 
 __all__ = ["Fmi3Binding", "Fmi3Slave", "open_fmi3", "shim_library"]
 
@@ -71,22 +67,8 @@ class _Shim(ctypes.Structure):
 @functools.cache
 def shim_library() -> ctypes.CDLL | None:
     """``fmi3shim.c`` compiled once per configuration, or None without a C compiler."""
-    cc = shutil.which("gcc") or shutil.which("cc")
-    if cc is None:
-        return None
-    h = hashlib.sha256(SOURCE.read_bytes())
-    h.update(json.dumps({"cc": cc, "cc_version": compiler_version(cc), "flags": CFLAGS},
-                        sort_keys=True).encode())
-
-    def compile_to(out):
-        proc = subprocess.run([cc, *CFLAGS, str(SOURCE), "-o", str(out)],
-                              capture_output=True, text=True, check=False)
-        if proc.returncode != 0:
-            raise OSError(proc.stderr.strip())
-
-    try:
-        lib = ctypes.CDLL(str(compiled_once("fmi3shim", h.hexdigest(), compile_to)))
-    except OSError:
+    lib = c_library("fmi3shim", SOURCE, CFLAGS)
+    if lib is None:
         return None
     vp, sz, u32p = ctypes.c_void_p, ctypes.c_size_t, ctypes.POINTER(ctypes.c_uint32)
     for name, values in (("real", ctypes.POINTER(ctypes.c_double)),

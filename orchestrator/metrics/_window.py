@@ -12,15 +12,11 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import hashlib
-import json
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 
-from fmutools.compiled import compiled_once, compiler_version
+from fmutools.compiled import c_library
 
 __all__ = ["window_range_max"]
 
@@ -31,26 +27,11 @@ CFLAGS = ("-std=c99", "-O2", "-fno-fast-math", "-fPIC", "-shared", "-Wall")
 @functools.cache
 def _library() -> ctypes.CDLL | None:
     """``window.c`` compiled once, or None without a usable C compiler."""
-    cc = shutil.which("gcc") or shutil.which("cc")
-    if cc is None:
-        return None
-    h = hashlib.sha256(SOURCE.read_bytes())
-    h.update(json.dumps({"cc": cc, "cc_version": compiler_version(cc), "flags": CFLAGS},
-                        sort_keys=True).encode())
-
-    def compile_to(out):
-        proc = subprocess.run([cc, *CFLAGS, str(SOURCE), "-o", str(out)],
-                              capture_output=True, text=True, check=False)
-        if proc.returncode != 0:
-            raise OSError(proc.stderr.strip())
-
-    try:
-        lib = ctypes.CDLL(str(compiled_once("window", h.hexdigest(), compile_to)))
-    except OSError:
-        return None
-    lib.window_range_max.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long,
-                                     ctypes.c_long, ctypes.c_void_p]
-    lib.window_range_max.restype = ctypes.c_int
+    lib = c_library("window", SOURCE, CFLAGS)
+    if lib is not None:
+        lib.window_range_max.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long,
+                                         ctypes.c_long, ctypes.c_void_p]
+        lib.window_range_max.restype = ctypes.c_int
     return lib
 
 

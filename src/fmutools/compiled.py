@@ -23,7 +23,7 @@ from pathlib import Path
 
 from fmutools.fmucache import CacheError, cache_root, is_own
 
-__all__ = ["compiled_once", "compiler_version", "is_own_file"]
+__all__ = ["c_library", "compiled_once", "compiler_version", "is_own_file"]
 
 _COMPILED: dict[str, Path] = {}
 
@@ -89,3 +89,46 @@ def compiled_once(name: str, key: str, compile_to: Callable[[Path], object]) -> 
             shutil.rmtree(partial, ignore_errors=True)
     _COMPILED[f"{name}-{key}"] = dest
     return dest
+
+
+def c_library(name: str, source: Path, flags, libs=()):
+    """The C file ``source`` compiled once per configuration and loaded, or None.
+
+    The cache entry ``<name>-<key>.so`` (:func:`compiled_once`) is keyed by a hash of
+    the source, the compiler (path and version) and its flags.
+
+    Parameters
+    ----------
+    name : str
+        File name prefix of the cache entry.
+    source : Path
+        The one C file.
+    flags, libs : sequence of str
+        Compiler flags (``-shared`` among them) and the libraries to link after it.
+
+    Returns
+    -------
+    ctypes.CDLL or None
+        None without a C compiler or when it fails: the caller's other way runs.
+    """
+    import ctypes
+    import hashlib
+    import json
+
+    cc = shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        return None
+    h = hashlib.sha256(Path(source).read_bytes())
+    h.update(json.dumps({"cc": cc, "cc_version": compiler_version(cc),
+                         "flags": [*flags, *libs]}, sort_keys=True).encode())
+
+    def compile_to(out):
+        proc = subprocess.run([cc, *flags, str(source), "-o", str(out), *libs],
+                              capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            raise OSError(proc.stderr.strip())
+
+    try:
+        return ctypes.CDLL(str(compiled_once(name, h.hexdigest(), compile_to)))
+    except OSError:
+        return None

@@ -29,8 +29,8 @@ def _library() -> ctypes.CDLL | None:
     """``window.c`` compiled once, or None without a usable C compiler."""
     lib = c_library("window", SOURCE, CFLAGS)
     if lib is not None:
-        lib.window_range_max.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long,
-                                         ctypes.c_long, ctypes.c_void_p]
+        lib.window_range_max.argtypes = [ctypes.c_void_p, *[ctypes.c_long] * 5,
+                                         ctypes.c_void_p]
         lib.window_range_max.restype = ctypes.c_int
     return lib
 
@@ -54,10 +54,16 @@ def window_range_max(arr: np.ndarray, n: int) -> np.ndarray | None:
     lib = _library()
     if lib is None or arr.shape[-1] < n or n < 1 or not np.isfinite(arr).all():
         return None
-    x = np.ascontiguousarray(arr, dtype=float)
-    rows = int(np.prod(x.shape[:-1], dtype=np.int64))
-    out = np.empty(rows)
-    if rows and lib.window_range_max(x.ctypes.data, rows, x.shape[-1], n,
-                                     out.ctypes.data) != 0:
+    x = np.asarray(arr, dtype=float)
+    n_samples = x.shape[-1]
+    flat = x.view()
+    try:   # the leading axes as one row axis, without a copy (else copy)
+        flat.shape = (-1, n_samples)
+    except AttributeError:
+        flat = np.ascontiguousarray(x).reshape(-1, n_samples)
+    out = np.empty(flat.shape[0])
+    srow, ssamp = (st // flat.itemsize for st in flat.strides)
+    if flat.shape[0] and lib.window_range_max(flat.ctypes.data, flat.shape[0], n_samples,
+                                              n, srow, ssamp, out.ctypes.data) != 0:
         return None
     return out.reshape(x.shape[:-1])

@@ -325,6 +325,11 @@ def test_compiled_window_range_against_the_definition_and_the_filters(monkeypatc
         want = np.array([max(np.ptp(row[i:i + n]) for i in range(400 - n + 1)) for row in x])
         got = _window.window_range_max(x, n)
         assert got is not None and np.array_equal(got, want), n
+    # a transposed view is read in place, with its strides
+    xt = np.ascontiguousarray(x.T).T
+    assert not xt.flags.c_contiguous
+    np.testing.assert_array_equal(_window.window_range_max(xt, 17),
+                                  _window.window_range_max(x, 17))
     dt, window = 1e-3, 0.05
     np.testing.assert_array_equal(peak_to_peak(x, dt, window),
                                   peak_to_peak_series(x, dt, window).max(axis=-1))

@@ -55,15 +55,19 @@ def window_range_max(arr: np.ndarray, n: int) -> np.ndarray | None:
     if lib is None or arr.shape[-1] < n or n < 1 or not np.isfinite(arr).all():
         return None
     x = np.asarray(arr, dtype=float)
-    n_samples = x.shape[-1]
+    if x.ndim == 1:
+        x = x[None]
+    out = np.empty(x.shape[:-1])
     flat = x.view()
-    try:   # the leading axes as one row axis, without a copy (else copy)
-        flat.shape = (-1, n_samples)
-    except AttributeError:
-        flat = np.ascontiguousarray(x).reshape(-1, n_samples)
-    out = np.empty(flat.shape[0])
-    srow, ssamp = (st // flat.itemsize for st in flat.strides)
-    if flat.shape[0] and lib.window_range_max(flat.ctypes.data, flat.shape[0], n_samples,
-                                              n, srow, ssamp, out.ctypes.data) != 0:
-        return None
-    return out.reshape(x.shape[:-1])
+    try:   # the leading axes as one row axis, without a copy
+        flat.shape = (-1, x.shape[-1])
+        blocks = [(flat, out.reshape(-1))]
+    except AttributeError:   # else each 2-D slice through its strides (a transposed view)
+        blocks = [(x[i], out[i]) for i in np.ndindex(x.shape[:-2])]
+    for rows, res in blocks:
+        srow, ssamp = (st // rows.itemsize for st in rows.strides)
+        if rows.shape[0] and lib.window_range_max(rows.ctypes.data, rows.shape[0],
+                                                  rows.shape[1], n, srow, ssamp,
+                                                  res.ctypes.data) != 0:
+            return None
+    return out.reshape(np.shape(arr)[:-1])

@@ -330,6 +330,10 @@ def test_compiled_window_range_against_the_definition_and_the_filters(monkeypatc
     assert not xt.flags.c_contiguous
     np.testing.assert_array_equal(_window.window_range_max(xt, 17),
                                   _window.window_range_max(x, 17))
+    x3 = np.stack([x, 2 * x]).transpose(0, 2, 1)      # (2, 400, 4): rows not one axis
+    np.testing.assert_array_equal(
+        _window.window_range_max(x3.transpose(0, 2, 1), 17),
+        _window.window_range_max(np.ascontiguousarray(x3.transpose(0, 2, 1)), 17))
     dt, window = 1e-3, 0.05
     np.testing.assert_array_equal(peak_to_peak(x, dt, window),
                                   peak_to_peak_series(x, dt, window).max(axis=-1))

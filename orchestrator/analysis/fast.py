@@ -255,6 +255,23 @@ class FastResponse(SteadyState):
         h = np.stack([t.cols[int(c)][1] for c in active], axis=-1)
         return G, h
 
+    def prepare(self, channels=None) -> "FastResponse":
+        """Build every run type and its input side for ``channels`` (default every
+        source channel) now, rather than on a record's first use: what a campaign's
+        model build does, so that its cases pay their records only.
+
+        Returns
+        -------
+        FastResponse
+            This loop.
+        """
+        cols = np.arange(self.m) if channels is None else np.asarray(channels, int)
+        for sig, L in self._runs:
+            t = self._type(sig, L)
+            if cols.size:
+                self._columns(t, cols)
+        return self
+
     def _forced(self, key, t: _RunType, active, Wu, sel=None) -> np.ndarray:
         """The Markov convolution ``sum_(l<=q) h_(q-l) w_l`` of every run, ``(n_u, L
         r_sel)``, of the live rows ``sel`` (default all): one product with the

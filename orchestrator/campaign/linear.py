@@ -105,7 +105,8 @@ class LinearRunner:
         sc = self._master._scenario(scenario)
         lin = linearize(sc, fmu_dir=self.fmu_dir)
         self._sources[layout] = tuple(lin.sources)
-        fr = FastResponse(lin, tuple(sc.record))
+        # the model build: the loop's run matrices, input side included
+        fr = FastResponse(lin, tuple(sc.record)).prepare()
         self._compiled[self._config_key(scenario, lin.sources)] = fr
         return fr
 

@@ -144,7 +144,9 @@ def test_records_computed_together_equal_each_alone(eos_pair):
     # at or above the fraction of its range the record uses
     bounded = fr.run_many(Ws, check=False, bound_limits=True)
     for got, want in zip(bounded, together):
-        np.testing.assert_array_equal(got.values, want.values)
+        # fewer rows in the products: equal to round-off of the sums, whatever the BLAS
+        scale = np.maximum(np.abs(want.values).max(axis=0), 1e-300)
+        assert np.max(np.abs(got.values - want.values) / scale) < 1e-12
         assert got.reached == want.reached
         for ref, used in want.limits.items():
             assert got.limits[ref] >= used * (1 - 1e-12), ref

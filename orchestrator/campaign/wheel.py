@@ -57,6 +57,7 @@ def run_wheel_sweeps(campaign, out_dir, runner=None, progress=None) -> Path | No
     progress : callable, optional
         ``progress(text)`` after each sweep and configuration.
     """
+    from ..analysis._threads import map_threads
     from ..analysis.sweep import wheel_sweep
     from .linear import LinearRunner
 
@@ -68,12 +69,18 @@ def run_wheel_sweeps(campaign, out_dir, runner=None, progress=None) -> Path | No
              for axis, var in axes.items()]
     refs = [var for _, _, var in pairs]
     rows, worst = [], []
-    for sw in campaign.wheel_sweeps:
-        fr = runner.response(sw["scenario"], refs, sw["open"])
+    loops = [runner.response(sw["scenario"], refs, sw["open"]) for sw in campaign.wheel_sweeps]
+
+    def one(job):
+        sw, fr = job
         stop = float(sw["scenario"]["experiment"]["stop"])
         speeds = np.linspace(sw["rpm"][0], sw["rpm"][1], sw["points"])
-        res = wheel_sweep(fr, sw["instance"], speeds, refs, campaign.metrics,
-                          stop - campaign.skip)
+        return speeds, wheel_sweep(fr, sw["instance"], speeds, refs, campaign.metrics,
+                                   stop - campaign.skip)
+
+    # each sweep on its own loop: side by side on the cores
+    results = map_threads(one, list(zip(campaign.wheel_sweeps, loops)))
+    for sw, (speeds, res) in zip(campaign.wheel_sweeps, results):
         for j, (inst, axis, var) in enumerate(pairs):
             for m, (kind, window) in enumerate(campaign.metrics):
                 req = campaign.requirement(inst, axis, kind, window)

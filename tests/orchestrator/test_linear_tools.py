@@ -354,3 +354,22 @@ def test_shifted_triangular_solve_against_a_solve_per_frequency():
         else:
             want = np.linalg.solve(A, Y[:, j])
         assert np.max(np.abs(got[:, j] - want)) <= 1e-10 * np.max(np.abs(want)), j
+
+
+def test_map_threads_keeps_the_order_and_the_values():
+    """Analyses side by side in threads (one BLAS thread each): the results come back in
+    the order of the items and equal the same calls in this thread to round-off."""
+    from orchestrator.analysis._threads import map_threads
+
+    rng = np.random.default_rng(2)
+    mats = [rng.standard_normal((300, 300)) for _ in range(5)]
+
+    def work(i):
+        return i, np.linalg.eigvals(mats[i] @ mats[i].T).real.max()
+
+    got = map_threads(work, range(5), workers=2)
+    assert [i for i, _ in got] == list(range(5))
+    for i, top in got:
+        want = work(i)[1]
+        assert abs(top - want) <= 1e-10 * abs(want)
+    assert map_threads(work, [3], workers=4) == [work(3)]

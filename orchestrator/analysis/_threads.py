@@ -15,7 +15,7 @@ import functools
 import os
 from concurrent.futures import ThreadPoolExecutor
 
-__all__ = ["map_threads"]
+__all__ = ["map_threads", "one_blas_thread"]
 
 
 @functools.cache
@@ -38,10 +38,11 @@ def _local_setters() -> tuple:
     return tuple(out)
 
 
-def _one_blas_thread(fn, item):
+def one_blas_thread() -> None:
+    """Ask every loaded OpenBLAS for one thread in the calling thread (a worker
+    thread's initialiser)."""
     for setter in _local_setters():
         setter(1)
-    return fn(item)
 
 
 def map_threads(fn, items, workers: int | None = None) -> list:
@@ -64,5 +65,5 @@ def map_threads(fn, items, workers: int | None = None) -> list:
     n = min(len(items), workers or os.cpu_count() or 1)
     if n <= 1:
         return [fn(x) for x in items]
-    with ThreadPoolExecutor(n) as pool:
-        return list(pool.map(functools.partial(_one_blas_thread, fn), items))
+    with ThreadPoolExecutor(n, initializer=one_blas_thread) as pool:
+        return list(pool.map(fn, items))

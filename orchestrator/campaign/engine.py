@@ -163,6 +163,9 @@ def run_campaign(
         try:
             if scheduler is not None:
                 _run_dask(todo, args, scheduler, on_done)
+            elif getattr(runner, "engine", "cosim") == "linear" and len(todo) > 1:
+                with _stop_on_signals():
+                    _run_threads(todo, args, runner, on_done)
             elif workers <= 0:
                 with _stop_on_signals():
                     for case in todo:
@@ -222,6 +225,26 @@ def _stop_on_signals():
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def _run_threads(todo, args, runner, on_done):
+    """The linear engine's cases in threads of this process, one per core: they share
+    its compiled loops (closed first, once per configuration), and their products and
+    the window kernel release the GIL; one BLAS thread each."""
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    from ..analysis._threads import one_blas_thread
+
+    for case in todo:   # the model build, before the threads share it
+        runner.compiled(case.scenario)
+    pool = ThreadPoolExecutor(min(len(todo), os.cpu_count() or 1),
+                              initializer=one_blas_thread)
+    futs = {pool.submit(execute_case, case, *args): case for case in todo}
+    try:
+        for fut in as_completed(futs):
+            on_done(futs[fut], fut.result())
+    finally:   # interrupted: the cases not started are dropped, those running finish
+        pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _run_local(todo, args, workers, on_done):

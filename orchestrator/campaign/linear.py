@@ -15,9 +15,11 @@ instrument and axis, the largest difference between the two engines.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import tempfile
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -33,6 +35,15 @@ from .runner import MasterRunner
 from .store import RESULTS_FILE, write_json
 
 __all__ = ["LinearRunner", "verify_campaign"]
+
+
+def _locked(method):
+    """Run ``method`` holding the runner's lock (its caches are shared by threads)."""
+    @functools.wraps(method)
+    def inner(self, *args, **kwargs):
+        with self._lock:
+            return method(self, *args, **kwargs)
+    return inner
 
 
 class LinearRunner:
@@ -65,6 +76,8 @@ class LinearRunner:
         self._responses = {}
         self._extracted = {}
         self._tmp = None
+        # the caches of compiled loops and sources, shared by a campaign's threads
+        self._lock = threading.RLock()
 
     def __getstate__(self):
         return {"_master": self._master, "fmu_dir": self.fmu_dir}
@@ -94,6 +107,7 @@ class LinearRunner:
             data["fmus"].get(name, {}).pop("parameters", None)
         return json.dumps(data, sort_keys=True, default=str)
 
+    @_locked
     def compiled(self, scenario: dict) -> FastResponse:
         """The compiled closed loop of a case's configuration (built on first use)."""
         layout = json.dumps(sorted((n, f.get("fmu")) for n, f in scenario["fmus"].items()))
@@ -110,6 +124,7 @@ class LinearRunner:
         self._compiled[self._config_key(scenario, lin.sources)] = fr
         return fr
 
+    @_locked
     def response(self, scenario: dict, refs, opened=()) -> FastResponse:
         """The compiled loop of a case's configuration with ``opened`` instances taken
         out and ``refs`` recorded (kept: a second sweep on it reuses its factorisation).
@@ -133,6 +148,7 @@ class LinearRunner:
             got = self._responses[key] = (fr, FastResponse(lin, tuple(refs)))
         return got[1]
 
+    @_locked
     def _source_block(self, fr: FastResponse, inst, cache: bool = True):
         """The block of a source instance with its parameters (kept unless ``cache``
         is false, e.g. for one sample's random phases)."""
@@ -182,6 +198,7 @@ class LinearRunner:
             series[name] = self._series(fr, inst, n_ticks, cache=name not in seeds)
         return fr.input_matrix(series, n_ticks)
 
+    @_locked
     def _series(self, fr: FastResponse, inst, n_ticks: int, cache: bool = True):
         """A source's open-loop series at its sample times (kept, read-only, unless
         ``cache`` is false: the configurations of a campaign share their events)."""

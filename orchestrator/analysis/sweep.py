@@ -123,6 +123,7 @@ def steady_jitter(fr: FastResponse, freqs_hz, phasors, refs, metrics, duration: 
     -------
     ndarray, shape (n_p, len(refs), len(metrics))
     """
+    fr.period_schur()   # the steady state needs it; the poles are read from it
     bad = unstable_poles(fr)
     if bad:
         z = bad[0]

@@ -27,7 +27,8 @@ Cost
 Running maxima and minima come from :func:`scipy.ndimage.maximum_filter1d` and
 :func:`~scipy.ndimage.minimum_filter1d`, which take O(N) time whatever the window length.
 :func:`peak_to_peak` takes the largest range in one compiled pass instead
-(:mod:`orchestrator.metrics._window`, monotone queues, the same values) when a C compiler
+(:mod:`orchestrator.metrics._window`, van Herk / Gil-Werman block maxima, the same
+values) when a C compiler
 is there and the record is finite.
 """
 

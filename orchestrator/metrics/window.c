@@ -1,8 +1,11 @@
 /* Windowed peak-to-peak: the largest range (max - min) over every window of w
  * consecutive samples, one value per row (C99, libc only).
  *
- * Monotone queues of the running maximum and minimum (each sample enters and leaves
- * each queue once: O(n) per row whatever w).  The result is max - min of one window,
+ * van Herk / Gil-Werman: the row is cut into blocks of w samples; within each block the
+ * running maximum and minimum from its start (g) and from its end (h) are one pass each,
+ * and the window starting at i, which spans at most two blocks, has the maximum
+ * max(h[i], g[i + w - 1]) (the same for the minimum).  Three passes, a few comparisons
+ * per sample whatever w and whatever the signal.  The result is max - min of one window,
  * the same subtraction of the same two samples as the running filters of
  * orchestrator.metrics.peak, so the value is identical.  Row r's sample i is
  * x[r * srow + i * ssamp] (strides in elements: a transposed view is read in place).
@@ -13,38 +16,52 @@
 
 int window_range_max(const double *x, long rows, long n, long w, long srow, long ssamp,
                      double *out) {
-    long r, i;
-    long *qmax, *qmin;
+    long r, i, b0;
+    double *buf, *gx, *gn, *hx, *hn;
     if (n <= 0 || w <= 0 || w > n) return 2;
-    qmax = (long *)malloc((size_t)n * sizeof(long));
-    qmin = (long *)malloc((size_t)n * sizeof(long));
-    if (qmax == NULL || qmin == NULL) {
-        free(qmax);
-        free(qmin);
-        return 1;
-    }
+    buf = (double *)malloc((size_t)(5 * n) * sizeof(double));
+    if (buf == NULL) return 1;
+    gx = buf + n;
+    gn = buf + 2 * n;
+    hx = buf + 3 * n;
+    hn = buf + 4 * n;
     for (r = 0; r < rows; r++) {
-        const double *y = x + r * srow;
-        long hmax = 0, tmax = 0, hmin = 0, tmin = 0;
+        const double *src = x + r * srow, *y = src;
         double best = 0.0;
-        int first = 1;
-        for (i = 0; i < n; i++) {
-            double v = y[i * ssamp];
-            while (tmax > hmax && y[qmax[tmax - 1] * ssamp] <= v) tmax--;
-            qmax[tmax++] = i;
-            while (tmin > hmin && y[qmin[tmin - 1] * ssamp] >= v) tmin--;
-            qmin[tmin++] = i;
-            if (qmax[hmax] <= i - w) hmax++;
-            if (qmin[hmin] <= i - w) hmin++;
-            if (i >= w - 1) {
-                double d = y[qmax[hmax] * ssamp] - y[qmin[hmin] * ssamp];
-                if (first || d > best) best = d;
-                first = 0;
+        if (ssamp != 1) {
+            for (i = 0; i < n; i++) buf[i] = src[i * ssamp];
+            y = buf;
+        }
+        for (b0 = 0; b0 < n; b0 += w) {
+            long b1 = b0 + w < n ? b0 + w : n;
+            double hi = y[b0], lo = y[b0];
+            gx[b0] = hi;
+            gn[b0] = lo;
+            for (i = b0 + 1; i < b1; i++) {
+                double v = y[i];
+                hi = v > hi ? v : hi;
+                lo = v < lo ? v : lo;
+                gx[i] = hi;
+                gn[i] = lo;
             }
+            hi = lo = y[b1 - 1];
+            hx[b1 - 1] = hi;
+            hn[b1 - 1] = lo;
+            for (i = b1 - 2; i >= b0; i--) {
+                double v = y[i];
+                hi = v > hi ? v : hi;
+                lo = v < lo ? v : lo;
+                hx[i] = hi;
+                hn[i] = lo;
+            }
+        }
+        for (i = 0; i + w - 1 < n; i++) {
+            double p = hx[i], q = gx[i + w - 1], s = hn[i], t = gn[i + w - 1];
+            double d = (p > q ? p : q) - (s < t ? s : t);
+            best = (i == 0 || d > best) ? d : best;
         }
         out[r] = best;
     }
-    free(qmax);
-    free(qmin);
+    free(buf);
     return 0;
 }

@@ -141,8 +141,9 @@ def steady_jitter(fr: FastResponse, freqs_hz, phasors, refs, metrics, duration: 
     n_samples = int(round(duration / dt)) + 1
     n_blocks = -(-((n_samples - 1) * every + 1) // fr.P)    # super-periods the record spans
     Y = fr.steady_state(freqs.ravel(), np.asarray(phasors).reshape(-1, fr.m), refs)
-    Y = Y.reshape(fr.P, n_p, n_h, len(refs)).transpose(1, 2, 0, 3).reshape(n_p, n_h, -1)
-    Yr, Yi = np.ascontiguousarray(Y.real), np.ascontiguousarray(Y.imag)   # (n_p, n_h, P r)
+    Y = Y.reshape(fr.P, n_p, n_h, len(refs)).transpose(1, 2, 0, 3)      # (n_p, n_h, P, r)
+    Yr = np.ascontiguousarray(Y.real).reshape(n_p, n_h, -1)             # (n_p, n_h, P r)
+    Yi = np.ascontiguousarray(Y.imag).reshape(n_p, n_h, -1)
     values = np.zeros((n_p, len(refs), len(metrics)))
     # z_h^n = exp(j 2 pi f_h T n), T the hyperperiod, the phase taken in turns modulo 1
     # (exact to ~1e-13 of a turn over the record) so that Re(z^n Y) is two real products

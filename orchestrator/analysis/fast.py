@@ -272,7 +272,7 @@ class FastResponse(SteadyState):
                 self._columns(t, cols)
         return self
 
-    def _forced(self, key, t: _RunType, active, Wu, sel=None) -> np.ndarray:
+    def _forced(self, t: _RunType, active, Wu, sel=None) -> np.ndarray:
         """The Markov convolution ``sum_(l<=q) h_(q-l) w_l`` of every run, ``(n_u, L
         r_sel)``, of the live rows ``sel`` (default all): one product with the
         block-Toeplitz matrix of ``h`` (kept per run type, channels and rows) for runs of
@@ -280,7 +280,7 @@ class FastResponse(SteadyState):
         L, k = t.L, active.size
         sel = np.arange(t.live.size) if sel is None else sel
         r = sel.size
-        ck = ("forced", key, active.tobytes(), sel.tobytes())
+        ck = ("forced", id(t), active.tobytes(), sel.tobytes())
         T = self._kernels.get(ck)
         if T is None:
             h = self._columns(t, active)[1][:, sel]                     # (L, r, k)
@@ -297,16 +297,17 @@ class FastResponse(SteadyState):
         return Wu.reshape(Wu.shape[0], L * k) @ T[1]
 
     def _keep(self, key, value):
-        """Keep a derived matrix of this loop (a bounded cache)."""
+        """Keep a derived matrix of this loop (a bounded cache); keys name the run type
+        by ``id``: the run types live as long as the loop."""
         if len(self._kernels) > 64:
             self._kernels.clear()
         self._kernels[key] = value
 
-    def _rows(self, key, t: _RunType, sel) -> np.ndarray:
+    def _rows(self, t: _RunType, sel) -> np.ndarray:
         """``C M^q`` of the live rows ``sel`` of a run type, ``(L r_sel, s)`` (kept)."""
         if sel.size == t.live.size:
             return t.O
-        ck = ("rows", key, sel.tobytes())
+        ck = ("rows", id(t), sel.tobytes())
         O = self._kernels.get(ck)
         if O is None:
             O = np.ascontiguousarray(t.O.reshape(t.L, t.live.size, -1)[:, sel]).reshape(
@@ -314,12 +315,12 @@ class FastResponse(SteadyState):
             self._keep(ck, O)
         return O
 
-    def _limit_bounds(self, key, t: _RunType, pos, X, Wu, active) -> np.ndarray:
+    def _limit_bounds(self, t: _RunType, pos, X, Wu, active) -> np.ndarray:
         """Upper bounds of ``|y|`` over the runs of one type for the live rows ``pos``,
         ``(len(pos),)``: ``max_q |C_q M^q x_0| <= sum_j max_q |(C M^q)_ij| |x_0j|`` and
         ``|sum h_(q-l) w_l| <= sum_c (sum_p |h_p|_ic) max_l |w_lc|`` (Hoelder), rigorous
         whatever the scales of the states."""
-        ck = ("absmax", key, pos.tobytes())
+        ck = ("absmax", id(t), pos.tobytes())
         A = self._kernels.get(ck)
         if A is None:
             A = np.abs(t.O.reshape(t.L, t.live.size, -1)[:, pos]).max(axis=0)   # (p, s)
@@ -503,7 +504,7 @@ class FastResponse(SteadyState):
                 t = types[key]
                 pos = np.flatnonzero(t.live >= n_ref)
                 for e, (Wa, active) in enumerate(zip(Was, actives)):
-                    b = self._limit_bounds(key, t, pos, X0[e, idx], Wa[windows[key]], active)
+                    b = self._limit_bounds(t, pos, X0[e, idx], Wa[windows[key]], active)
                     bounds[e, t.live[pos]] = np.maximum(bounds[e, t.live[pos]], b)
             room = np.full(r, -np.inf)
             for j, (_, lo, hi, _) in enumerate(self._checks):
@@ -518,10 +519,10 @@ class FastResponse(SteadyState):
             t, n_u = types[key], len(idx)
             sel = np.flatnonzero(~skip[t.live])
             X = X0[:, idx].reshape(E * n_u, s)
-            out = (X @ self._rows(key, t, sel).T).reshape(E, n_u, t.L * sel.size)   # free
+            out = (X @ self._rows(t, sel).T).reshape(E, n_u, t.L * sel.size)   # free
             for e, (Wa, active) in enumerate(zip(Was, actives)):
                 if active.size:
-                    out[e] += self._forced(key, t, active, Wa[windows[key]], sel)
+                    out[e] += self._forced(t, active, Wa[windows[key]], sel)
             rows = windows[key].ravel()
             out = out.reshape(E, n_u * t.L, sel.size)
             if sel.size == r:
@@ -544,9 +545,10 @@ class FastResponse(SteadyState):
                 continue
             used = max(top[j] / hi if hi > 0 else 0.0, bottom[j] / lo if lo < 0 else 0.0)
             limits[ref] = float(used)
-            if top[j] > hi or bottom[j] < lo:
-                reached.append(ref)
-            if check and (top[j] > hi or bottom[j] < lo):
+            if not (top[j] > hi or bottom[j] < lo):
+                continue
+            reached.append(ref)
+            if check:
                 y = Y[:, self._check_col[j]]
                 bad = np.flatnonzero((y > hi) | (y < lo))[0]
                 raise NonlinearError(

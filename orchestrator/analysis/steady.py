@@ -116,7 +116,7 @@ class SteadyState:
                 present = (live < t.live.size) & (t.live[np.minimum(live, t.live.size - 1)]
                                                   == sel)
                 rows = live[present]
-                O = self._rows(("steady", t.L, id(t)), t, rows)
+                O = self._rows(t, rows)
                 Yq = _rc(O, x).reshape(t.L, rows.size, f.size)        # (L, r, n_c)
                 if active.size:
                     h = self._columns(t, active)[1][:, rows]          # (L, r, m_a)

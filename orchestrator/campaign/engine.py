@@ -165,7 +165,7 @@ def run_campaign(
                 _run_dask(todo, args, scheduler, on_done)
             elif getattr(runner, "engine", "cosim") == "linear" and len(todo) > 1:
                 with _stop_on_signals():
-                    _run_threads(todo, args, runner, on_done)
+                    _run_threads(todo, args, on_done)
             elif workers <= 0:
                 with _stop_on_signals():
                     for case in todo:
@@ -227,16 +227,15 @@ def _stop_on_signals():
             signal.signal(sig, handler)
 
 
-def _run_threads(todo, args, runner, on_done):
+def _run_threads(todo, args, on_done):
     """The linear engine's cases in threads of this process, one per core: they share
-    its compiled loops (closed first, once per configuration), and their products and
-    the window kernel release the GIL; one BLAS thread each."""
+    its compiled loops (a configuration is closed once: the runner's lock holds the
+    others back while it is), and their products and the window kernel release the GIL;
+    one BLAS thread each."""
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
     from ..analysis._threads import one_blas_thread
 
-    for case in todo:   # the model build, before the threads share it
-        runner.compiled(case.scenario)
     pool = ThreadPoolExecutor(min(len(todo), os.cpu_count() or 1),
                               initializer=one_blas_thread)
     futs = {pool.submit(execute_case, case, *args): case for case in todo}

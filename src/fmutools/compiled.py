@@ -13,7 +13,10 @@ removed when the process exits.
 from __future__ import annotations
 
 import atexit
+import ctypes
 import functools
+import hashlib
+import json
 import os
 import shutil
 import subprocess
@@ -111,10 +114,6 @@ def c_library(name: str, source: Path, flags, libs=()):
     ctypes.CDLL or None
         None without a C compiler or when it fails: the caller's other way runs.
     """
-    import ctypes
-    import hashlib
-    import json
-
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
         return None

@@ -155,6 +155,25 @@ def test_records_computed_together_equal_each_alone(eos_pair):
                for got, want in zip(bounded, together) for ref in want.limits)
 
 
+
+def test_forced_response_by_toeplitz_product_equals_fft(eos_pair, monkeypatch):
+    """The two ways of a run's Markov convolution (the kept block-Toeplitz product, the
+    FFT) on the EOS loop's 99-tick run: equal to the round-off of an FFT (about 1e-15 of
+    the largest output per transform length; 1e-12 leaves room for any BLAS)."""
+    from orchestrator.analysis import fast
+
+    fr = _isolation_on_loop(eos_pair)
+    rng = np.random.default_rng(5)
+    W = np.zeros((301, fr.m))
+    W[:, [2, 9, 10]] = rng.standard_normal((301, 3))
+    got = {}
+    for limit in (0, 256):
+        monkeypatch.setattr(fast, "_TOEPLITZ_TICKS", limit)
+        fr._kernels.clear()
+        got[limit] = fr.run(W, check=False).values
+    fr._kernels.clear()
+    scale = np.maximum(np.abs(got[256]).max(axis=0), 1e-300)
+    assert np.max(np.abs(got[0] - got[256]) / scale) < 1e-12
 def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):
     """A rail the linear record crosses fails the case in one sentence; nothing else."""
     camp = _eos_campaign(events=("SWIR pointing",), stop=1.5)

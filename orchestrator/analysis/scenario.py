@@ -179,19 +179,30 @@ class LinearScenario:
         blocks[block.name] = replace(block, feedthrough=old.feedthrough)
         return LinearScenario(self.plan, blocks, self.order)
 
-    def opened(self, instances) -> "LinearScenario":
+    def opened(self, instances, period: int | None = None) -> "LinearScenario":
         """Copy with the named instances removed: their outputs become free inputs.
 
         Used for the ceiling (controllers), and to take a slow loop out of the analysis
         of fast ones: with a 10 Hz ACS the hyperperiod is 0.1 s and its poles resolve
         frequencies up to 5 Hz only.
+
+        Parameters
+        ----------
+        instances : sequence of str
+            Instances to take out.
+        period : int, optional
+            Ticks between the freed inputs' values (default each instance's own period).
+            Inputs that stay zero may take 1: published every tick, they do not make the
+            loop periodic (a time-invariant loop has one tick map, and its steady state
+            one phasor per line).
         """
         blocks = dict(self.blocks)
         for name in instances:
             if name not in blocks:
                 raise AnalysisError(f"no instance {name!r} in the scenario; instances: "
                                     f"{', '.join(blocks)}")
-            blocks[name] = _source_block(name, blocks[name].period, blocks[name].outputs)
+            blocks[name] = _source_block(name, period or blocks[name].period,
+                                         blocks[name].outputs)
         return LinearScenario(self.plan, blocks, self.order)
 
     def controllers(self, active_only: bool = False) -> list:

@@ -60,7 +60,9 @@ class SteadyState:
         With mixed rates the response to one frequency is not one sinusoid (the slow
         instances alias it), but it is periodic in the super-period ``P`` up to the
         factor ``z = exp(j 2 pi f P base)``: the record is
-        ``y(t_(nP + p)) = Re(z^n Y[p])``, exact.
+        ``y(t_(nP + p)) = Re(z^n Y[p])``, exact.  A loop whose ticks are all alike (one
+        run over the super-period: every instance due at every tick) is time-invariant:
+        there ``Y[p] = exp(j 2 pi f p base) Y[0]``, and only ``Y[0]`` is computed.
 
         Parameters
         ----------
@@ -90,6 +92,7 @@ class SteadyState:
             units.append((self._type(sig, L), k))
             k += L
         T, Q, n_top, scale = self.period_schur()
+        time_invariant = len(self._runs) == 1 and self._runs[0][1] == self.P
         out = np.zeros((self.P, freqs.size, sel.size), complex)
         for c0 in range(0, freqs.size, chunk):
             f = freqs[c0:c0 + chunk]
@@ -101,9 +104,9 @@ class SteadyState:
                 B = E[:, None, :] * a.T[None, :, :]                    # (L, m_a, n_c)
                 G = self._columns(t, active)[0].reshape(self.n_memory, -1)
                 forcing.append(np.exp(1j * wv * start) * _rc(G, B.reshape(-1, f.size)))
-            x = np.zeros((self.n_memory, f.size), complex)
-            for (t, _), g in zip(units, forcing):
-                x = _rc(t.ML, x) + g                                   # forced, from rest
+            x = forcing[0]                                             # forced, from rest
+            for (t, _), g in zip(units[1:], forcing[1:]):
+                x = _rc(t.ML, x) + g
             z = np.exp(1j * wv * self.P)
             y = Q.conj().T @ (x / scale[:, None])
             X0 = np.zeros_like(y)
@@ -111,11 +114,18 @@ class SteadyState:
             if on.size:
                 X0[:, on] = _solve_shifted(T, z[on], y[:, on], n_top)   # (z I - T) X0 = y
             x = np.ascontiguousarray((Q @ X0) * scale[:, None])
-            for (t, start), g in zip(units, forcing):
+            for u, ((t, start), g) in enumerate(zip(units, forcing)):
                 live = np.searchsorted(t.live, sel)
                 present = (live < t.live.size) & (t.live[np.minimum(live, t.live.size - 1)]
                                                   == sel)
                 rows = live[present]
+                if time_invariant:   # Y[p] = exp(j w p) Y[0]
+                    Y0 = np.zeros((f.size, sel.size), complex)
+                    Y0[:, present] = (_rc(self._rows(t, rows)[:rows.size], x).T
+                                      + (a @ t.D[rows][:, active].T if active.size else 0))
+                    spin = np.exp(1j * np.outer(np.arange(self.P), wv))       # (P, n_c)
+                    out[:, c0:c0 + chunk] = spin[:, :, None] * Y0[None]
+                    break
                 O = self._rows(t, rows)
                 Yq = _rc(O, x).reshape(t.L, rows.size, f.size)        # (L, r, n_c)
                 if active.size:
@@ -131,7 +141,8 @@ class SteadyState:
                     Y = np.zeros((t.L, f.size, sel.size), complex)
                     Y[:, :, present] = Yq.transpose(0, 2, 1)
                     out[start:start + t.L, c0:c0 + chunk] = Y
-                x = _rc(t.ML, x) + g
+                if u + 1 < len(units):   # the last run's end state is not needed
+                    x = _rc(t.ML, x) + g
         return out
 
 

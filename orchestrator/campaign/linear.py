@@ -144,7 +144,8 @@ class LinearRunner:
         key = (id(fr), tuple(opened), tuple(refs))
         got = self._responses.get(key)
         if got is None or got[0] is not fr:
-            lin = fr.lin.opened(opened) if opened else fr.lin
+            # held at zero: published every tick, so that they add no period
+            lin = fr.lin.opened(opened, period=1) if opened else fr.lin
             got = self._responses[key] = (fr, FastResponse(lin, tuple(refs)))
         return got[1]
 

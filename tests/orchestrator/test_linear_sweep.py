@@ -164,10 +164,12 @@ def test_shipped_rwa_sweep_runs_and_isolation_lowers_swir(rwa_sweep):
     assert (out / "wheel_sweeps_worst.csv").is_file()
 
 
+@pytest.mark.parametrize("period", [None, 1])
 @pytest.mark.parametrize("sweep,rpm", [(0, 6000.0), (0, 3000.0 + 1e-6), (0, 6000.0 - 1e-4),
                                        (0, 4321.0), (1, 6000.0), (1, 4321.0)])
 def test_rwa_steady_state_with_free_rigid_modes_equals_the_one_tick_response(rwa_sweep,
-                                                                              sweep, rpm):
+                                                                              sweep, rpm,
+                                                                              period):
     """The ACS open, the spacecraft's rigid-body modes are free: the super-period map has
     twelve eigenvalues at 1, and at 6000 rpm every wheel line is a multiple of
     1 / (P base) = 10 Hz, where z I - Phi is singular (before the fix the steady state
@@ -176,14 +178,18 @@ def test_rwa_steady_state_with_free_rigid_modes_equals_the_one_tick_response(rwa
     so each line's steady state is ``(e^{jwh} I - M)^-1 N a`` on the one-tick map (no
     eigenvalue of M is e^{jwh} for 0 < f < 1 kHz), summed into the 7 s record.  At a
     commensurate speed the rigid-body position is free up to a constant, which the
-    windowed peak-to-peak does not see; near one the solve loses digits (1e-8)."""
+    windowed peak-to-peak does not see; near one the solve loses digits (1e-8).
+    ``period=1`` publishes the ACS's zeros every tick, as a campaign's sweep does: the
+    loop is then time-invariant (one run of 64 ticks) and the steady state takes one
+    phasor per line instead of one per tick of the super-period."""
     from orchestrator.analysis.fast import FastResponse
     from orchestrator.analysis.sweep import RPM
     from orchestrator import metrics as Mt
     camp, _, _, runner = rwa_sweep
     sw = camp.wheel_sweeps[sweep]
     refs = [var for axes in camp.instruments.values() for var in axes.values()]
-    fr = FastResponse(runner.compiled(sw["scenario"]).lin.opened(sw["open"]), refs)
+    fr = FastResponse(runner.compiled(sw["scenario"]).lin.opened(sw["open"], period), refs)
+    assert len(fr._runs) == (1 if period == 1 else 2)
     M, N, C, D = fr._maps[fr._signature(1)]      # a tick without the (opened) ACS
     C, D = C[:len(refs)], D[:len(refs)]
     h = float(fr.lin.plan.timebase.base)

@@ -113,14 +113,38 @@ def structure_block(model, name: str, period: int, h: float, ft=None) -> Block:
     from structfmu.discrete import ZohStepper
 
     stepper = ZohStepper(model)
-    dm = discretize(model, h)
-    n, m = model.n_states, model.n_inputs
-    A = np.column_stack([step(dm, e, np.zeros(m)) for e in np.eye(n)]) if n else np.zeros((0, 0))
-    B = np.column_stack([step(dm, np.zeros(n), e) for e in np.eye(m)])
+    A, B = step_matrices(discretize(model, h))
     ft = np.zeros(model.n_outputs, bool) if ft is None else ft
     return Block(name, "structure", period, A, B, stepper.C_x.copy(), stepper.D.copy(),
                  tuple(model.input_names), tuple(model.output_names), ft,
                  continuous=first_order(model), model=model)
+
+
+def step_matrices(dm) -> tuple:
+    """``(A, B)`` of ``x+ = A x + B u`` for a discretised reduced model, assembled from
+    its blocks (layout of :class:`structfmu.discrete.DiscreteModel`): the numbers
+    :func:`structfmu.discrete.step` multiplies, so that ``A x + B u`` is its step.
+
+    Parameters
+    ----------
+    dm : structfmu.discrete.DiscreteModel
+
+    Returns
+    -------
+    A : ndarray, shape (n_states, n_states)
+    B : ndarray, shape (n_states, n_inputs)
+    """
+    model = dm.model
+    n, n_m, ns = model.n_states, model.n_modes, model.n_struct_states
+    A = np.zeros((n, n))
+    q, v = np.arange(n_m), n_m + np.arange(n_m)
+    A[q, q], A[q, v], A[v, q], A[v, v] = dm.a11, dm.a12, dm.a21, dm.a22
+    A[2 * n_m:ns, 2 * n_m:ns] = dm.Phi_o
+    B = np.vstack([dm.G1, dm.G2, dm.G_o])
+    if ns < n:
+        A[ns:] = dm.F_x
+        B = np.vstack([B, dm.F_u])
+    return A, B
 
 
 def _piezo_block(slave, name, period, h, ft):

@@ -426,7 +426,8 @@ class FastResponse(SteadyState):
         """
         return self.run_many([W], check)[0]
 
-    def run_many(self, Ws, check: bool = True, bound_limits: bool = False) -> list:
+    def run_many(self, Ws, check: bool = True, bound_limits: bool = False,
+                 scales=None) -> list:
         """The records driven by each ``W`` of ``Ws``, from rest, computed together.
 
         The events of one configuration share its loop: their state recursions are one
@@ -447,6 +448,9 @@ class FastResponse(SteadyState):
             it does, ``limits`` holds that bound (an upper bound of the fraction used).
             ``reached`` is exact either way.  What Monte Carlo uses: its records need
             their references and the knowledge that no rail is reached.
+        scales : sequence of ndarray, shape (m,), optional
+            Per record, a factor on each source channel: the record of ``W * scale``
+            without that copy of ``W`` (a Monte Carlo sample's amplitudes).
 
         Returns
         -------
@@ -478,7 +482,13 @@ class FastResponse(SteadyState):
         windows = {key: np.array([units[i][1] for i in idx])[:, None] + np.arange(types[key].L)
                    for key, idx in by_type.items()}
         # input contribution to each run's end state, per run type and record
-        Was = [W[:, active] for W, active in zip(Ws, actives)]
+        if scales is None:
+            Was = [W[:, active] for W, active in zip(Ws, actives)]
+        else:
+            if len(scales) != E:
+                raise AnalysisError(f"{len(scales)} channel scales for {E} input matrices")
+            Was = [W[:, active] * np.asarray(sc, float)[active]
+                   for W, active, sc in zip(Ws, actives, scales)]
         union = np.unique(np.concatenate(actives))
         if union.size:   # the column Krylov of every channel a record drives, at once
             for t in types.values():

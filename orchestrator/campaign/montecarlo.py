@@ -136,9 +136,10 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                     growth = abs(bad[0]) ** (record_ticks / fr.P)
                     status[row, ci] |= 2 | (4 if growth > 2.0 else 0)
             # the events of a configuration share its loop: computed together
-            Ws = [_sample_input(runner, fr, *ctx["inputs"][(cf, ev)], draws, items, s)
-                  for ev in ctx["events"]]
-            for ei, rec in enumerate(fr.run_many(Ws, check=False, bound_limits=True)):
+            Ws, scales = zip(*(_sample_input(runner, fr, *ctx["inputs"][(cf, ev)], draws,
+                                             items, s) for ev in ctx["events"]))
+            for ei, rec in enumerate(fr.run_many(Ws, check=False, bound_limits=True,
+                                                 scales=scales)):
                 if rec.reached:   # a rail or limit: outside the linear model
                     values[row, ci] = np.inf
                     status[row, ci] |= 1
@@ -388,7 +389,8 @@ def _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler, runner, bar):
 
 
 def _sample_input(runner, fr, scenario, W, draws, items, s):
-    """``W`` of sample ``s``: new phases, then the amplitude factors on the columns."""
+    """``(W, scale)`` of sample ``s``: ``W`` with its new phases, and the amplitude
+    factor of each source channel (``FastResponse.run_many``'s ``scales``)."""
     seeds = {}
     for it in items:
         if it.kind == "phase":
@@ -401,11 +403,9 @@ def _sample_input(runner, fr, scenario, W, draws, items, s):
         if it.kind == "amplitude":
             for j, inst in enumerate(it.instances):
                 factors[inst] = factors.get(inst, 1.0) * float(draws.values[it.name][s, j])
-    if not factors:
-        return W
-    W = W.copy()
+    scale = np.ones(fr.m)
     for inst, f in factors.items():
         off = fr._in_off.get(inst)
         if off is not None:
-            W[:, off:off + len(fr.lin.blocks[inst].outputs)] *= f
-    return W
+            scale[off:off + len(fr.lin.blocks[inst].outputs)] = f
+    return W, scale

@@ -269,3 +269,38 @@ def test_linear_engine_on_the_truss_campaign(tmp_path, suite_fmus, suite_fmu_dir
     a, b = _summary(tmp_path / "co"), _summary(tmp_path / "li")
     assert set(a) == set(b)
     assert max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k]) < 1e-9
+
+
+def test_structure_step_matrices_are_its_step_bit_for_bit(eos_pair):
+    """The structure block's (A, B), assembled from the discretised blocks (modes, Ritz
+    block, accelerometer filter), are the numbers the FMU's step multiplies: stepping
+    each unit state and input gives the same columns exactly."""
+    from orchestrator.analysis.blocks import step_matrices
+    from structfmu.discrete import discretize, step
+
+    model = _isolation_on_loop(eos_pair).lin.blocks["structure"].model
+    assert model.n_filter_states and model.n_ritz and model.n_modes
+    dm = discretize(model, 1e-3)
+    A, B = step_matrices(dm)
+    n, m = model.n_states, model.n_inputs
+    np.testing.assert_array_equal(A, np.column_stack([step(dm, e, np.zeros(m))
+                                                      for e in np.eye(n)]))
+    np.testing.assert_array_equal(B, np.column_stack([step(dm, np.zeros(n), e)
+                                                      for e in np.eye(m)]))
+
+
+def test_channel_scales_equal_scaled_inputs(eos_pair):
+    """run_many's per-record channel factors (a Monte Carlo sample's amplitudes) give
+    the record of the scaled input matrix, to the round-off of one multiplication."""
+    fr = _isolation_on_loop(eos_pair)
+    rng = np.random.default_rng(3)
+    W = np.zeros((251, fr.m))
+    W[:, [1, 4, 20]] = rng.standard_normal((251, 3))
+    scale = rng.uniform(0.8, 1.2, fr.m)
+    got = fr.run_many([W, W], check=False, scales=[scale, np.ones(fr.m)])
+    want = fr.run_many([W * scale, W], check=False)
+    for g, w in zip(got, want):
+        peak = np.maximum(np.abs(w.values).max(axis=0), 1e-300)
+        assert np.max(np.abs(g.values - w.values) / peak) < 1e-13
+    with pytest.raises(Exception, match="2 channel scales for 1 input matrices"):
+        fr.run_many([W], scales=[scale, scale])

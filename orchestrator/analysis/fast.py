@@ -604,14 +604,15 @@ def _causal_conv(h: np.ndarray, w: np.ndarray, Hf=None) -> np.ndarray:
             y[:, q] = np.einsum("lrm,ulm->ur", h[q::-1], w[:, :q + 1])
         return y
     n = _fft_length(L)
+    # one thread: campaign cases and Monte Carlo samples already run one per core
     if Hf is None:
         Hf = sfft.rfft(h, n, axis=0)                # (f, r, m)
-    Wf = sfft.rfft(w, n, axis=1, workers=-1)        # (u, f, m)
+    Wf = sfft.rfft(w, n, axis=1)                    # (u, f, m)
     if Wf.shape[2] == 1:
         Yf = Wf * Hf[None, :, :, 0]
     else:
         Yf = np.einsum("frm,ufm->ufr", Hf, Wf, optimize=True)
-    return sfft.irfft(Yf, n, axis=1, workers=-1)[:, :L]
+    return sfft.irfft(Yf, n, axis=1)[:, :L]
 
 
 def _fft_length(L: int) -> int:

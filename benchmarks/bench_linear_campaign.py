@@ -2,15 +2,16 @@
 
 Run::
 
-    .venv/bin/python benchmarks/bench_linear_campaign.py [--workers 2] [--fmu-dir fmus]
+    .venv/bin/python benchmarks/bench_linear_campaign.py [--workers 2] [--repeat 3]
 
 Both engines run ``campaigns/eos_budget.toml`` (12 events x isolation off/on, 8 s at
 1 kHz, the 10 Hz ACS and fifteen piezo loops) from empty folders, FMUs built.  The
 co-simulation uses ``--workers`` processes; the linear engine runs in this process.  Its
 time is split into the closing of the two configurations' loops (``linearize`` and
 compiling the runs, once per configuration: the "model build") and the 24 cases
-themselves (every case's record, metrics, files and summary).  Every summary cell of
-the two is compared.
+themselves (every case's record, metrics, files and summary), ``--repeat`` times on a
+fresh runner each (the median printed, and the range).  Every summary cell of the two is
+compared, for every linear run.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 
 from orchestrator.campaign import LinearRunner, MasterRunner, load_campaign, run_campaign
@@ -32,10 +34,17 @@ def _summary(folder):
             for r in pq.read_table(Path(folder) / "summary.parquet").to_pylist()}
 
 
+def _spread(times) -> str:
+    """``min-max`` of repeated timings, or nothing for one."""
+    return f"{min(times):.2f}-{max(times):.2f}" if len(times) > 1 else ""
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--fmu-dir", default="fmus")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="linear runs, each on a fresh runner (build and cases)")
     args = ap.parse_args(argv)
     fmu_dir = eos.ensure_fmus(args.fmu_dir)
     camp = load_campaign(eos.CAMPAIGN)
@@ -46,19 +55,22 @@ def main(argv=None) -> int:
                           workers=args.workers, progress=False)
         t_co = time.perf_counter() - t0
 
-        runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
-        t0 = time.perf_counter()
-        configs = {c.configuration: c for c in camp.cases}
-        for case in configs.values():       # the model build: one closed loop each
-            runner.compiled(case.scenario)
-            runner.record(case.scenario)   # and the run matrices of its tick pattern
-        t_build = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        li = run_campaign(dataclasses.replace(camp, engine="linear"), tmp / "linear", runner,
-                          progress=False)
-        t_li = time.perf_counter() - t0
-        a, b = _summary(tmp / "cosim"), _summary(tmp / "linear")
-        worst = max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k])
+        builds, cases, worst = [], [], 0.0
+        a = _summary(tmp / "cosim")
+        for i in range(max(1, args.repeat)):
+            runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
+            t0 = time.perf_counter()
+            configs = {c.configuration: c for c in camp.cases}
+            for case in configs.values():   # the model build: one closed loop each
+                runner.compiled(case.scenario)
+            builds.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            li = run_campaign(dataclasses.replace(camp, engine="linear"), tmp / f"linear{i}",
+                              runner, progress=False)
+            cases.append(time.perf_counter() - t0)
+            b = _summary(tmp / f"linear{i}")
+            worst = max(worst, max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k]))
+        t_build, t_li = float(np.median(builds)), float(np.median(cases))
         fr = next(iter(runner._compiled.values()))
         mem = sum(t.O.nbytes + t.ML.nbytes + sum(g.nbytes + h.nbytes for g, h in
                                                  t.cols.values())
@@ -68,10 +80,12 @@ def main(argv=None) -> int:
           f"linear {li.n_failed}")
     print(f"{'engine':<44}{'wall (s)':>10}{'per case (ms)':>15}")
     print(f"{f'co-simulation, {args.workers} workers':<44}{t_co:>10.2f}{1e3 * t_co / n:>15.1f}")
-    print(f"{'linear: closing 2 configurations (build)':<44}{t_build:>10.2f}")
+    print(f"{'linear: closing 2 configurations (build)':<44}{t_build:>10.2f}"
+          f"{'':>15}  {_spread(builds)}")
     print(f"{'linear: the 24 cases (records, metrics, files)':<44}{t_li:>10.2f}"
-          f"{1e3 * t_li / n:>15.1f}")
+          f"{1e3 * t_li / n:>15.1f}  {_spread(cases)}")
     print(f"{'linear: total':<44}{t_build + t_li:>10.2f}")
+    print(f"(linear rows: the median of {len(cases)} runs on fresh runners)")
     print(f"speed-up of the cases: {t_co / t_li:.0f}x, with the build: "
           f"{t_co / (t_build + t_li):.1f}x")
     print(f"largest relative difference of a summary cell: {worst:.1e} "

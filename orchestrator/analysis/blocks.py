@@ -14,7 +14,7 @@ import numpy as np
 
 from fmutools.archive import ArchiveError, unpack
 from piezofmu.amplifier import linear_map
-from structfmu.discrete import discretize, step
+from structfmu.discrete import discretize
 from structfmu.statespace import first_order
 
 

@@ -124,7 +124,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                     if key not in blocks:
                         blocks[key] = structure_block(_perturbed(b.model, draws, items, s),
                                                       name, b.period, b.period * lin.base,
-                                                      b.feedthrough)
+                                                      b.feedthrough, blockwise=True)
                     lin = lin.with_block(blocks[key])
                 for it in items:
                     if it.kind == "gain":

@@ -145,7 +145,7 @@ class DiscreteModel:
         return self.model.n_states
 
 
-def discretize(model: ReducedModel, h: float) -> DiscreteModel:
+def discretize(model: ReducedModel, h: float, filter_rows: bool = True) -> DiscreteModel:
     """Exact ZOH discretisation of a reduced model for the step ``h`` (s).
 
     Parameters
@@ -154,6 +154,9 @@ def discretize(model: ReducedModel, h: float) -> DiscreteModel:
         The continuous reduced model.
     h : float
         Step (s); positive and finite.
+    filter_rows : bool
+        Compute the accelerometer filter's rows (one exponential of the whole model);
+        False leaves ``F_x`` and ``F_u`` None for a caller that computes them itself.
 
     Returns
     -------
@@ -165,7 +168,7 @@ def discretize(model: ReducedModel, h: float) -> DiscreteModel:
     a11, a12, a21, a22, g1, g2 = modal_zoh(model.omega, model.modal_damping, h)
     Phi_o, Gam_o = block_zoh(model.K_oo, model.D_oo, h)
     G_o = Gam_o @ model.B_o if model.n_ritz else np.zeros((0, model.n_inputs))
-    F_x, F_u = _filter_zoh(model, h)
+    F_x, F_u = _filter_zoh(model, h) if filter_rows else (None, None)
     return DiscreteModel(h, a11, a12, a21, a22, g1[:, None] * model.B_e,
                          g2[:, None] * model.B_e, Phi_o, G_o, model, F_x, F_u)
 

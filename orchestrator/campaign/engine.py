@@ -239,11 +239,21 @@ def _run_threads(todo, args, on_done):
     pool = ThreadPoolExecutor(min(len(todo), os.cpu_count() or 1),
                               initializer=one_blas_thread)
     futs = {pool.submit(execute_case, case, *args): case for case in todo}
+    reported = set()
     try:
         for fut in as_completed(futs):
+            reported.add(fut)
             on_done(futs[fut], fut.result())
-    finally:   # interrupted: the cases not started are dropped, those running finish
-        pool.shutdown(wait=False, cancel_futures=True)
+    except BaseException:
+        # interrupted: the cases not started are dropped; those running finish (a linear
+        # case takes milliseconds) and are counted, before the caller tidies the folder
+        pool.shutdown(wait=True, cancel_futures=True)
+        for fut, case in futs.items():
+            if fut not in reported and not fut.cancelled():
+                on_done(case, fut.result())
+        raise
+    finally:
+        pool.shutdown(wait=False)
 
 
 def _run_local(todo, args, workers, on_done):

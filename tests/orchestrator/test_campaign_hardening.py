@@ -208,10 +208,20 @@ def _finished(cases_dir: Path) -> dict:
     return out
 
 
+def threaded_runner(scenario: dict, out_dir):
+    """The synthetic runner marked as the linear engine: its cases run in threads."""
+    return synthetic_runner(scenario, out_dir)
+
+
+threaded_runner.engine = "linear"
+
+
 @pytest.mark.parametrize("runner, workers", [("master", 0), ("synthetic", 0),
-                                             ("synthetic", 2)])
+                                             ("synthetic", 2), ("threads", 0)])
 def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, request, runner,
                                                            workers):
+    """Stopped between or during cases: the finished ones are kept and counted exactly
+    (with threads, the cases in flight finish and are counted with them)."""
     if runner == "master":   # the master's own signal guard is active inside each case
         data = _fmu_campaign(tmp_path, "sc.x0", stop=200.0)
         data["sweeps"][0]["values"] = [i * 1e-6 for i in range(8)]
@@ -220,7 +230,9 @@ def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, request, ru
         extra = ["--fmu-dir", str(request.getfixturevalue("fmu_dir"))]
     else:                    # a runner without one
         data = campaign_data(sleep=0.4, n_events=4)
-        extra = ["--runner", "tests.orchestrator.test_campaign:synthetic_runner"]
+        where = ("tests.orchestrator.test_campaign_hardening:threaded_runner"
+                 if runner == "threads" else "tests.orchestrator.test_campaign:synthetic_runner")
+        extra = ["--runner", where]
     path = _toml(tmp_path, data)
     out = tmp_path / "out"
     cmd = [sys.executable, "-c", _CLI, "campaign", str(path), "--out", str(out),
@@ -249,7 +261,7 @@ def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, request, ru
     assert f"kept {len(done)} finished case(s)" in lines[0] and str(out) in lines[0]
     assert "run the same command again" in lines[0]
     assert not list((out / "cases").glob(".tmp-*"))
-    if runner == "synthetic":               # and the same command finishes the rest
+    if runner != "master":                  # and the same command finishes the rest
         again = subprocess.run(cmd, check=False, cwd=HERE.parents[1], capture_output=True,
                                text=True, timeout=120)
         assert again.returncode == 0, again.stderr

@@ -260,3 +260,26 @@ def test_analyze_transfer_cli_writes_table_and_figure(truss, tmp_path, capsys):
     rows = list(csv.reader(open(tmp_path / "t.csv", encoding="utf-8")))
     assert len(rows) == 51 and rows[0][0] == "freq_hz" and len(rows[0]) == 4
     assert (tmp_path / "t.png").stat().st_size > 1000
+
+
+def test_time_invariant_steady_state_of_a_fed_through_output_is_its_phasor(rwa_sweep):
+    """On the time-invariant sweep loop (the ACS's zeros published every tick), a
+    recorded source output is fed through (its D row): its steady state is exactly the
+    line it publishes, ``Y[p] = a exp(j w p base)`` at every tick of the super-period."""
+    camp, _, _, runner = rwa_sweep
+    sw = camp.wheel_sweeps[1]
+    outs = runner.compiled(sw["scenario"]).lin.blocks["dist_rwa"].outputs[:3]
+    refs = ["structure.los_swir_roll"] + [f"dist_rwa.{o}" for o in outs]
+    fr = runner.response(sw["scenario"], refs, sw["open"])
+    assert [L for _, L in fr._runs] == [fr.P]               # one run: time-invariant
+    rng = np.random.default_rng(4)
+    f = rng.uniform(0.5, 200.0, 40)
+    a = np.zeros((f.size, fr.m), complex)
+    off = fr._in_off["dist_rwa"]
+    a[:, off:off + 6] = rng.standard_normal((f.size, 6)) + 1j * rng.standard_normal((f.size, 6))
+    Y = fr.steady_state(f, a, refs)                          # (P, n_f, r)
+    base = float(fr.lin.plan.timebase.base)
+    spin = np.exp(2j * np.pi * np.outer(np.arange(fr.P), f) * base)
+    want = spin[:, :, None] * a[None, :, off:off + 3]
+    np.testing.assert_allclose(Y[:, :, 1:], want, rtol=0, atol=1e-13 * np.abs(want).max())
+    assert np.abs(Y[:, :, 0]).max() > 0                      # and the line of sight moves

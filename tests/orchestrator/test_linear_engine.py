@@ -332,3 +332,31 @@ def test_blockwise_filter_rows_equal_the_fmus_exponential(eos_pair):
     nominal = filter_zoh(model, 1e-3)[0][:, modes]
     change = filter_zoh(moved, 1e-3)[0][:, modes] - nominal
     assert np.max(np.abs(change)) > 1e-3 * np.abs(nominal).max()
+
+
+def test_states_no_record_can_need_are_dropped_exactly(eos_pair, monkeypatch):
+    """With isolation off the controllers are at gain 0: their states (and what only
+    they see) can change no computed output, and states no source reaches stay zero
+    from rest. They leave the memory state; every record driven by every channel, and
+    the loop's poles, are those of the loop that keeps them (to round-off)."""
+    from orchestrator.analysis import fast
+    from orchestrator.analysis.sweep import unstable_poles
+
+    runner = eos_pair[-1]
+    case = next(c for c in _eos_campaign().cases if c.configuration == "isolation off")
+    fr = runner.compiled(case.scenario)
+    monkeypatch.setattr(fast, "_relevant",
+                        lambda maps, rows: np.ones(next(iter(maps.values()))[0].shape[0], bool))
+    full = fast.FastResponse(fr.lin, fr.refs)
+    assert fr.n_memory < full.n_memory
+    rng = np.random.default_rng(9)
+    W = rng.standard_normal((301, fr.m))
+    got, want = fr.run(W, check=False), full.run(W, check=False)
+    peak = np.maximum(np.abs(want.values).max(axis=0), 1e-300)
+    assert np.max(np.abs(got.values - want.values) / peak) < 1e-12
+    assert got.limits == pytest.approx(want.limits, rel=0, abs=1e-12)
+    # the loop's poles outside the unit circle (the short record's ACS pole) are the
+    # full loop's: the dropped states add none
+    pa, pb = unstable_poles(fr), unstable_poles(full)
+    assert len(pa) == len(pb)
+    np.testing.assert_allclose(np.abs(pa), np.abs(pb), rtol=0, atol=1e-9)

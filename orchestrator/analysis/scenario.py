@@ -88,6 +88,9 @@ class LinearScenario:
                 continue
             self._conns.append((c.target, dst.inputs.index(c.target_var), c.source,
                                 src.outputs.index(c.source_var), float(c.gain)))
+        self._conns_to = {}   # per target, in connection order: what a tick sets
+        for tgt, j, src, i, gain in self._conns:
+            self._conns_to.setdefault(tgt, []).append((j, src, i, gain))
 
     # ------------------------------------------------------------------ layout
     def _layout(self):
@@ -231,9 +234,8 @@ class LinearScenario:
                 continue
             sx, su, sy = self.slots[name]
             X[su] = 0.0      # unconnected inputs keep their start values: no perturbation
-            for tgt, j, src, i, gain in self._conns:
-                if tgt == name:
-                    X[su.start + j] = gain * X[self.slots[src][2].start + i]
+            for j, src, i, gain in self._conns_to.get(name, ()):
+                X[su.start + j] = gain * X[self.slots[src][2].start + i]
             if b.feedthrough.any():
                 rows = np.flatnonzero(b.feedthrough)
                 X[sy.start + rows] = b.C[rows] @ X[sx] + b.D[rows] @ X[su]

@@ -145,7 +145,8 @@ class DiscreteModel:
         return self.model.n_states
 
 
-def discretize(model: ReducedModel, h: float, filter_rows: bool = True) -> DiscreteModel:
+def discretize(model: ReducedModel, h: float,
+               blockwise_filter: bool = False) -> DiscreteModel:
     """Exact ZOH discretisation of a reduced model for the step ``h`` (s).
 
     Parameters
@@ -154,9 +155,9 @@ def discretize(model: ReducedModel, h: float, filter_rows: bool = True) -> Discr
         The continuous reduced model.
     h : float
         Step (s); positive and finite.
-    filter_rows : bool
-        Compute the accelerometer filter's rows (one exponential of the whole model);
-        False leaves ``F_x`` and ``F_u`` None for a caller that computes them itself.
+    blockwise_filter : bool
+        The accelerometer filter's rows by :func:`filter_zoh` (block by block, equal to
+        round-off) instead of one exponential of the whole model (what the FMU steps).
 
     Returns
     -------
@@ -168,7 +169,10 @@ def discretize(model: ReducedModel, h: float, filter_rows: bool = True) -> Discr
     a11, a12, a21, a22, g1, g2 = modal_zoh(model.omega, model.modal_damping, h)
     Phi_o, Gam_o = block_zoh(model.K_oo, model.D_oo, h)
     G_o = Gam_o @ model.B_o if model.n_ritz else np.zeros((0, model.n_inputs))
-    F_x, F_u = _filter_zoh(model, h) if filter_rows else (None, None)
+    if model.n_filter_states == 0:
+        F_x, F_u = None, None
+    else:
+        F_x, F_u = (filter_zoh if blockwise_filter else _filter_zoh)(model, h)
     return DiscreteModel(h, a11, a12, a21, a22, g1[:, None] * model.B_e,
                          g2[:, None] * model.B_e, Phi_o, G_o, model, F_x, F_u)
 
@@ -205,6 +209,114 @@ def _filter_zoh(model: ReducedModel, h: float):
     n_m, n_r, ns = model.n_modes, model.n_ritz, model.n_struct_states
     ours = np.r_[0:n_m, n_m + n_r:2 * n_m + n_r, n_m:n_m + n_r, 2 * n_m + n_r:ns, ns:n]
     return E[:, ours], E[:, n:]
+
+
+#: The Ritz block's part of the filter rows, per (model arrays, step): a modal
+#: perturbation keeps its Ritz block (the arrays themselves, kept here so that their ids
+#: stay theirs).
+_RITZ_ROWS: dict = {}
+
+
+def filter_zoh(model, h: float) -> tuple:
+    """Exact ZOH rows ``(F_x, F_u)`` of the accelerometer filter, block by block.
+
+    The filter of each acceleration channel is driven by ``sum_i C_e[c, i] q_i'' +
+    C_o[c] q_o''`` and the structure's blocks are decoupled, so each mode contributes
+    through the exponential of its own ``(q, v, filter, f)`` system (batched, size
+    ``3 + order``) and the Ritz block through one of its ``(q_o, v_o, filters, f_o)``
+    system (kept for the next perturbation of the modes).  The same matrices as
+    :func:`_filter_zoh`'s one exponential of the whole model (what the FMU steps), to
+    round-off, at a fraction of its cost.
+
+    Parameters
+    ----------
+    model : ReducedModel
+        With an accelerometer low-pass.
+    h : float
+        Step (s).
+
+    Returns
+    -------
+    F_x : ndarray, shape (n_f, n_states)
+    F_u : ndarray, shape (n_f, n_inputs)
+    """
+    acc = model.is_accel
+    n_acc, n_m, n_r = int(acc.sum()), model.n_modes, model.n_ritz
+    ns, n = model.n_struct_states, model.n_states
+    a, b, _ = model.accel_lowpass.siso()
+    o = a.shape[0]
+    Ce, Co = model.C_e[acc], model.C_o[acc]
+    F_x = np.zeros((n_acc * o, n))
+    # each mode: states (q, v, x_f) and the held force f = B_e u, q'' = f - c v - w^2 q
+    w2, c = model.omega ** 2, model.modal_damping
+    Z = np.zeros((n_m, 3 + o, 3 + o))
+    Z[:, 0, 1] = 1.0
+    Z[:, 1, 0], Z[:, 1, 1], Z[:, 1, 2 + o] = -w2, -c, 1.0
+    Z[:, 2:2 + o, 0] = -w2[:, None] * b[:, 0]
+    Z[:, 2:2 + o, 1] = -c[:, None] * b[:, 0]
+    Z[:, 2:2 + o, 2:2 + o] = a
+    Z[:, 2:2 + o, 2 + o] = b[:, 0]
+    E = la.expm(Z * h)[:, 2:2 + o]                                  # (n_m, o, 3 + o)
+    # channel k's rows k o .. k o + o - 1 see C_e[k, i] times mode i's response
+    F_x[:, :n_m] = (Ce[:, None, :] * E[:, :, 0].T[None]).reshape(n_acc * o, n_m)
+    F_x[:, n_m:2 * n_m] = (Ce[:, None, :] * E[:, :, 1].T[None]).reshape(n_acc * o, n_m)
+    F_u = (Ce[:, None, :] * E[:, :, 2 + o].T[None]).reshape(n_acc * o, n_m) @ model.B_e
+    Ea = la.expm(a * h)
+    for k in range(n_acc):   # the filter's own states
+        F_x[k * o:(k + 1) * o, ns + k * o:ns + (k + 1) * o] = Ea
+    if n_r:
+        key = (id(model.K_oo), id(model.D_oo), id(model.B_o), id(model.C_o), float(h),
+               acc.tobytes(), repr(model.accel_lowpass.to_json()))
+        hit = _RITZ_ROWS.get(key)
+        if hit is None:
+            Af, Bf, _ = filter_blocks(model.accel_lowpass, n_acc)
+            n_f = Af.shape[0]
+            m = 3 * n_r + n_f
+            Zo = np.zeros((m, m))
+            F = slice(2 * n_r, 2 * n_r + n_f)
+            Zo[:n_r, n_r:2 * n_r] = np.eye(n_r)
+            Zo[n_r:2 * n_r, :n_r], Zo[n_r:2 * n_r, n_r:2 * n_r] = -model.K_oo, -model.D_oo
+            Zo[n_r:2 * n_r, 2 * n_r + n_f:] = np.eye(n_r)
+            Zo[F, :n_r] = Bf @ (-Co @ model.K_oo)
+            Zo[F, n_r:2 * n_r] = Bf @ (-Co @ model.D_oo)
+            Zo[F, F] = Af
+            Zo[F, 2 * n_r + n_f:] = Bf @ Co
+            Eo = la.expm(Zo * h)[F]
+            hit = (Eo[:, :2 * n_r], Eo[:, 2 * n_r + n_f:] @ model.B_o,
+                   (model.K_oo, model.D_oo, model.B_o, model.C_o))
+            if len(_RITZ_ROWS) >= 4:
+                _RITZ_ROWS.clear()
+            _RITZ_ROWS[key] = hit
+        F_x[:, 2 * n_m:ns] = hit[0]
+        F_u = F_u + hit[1]
+    return F_x, F_u
+
+
+def step_matrices(dm) -> tuple:
+    """``(A, B)`` of ``x+ = A x + B u`` for a discretised reduced model, assembled from
+    its blocks (layout of :class:`DiscreteModel`): the numbers :func:`step` multiplies,
+    so that ``A x + B u`` is its step.
+
+    Parameters
+    ----------
+    dm : DiscreteModel
+
+    Returns
+    -------
+    A : ndarray, shape (n_states, n_states)
+    B : ndarray, shape (n_states, n_inputs)
+    """
+    model = dm.model
+    n, n_m, ns = model.n_states, model.n_modes, model.n_struct_states
+    A = np.zeros((n, n))
+    q, v = np.arange(n_m), n_m + np.arange(n_m)
+    A[q, q], A[q, v], A[v, q], A[v, v] = dm.a11, dm.a12, dm.a21, dm.a22
+    A[2 * n_m:ns, 2 * n_m:ns] = dm.Phi_o
+    B = np.vstack([dm.G1, dm.G2, dm.G_o])
+    if ns < n:
+        A[ns:] = dm.F_x
+        B = np.vstack([B, dm.F_u])
+    return A, B
 
 
 def step(dm: DiscreteModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:

@@ -275,8 +275,7 @@ def test_structure_step_matrices_are_its_step_bit_for_bit(eos_pair):
     """The structure block's (A, B), assembled from the discretised blocks (modes, Ritz
     block, accelerometer filter), are the numbers the FMU's step multiplies: stepping
     each unit state and input gives the same columns exactly."""
-    from orchestrator.analysis.blocks import step_matrices
-    from structfmu.discrete import discretize, step
+    from structfmu.discrete import discretize, step, step_matrices
 
     model = _isolation_on_loop(eos_pair).lin.blocks["structure"].model
     assert model.n_filter_states and model.n_ritz and model.n_modes
@@ -314,8 +313,7 @@ def test_blockwise_filter_rows_equal_the_fmus_exponential(eos_pair):
     BLAS), and the perturbation is seen by both alike."""
     import dataclasses
 
-    from orchestrator.analysis.blocks import filter_zoh
-    from structfmu.discrete import _filter_zoh
+    from structfmu.discrete import _filter_zoh, filter_zoh
 
     model = _isolation_on_loop(eos_pair).lin.blocks["structure"].model
     rng = np.random.default_rng(2)

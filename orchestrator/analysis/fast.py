@@ -290,7 +290,7 @@ class FastResponse(SteadyState):
         if T is None:
             h = self._columns(t, active)[1][:, sel]                     # (L, r, k)
             if L > _TOEPLITZ_TICKS:
-                T = ("fft", h, sfft.rfft(h, _fft_length(L), axis=0))
+                T = ("fft", sfft.rfft(h, _fft_length(L), axis=0))       # (f, r, k)
             else:   # Tt[l, c, q, j] = h[q - l, j, c] for q >= l, from a sliding view
                 hp = np.concatenate([np.zeros((L - 1, k, r)), h.transpose(0, 2, 1)])
                 win = np.lib.stride_tricks.sliding_window_view(hp, L, axis=0)  # (L, k, r, L)
@@ -298,7 +298,7 @@ class FastResponse(SteadyState):
                     win[::-1].transpose(0, 1, 3, 2)).reshape(L * k, L * r))
             self._keep(ck, T)
         if T[0] == "fft":
-            return _causal_conv(T[1], Wu, T[2]).reshape(Wu.shape[0], L * r)
+            return _causal_conv(T[1], Wu).reshape(Wu.shape[0], L * r)
         return Wu.reshape(Wu.shape[0], L * k) @ T[1]
 
     def _keep(self, key, value):
@@ -621,28 +621,22 @@ def _relevant(maps: dict, rows) -> np.ndarray:
         reach, need = more_reach, more_need
 
 
-def _causal_conv(h: np.ndarray, w: np.ndarray, Hf=None) -> np.ndarray:
+def _causal_conv(Hf: np.ndarray, w: np.ndarray) -> np.ndarray:
     """``y[u, q] = sum_{l <= q} h[q - l] w[u, l]`` for every run ``u``, by FFT.
 
     Parameters
     ----------
-    h : ndarray, shape (L, r, m)
+    Hf : ndarray, shape (n_f, r, m)
+        ``rfft`` of ``h`` (L, r, m) at length ``_fft_length(L)``.
     w : ndarray, shape (n_u, L, m)
 
     Returns
     -------
     ndarray, shape (n_u, L, r)
     """
-    L = h.shape[0]
-    if L <= 8:   # short runs: the direct sum is cheaper
-        y = np.zeros((w.shape[0], L, h.shape[1]))
-        for q in range(L):
-            y[:, q] = np.einsum("lrm,ulm->ur", h[q::-1], w[:, :q + 1])
-        return y
+    L = w.shape[1]
     n = _fft_length(L)
     # one thread: campaign cases and Monte Carlo samples already run one per core
-    if Hf is None:
-        Hf = sfft.rfft(h, n, axis=0)                # (f, r, m)
     Wf = sfft.rfft(w, n, axis=1)                    # (u, f, m)
     if Wf.shape[2] == 1:
         Yf = Wf * Hf[None, :, :, 0]

@@ -1,0 +1,107 @@
+"""Parts of the fast path (:mod:`orchestrator.analysis.fast`) that stand alone: the record
+it returns, the memory-state pruning and the causal FFT convolution of its runs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft as sfft
+
+__all__ = ["Record"]
+
+@dataclass(frozen=True)
+class Record:
+    """A fast-path record; unpacks as ``values, times``.
+
+    Attributes
+    ----------
+    values : ndarray, shape (n_ticks + 1, n_refs)
+        Each reference at every tick (as the master records it: after the tick's inputs
+        are set, before it steps).
+    times : ndarray, shape (n_ticks + 1,)
+        Tick times (s), exact.
+    refs : tuple of str
+        The columns, ``instance.variable``.
+    limits : dict of str to float
+        Per checked output, the largest fraction of its allowed range used (1 = at the
+        rail).
+    reached : tuple of str
+        The checked outputs that left their range (a record run with ``check=False``).
+    """
+
+    values: np.ndarray
+    times: np.ndarray
+    refs: tuple
+    limits: dict
+    reached: tuple = ()
+
+    def __iter__(self):
+        return iter((self.values, self.times))
+
+    def column(self, ref: str) -> np.ndarray:
+        """The record of ``ref``."""
+        return self.values[:, self.refs.index(ref)]
+
+
+def _relevant(maps: dict, rows) -> np.ndarray:
+    """States (of the lifted state) a record can need: driven by a source from rest and
+    seen by a computed row, through the structural non-zeros of the tick maps.
+
+    A state no source reaches stays exactly zero from rest; one that no computed row
+    depends on, however many ticks later, changes nothing computed.  Both are exact
+    zeros of the products, dropped (a controller at gain 0 and the piezo behind it
+    when nothing checks them; 430 -> 311 states for the EOS loop with isolation off).
+
+    Parameters
+    ----------
+    maps : dict of signature to (M, N)
+        Every kind of tick's map ``X+ = M X + N w``.
+    rows : sequence of int
+        Lifted-state rows the records compute.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    dep = np.zeros(next(iter(maps.values()))[0].shape, bool)    # dep[i, j]: i+ reads j
+    reach = np.zeros(dep.shape[0], bool)
+    for M, N in maps.values():
+        dep |= M != 0.0
+        reach |= np.any(N != 0.0, axis=1)
+    need = np.any(dep[np.asarray(rows, int)], axis=0)
+    while True:   # forward from the sources, backward from the rows: fixed points
+        more_reach = reach | np.any(dep[:, reach], axis=1)
+        more_need = need | np.any(dep[need], axis=0)
+        if (more_reach == reach).all() and (more_need == need).all():
+            return reach & need
+        reach, need = more_reach, more_need
+
+
+def _causal_conv(Hf: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``y[u, q] = sum_{l <= q} h[q - l] w[u, l]`` for every run ``u``, by FFT.
+
+    Parameters
+    ----------
+    Hf : ndarray, shape (n_f, r, m)
+        ``rfft`` of ``h`` (L, r, m) at length ``_fft_length(L)``.
+    w : ndarray, shape (n_u, L, m)
+
+    Returns
+    -------
+    ndarray, shape (n_u, L, r)
+    """
+    L = w.shape[1]
+    n = _fft_length(L)
+    # one thread: campaign cases and Monte Carlo samples already run one per core
+    Wf = sfft.rfft(w, n, axis=1)                    # (u, f, m)
+    if Wf.shape[2] == 1:
+        Yf = Wf * Hf[None, :, :, 0]
+    else:
+        Yf = np.einsum("frm,ufm->ufr", Hf, Wf, optimize=True)
+    return sfft.irfft(Yf, n, axis=1)[:, :L]
+
+
+def _fft_length(L: int) -> int:
+    """A fast FFT length for a linear convolution of two ``L``-long sequences."""
+    return sfft.next_fast_len(2 * L - 1, real=True)

@@ -30,6 +30,12 @@ typedef struct {
     double hold_step;
 } Params;
 
+/* The sub-steps of an advance over dt and their map (amplifier._coefficients). */
+typedef struct {
+    long n;
+    double hsub, a, a11, a12, a21, a22, b1, b2;
+} Coef;
+
 typedef struct {
     double ch, capacitance, stroke_per_volt, rated_voltage;
     long v_min, v_max, i_max, bandwidth, amp_order, damping, internal_step, hysteresis,
@@ -43,6 +49,11 @@ typedef struct {
     long ahead_n;
     Params ahead_q;
     double ahead_u, ahead_x0[6], ahead_x1[6];
+    /* the sub-step map of the last advance, kept for the same (dt, h_int, w, zeta,
+     * order): the same numbers give the same coefficients, so they are computed once */
+    int coef_ok, coef_order;
+    double coef_key[4];
+    Coef coef;
 } Piezo;
 
 
@@ -229,6 +240,32 @@ static double stack_force(const Piezo *p, const Params *q, double v_eff) {
     return p->ch * v_eff;
 }
 
+static Coef coefficients(const Params *q, double dt) {
+    Coef c = {0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    substeps(dt, q->h_int, &c.n, &c.hsub);
+    if (q->order == 1) {
+        c.a = exp(-q->w * c.hsub);
+    } else {
+        /* as piezofmu.amplifier._coefficients: the scaled state (v, r / w) */
+        double m[9], e[9], wh = q->w * c.hsub;
+        m[0] = wh * 0.0;
+        m[1] = wh * 1.0;
+        m[2] = wh * 0.0;
+        m[3] = wh * -1.0;
+        m[4] = wh * (-2.0 * q->zeta);
+        m[5] = wh * 1.0;
+        m[6] = m[7] = m[8] = wh * 0.0;
+        expm3(m, e);
+        c.a11 = e[0];
+        c.a12 = e[1] / q->w;
+        c.a21 = e[3] * q->w;
+        c.a22 = e[4];
+        c.b1 = e[2];
+        c.b2 = e[5] * q->w;
+    }
+    return c;
+}
+
 /* amplifier._advance on the state x, with the Bouc-Wen state driven along the sub-step
  * path; with mean != NULL also the trapezoidal mean force (actuator.step_mean).
  * Returns the number of sub-steps. */
@@ -238,27 +275,26 @@ static long advance(JfInstance *inst, const Params *q, double *x, double u, doub
     double a11 = 0, a12 = 0, a21 = 0, a22 = 0, b1 = 0, b2 = 0, s_max, dv_max;
     int sat_v = 0, sat_s = 0, first = q->order == 1;
     long n, i;
-    substeps(dt, q->h_int, &n, &hsub);
-    if (first) {
-        a = exp(-q->w * hsub);
-    } else {
-        /* as piezofmu.amplifier._coefficients: the scaled state (v, r / w) */
-        double m[9], e[9], wh = q->w * hsub;
-        m[0] = wh * 0.0;
-        m[1] = wh * 1.0;
-        m[2] = wh * 0.0;
-        m[3] = wh * -1.0;
-        m[4] = wh * (-2.0 * q->zeta);
-        m[5] = wh * 1.0;
-        m[6] = m[7] = m[8] = wh * 0.0;
-        expm3(m, e);
-        a11 = e[0];
-        a12 = e[1] / q->w;
-        a21 = e[3] * q->w;
-        a22 = e[4];
-        b1 = e[2];
-        b2 = e[5] * q->w;
+    Piezo *p = P;
+    if (!(p->coef_ok && p->coef_order == q->order && p->coef_key[0] == dt &&
+          p->coef_key[1] == q->h_int && p->coef_key[2] == q->w && p->coef_key[3] == q->zeta)) {
+        p->coef = coefficients(q, dt);
+        p->coef_ok = 1;
+        p->coef_order = q->order;
+        p->coef_key[0] = dt;
+        p->coef_key[1] = q->h_int;
+        p->coef_key[2] = q->w;
+        p->coef_key[3] = q->zeta;
     }
+    n = p->coef.n;
+    hsub = p->coef.hsub;
+    a = p->coef.a;
+    a11 = p->coef.a11;
+    a12 = p->coef.a12;
+    a21 = p->coef.a21;
+    a22 = p->coef.a22;
+    b1 = p->coef.b1;
+    b2 = p->coef.b2;
     s_max = q->i_max / P->capacitance;
     dv_max = s_max * hsub;
     if (mean != NULL) f_prev = stack_force(P, q, v - h_bw);

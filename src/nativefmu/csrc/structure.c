@@ -27,9 +27,16 @@
 
 #define CACHE 8
 
+/* The columns of a row-major matrix that four consecutive rows read: panel p (rows 4p to
+ * 4p + 3) reads columns cols[start[p]] ... cols[start[p + 1] - 1], increasing. */
+typedef struct {
+    size_t *start, *cols;
+} Panels;
+
 typedef struct {
     double h;
     double *a11, *G1, *G2, *Phi_o, *G_o, *F_x, *F_u; /* a11 holds a11, a12, a21, a22 */
+    Panels f_cols;        /* of F_x, built on first use */
 } Zoh;
 
 typedef struct {
@@ -45,11 +52,91 @@ typedef struct {
     int has_ft;
     /* views of the discretisation in use (cur) */
     double *a11, *a12, *a21, *a22, *G1, *G2, *Phi_o, *G_o, *F_x, *F_u;
+    const Panels *f_cols;
+    Panels c_cols;        /* of C_x */
+    size_t *all_o;        /* 0 ... 2 n_r - 1: every column of Phi_o */
+    size_t *u_on, n_on;   /* the inputs that are not zero this step */
     /* work */
-    double *u, *y_state, *tq, *tv, *to, *tf;
+    double *u, *y_state, *tq, *tv, *to, *tf, *gq, *gv, *rs;
 } Structure;
 
 #define M ((Structure *)inst->model)
+
+/* out[i] = sum_k A[i * lda + cols[k]] x[cols[k]] for rows i < nrows (at most four),
+ * k increasing: each row's terms are added in the order of the dense sum over all
+ * columns, less the columns left out.  The rows are interleaved so that four
+ * independent sums share each load of x (one sum at a time waits on its own adds). */
+static void dot4(const double *A, size_t lda, size_t nrows, const size_t *cols, size_t nc,
+                 const double *x, double *out) {
+    size_t k;
+    if (nrows == 4) {
+        const double *a0 = A, *a1 = A + lda, *a2 = A + 2 * lda, *a3 = A + 3 * lda;
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+        for (k = 0; k < nc; k++) {
+            size_t j = cols[k];
+            double xj = x[j];
+            s0 += a0[j] * xj;
+            s1 += a1[j] * xj;
+            s2 += a2[j] * xj;
+            s3 += a3[j] * xj;
+        }
+        out[0] = s0;
+        out[1] = s1;
+        out[2] = s2;
+        out[3] = s3;
+        return;
+    }
+    for (; nrows > 0; nrows--, A += lda, out++) {
+        double s0 = 0.0;
+        for (k = 0; k < nc; k++) s0 += A[cols[k]] * x[cols[k]];
+        *out = s0;
+    }
+}
+
+/* out = A x over the columns cols (all rows), four rows at a time. */
+static void rows_dot(const double *A, size_t lda, size_t nrows, const size_t *cols, size_t nc,
+                     const double *x, double *out) {
+    size_t i;
+    for (i = 0; i < nrows; i += 4)
+        dot4(A + i * lda, lda, nrows - i < 4 ? nrows - i : 4, cols, nc, x, out + i);
+}
+
+/* out = A x over the columns each panel of four rows reads. */
+static void panel_dot(const double *A, size_t lda, size_t nrows, const Panels *p,
+                      const double *x, double *out) {
+    size_t i, q;
+    for (i = 0, q = 0; i < nrows; i += 4, q++)
+        dot4(A + i * lda, lda, nrows - i < 4 ? nrows - i : 4, p->cols + p->start[q],
+             p->start[q + 1] - p->start[q], x, out + i);
+}
+
+/* The columns of A (nrows x ncols) that each panel of four rows reads: a column whose four
+ * coefficients are zero adds only zeros to their sums and is left out.  Skipping a zero
+ * term keeps every sum's bits: a sum started at +0 is never -0, and s + (+-0) is s. */
+static int panels_build(JfInstance *inst, const double *A, size_t nrows, size_t ncols,
+                        Panels *p) {
+    size_t np = (nrows + 3) / 4, q, i, j, n = 0;
+    p->start = (size_t *)jf_alloc(inst, np + 1, sizeof(size_t));
+    p->cols = (size_t *)jf_alloc(inst, np * ncols + 1, sizeof(size_t));
+    if (p->start == NULL || p->cols == NULL) return JF_ERROR;
+    for (q = 0; q < np; q++) {
+        p->start[q] = n;
+        for (j = 0; j < ncols; j++)
+            for (i = 4 * q; i < nrows && i < 4 * q + 4; i++)
+                if (A[i * ncols + j] != 0.0) {
+                    p->cols[n++] = j;
+                    break;
+                }
+    }
+    p->start[np] = n;
+    return JF_OK;
+}
+
+static void panels_free(Panels *p) {
+    free(p->start);
+    free(p->cols);
+    p->start = p->cols = NULL;
+}
 
 static double *load(JfData *d, const char *name, size_t rows, size_t cols, int *ok) {
     double *p = jf_data_array(d, name, rows, cols);
@@ -152,9 +239,18 @@ int model_instantiate(JfInstance *inst) {
     m->tq = (double *)jf_alloc(inst, 2 * m->n_m, sizeof(double));
     m->to = (double *)jf_alloc(inst, 2 * m->n_r, sizeof(double));
     m->tf = (double *)jf_alloc(inst, m->n_f, sizeof(double));
+    m->gq = (double *)jf_alloc(inst, 2 * m->n_m + 1, sizeof(double));
+    m->rs = (double *)jf_alloc(inst, m->n_out + 2 * m->n_r + m->n_f + 1, sizeof(double));
+    m->u_on = (size_t *)jf_alloc(inst, m->n_in + 1, sizeof(size_t));
+    m->all_o = (size_t *)jf_alloc(inst, 2 * m->n_r + 1, sizeof(size_t));
     inst->n_state = m->n;
     inst->state = (double *)jf_alloc(inst, m->n, sizeof(double));
-    if (!m->u || !m->y_state || !m->tq || !m->to || !m->tf || !inst->state) return JF_ERROR;
+    if (!m->u || !m->y_state || !m->tq || !m->to || !m->tf || !m->gq || !m->rs || !m->u_on ||
+        !m->all_o || !inst->state)
+        return JF_ERROR;
+    m->gv = m->gq + m->n_m;
+    for (i = 0; i < 2 * m->n_r; i++) m->all_o[i] = i;
+    if (panels_build(inst, m->C_x, m->n_out, m->n, &m->c_cols) != JF_OK) return JF_ERROR;
     m->tv = m->tq + m->n_m;
     m->cur = NULL;
     return JF_OK;
@@ -168,6 +264,7 @@ static void zoh_free(Zoh *z) {
     free(z->G_o);
     free(z->F_x);
     free(z->F_u);
+    panels_free(&z->f_cols);
     memset(z, 0, sizeof *z);
 }
 
@@ -196,6 +293,11 @@ void model_free(JfInstance *inst) {
     free(m->tq);
     free(m->to);
     free(m->tf);
+    free(m->gq);
+    free(m->rs);
+    free(m->u_on);
+    free(m->all_o);
+    panels_free(&m->c_cols);
     free(m);
     inst->model = NULL;
 }
@@ -306,6 +408,17 @@ static void use(Structure *m, const Zoh *z) {
     m->G_o = z->G_o;
     m->F_x = z->F_x;
     m->F_u = z->F_u;
+    m->f_cols = &z->f_cols;
+}
+
+/* Use the discretisation z, its filter panels built on its first use. */
+static int ready(JfInstance *inst, Zoh *z) {
+    Structure *m = M;
+    if (m->n_f && z->f_cols.start == NULL &&
+        panels_build(inst, z->F_x, m->n_f, m->n, &z->f_cols) != JF_OK)
+        return JF_ERROR;
+    use(m, z);
+    return JF_OK;
 }
 
 /* Make the discretisation for step h the one in use: a declared or cached step that h is
@@ -315,15 +428,9 @@ static int select_step(JfInstance *inst, double h) {
     Zoh *z;
     size_t j, nm = m->n_m, nr = m->n_r, nin = m->n_in;
     for (j = 0; j < m->n_steps; j++)
-        if (jf_same_step(h, m->pre[j].h)) {
-            use(m, &m->pre[j]);
-            return JF_OK;
-        }
+        if (jf_same_step(h, m->pre[j].h)) return ready(inst, &m->pre[j]);
     for (j = 0; j < m->n_cached; j++)
-        if (jf_same_step(h, m->cache[j].h)) {
-            use(m, &m->cache[j]);
-            return JF_OK;
-        }
+        if (jf_same_step(h, m->cache[j].h)) return ready(inst, &m->cache[j]);
     z = &m->cache[m->next_slot];
     zoh_free(z);
     z->a11 = (double *)jf_alloc(inst, 4 * nm + 1, sizeof(double));
@@ -347,38 +454,36 @@ static int select_step(JfInstance *inst, double h) {
     }
     if (m->next_slot == m->n_cached) m->n_cached++;
     m->next_slot = (m->next_slot + 1) % CACHE;
-    return JF_OK;
+    return ready(inst, z);
 }
 
 
 
+/* The inputs, and which of them are not zero: a zero input adds only zeros to the input
+ * products (see panels_build), which read the others alone. */
 static void read_inputs(JfInstance *inst) {
     Structure *m = M;
     size_t j;
-    for (j = 0; j < m->n_in; j++) m->u[j] = inst->r[m->u_vr[j]];
+    m->n_on = 0;
+    for (j = 0; j < m->n_in; j++) {
+        m->u[j] = inst->r[m->u_vr[j]];
+        if (m->u[j] != 0.0) m->u_on[m->n_on++] = j;
+    }
 }
 
 static void update_state_outputs(JfInstance *inst) {
     Structure *m = M;
-    size_t i, j;
-    for (i = 0; i < m->n_out; i++) {
-        double s = 0.0;
-        for (j = 0; j < m->n; j++) s += m->C_x[i * m->n + j] * inst->state[j];
-        m->y_state[i] = s;
-    }
+    panel_dot(m->C_x, m->n, m->n_out, &m->c_cols, inst->state, m->y_state);
 }
 
 static void write_outputs(JfInstance *inst) {
     Structure *m = M;
-    size_t i, j;
+    size_t i;
     read_inputs(inst);
+    if (m->has_ft) rows_dot(m->D, m->n_in, m->n_out, m->u_on, m->n_on, m->u, m->rs);
     for (i = 0; i < m->n_out; i++) {
         double s = m->y_state[i];
-        if (m->has_ft) {
-            double f = 0.0;
-            for (j = 0; j < m->n_in; j++) f += m->D[i * m->n_in + j] * m->u[j];
-            s = f + s;
-        }
+        if (m->has_ft) s = m->rs[i] + s;
         inst->r[m->y_vr[i]] = s;
     }
 }
@@ -401,7 +506,7 @@ int model_state_restored(JfInstance *inst) {
 
 int model_do_step(JfInstance *inst, double t, double h) {
     Structure *m = M;
-    size_t i, j, nm = m->n_m, nr = m->n_r, nin = m->n_in;
+    size_t i, nm = m->n_m, nr = m->n_r, nin = m->n_in;
     double *x = inst->state, *q = x, *v = x + nm, *xo = x + 2 * nm;
     (void)t;
     if ((m->cur == NULL || h != m->cur->h) && select_step(inst, h) != JF_OK) {
@@ -409,26 +514,23 @@ int model_do_step(JfInstance *inst, double t, double h) {
         return JF_ERROR;
     }
     read_inputs(inst);
-    for (i = 0; i < m->n_f; i++) { /* the filter reads the state before the step */
-        double s = 0.0, f = 0.0;
-        for (j = 0; j < m->n; j++) s += m->F_x[i * m->n + j] * x[j];
-        for (j = 0; j < nin; j++) f += m->F_u[i * nin + j] * m->u[j];
-        m->tf[i] = s + f;
+    if (m->n_f) { /* the filter reads the state before the step */
+        double *f = m->rs;
+        panel_dot(m->F_x, m->n, m->n_f, m->f_cols, x, m->tf);
+        rows_dot(m->F_u, nin, m->n_f, m->u_on, m->n_on, m->u, f);
+        for (i = 0; i < m->n_f; i++) m->tf[i] = m->tf[i] + f[i];
     }
+    rows_dot(m->G1, nin, nm, m->u_on, m->n_on, m->u, m->gq);
+    rows_dot(m->G2, nin, nm, m->u_on, m->n_on, m->u, m->gv);
     for (i = 0; i < nm; i++) {
-        double gq = 0.0, gv = 0.0;
-        for (j = 0; j < nin; j++) {
-            gq += m->G1[i * nin + j] * m->u[j];
-            gv += m->G2[i * nin + j] * m->u[j];
-        }
-        m->tq[i] = gq + m->a11[i] * q[i] + m->a12[i] * v[i];
-        m->tv[i] = gv + m->a21[i] * q[i] + m->a22[i] * v[i];
+        m->tq[i] = m->gq[i] + m->a11[i] * q[i] + m->a12[i] * v[i];
+        m->tv[i] = m->gv[i] + m->a21[i] * q[i] + m->a22[i] * v[i];
     }
-    for (i = 0; i < 2 * nr; i++) {
-        double s = 0.0, f = 0.0;
-        for (j = 0; j < 2 * nr; j++) s += m->Phi_o[i * 2 * nr + j] * xo[j];
-        for (j = 0; j < nin; j++) f += m->G_o[i * nin + j] * m->u[j];
-        m->to[i] = s + f;
+    if (nr) {
+        double *f = m->rs;
+        rows_dot(m->Phi_o, 2 * nr, 2 * nr, m->all_o, 2 * nr, xo, m->to);
+        rows_dot(m->G_o, nin, 2 * nr, m->u_on, m->n_on, m->u, f);
+        for (i = 0; i < 2 * nr; i++) m->to[i] = m->to[i] + f[i];
     }
     memcpy(q, m->tq, 2 * nm * sizeof(double)); /* q and v are contiguous */
     memcpy(xo, m->to, 2 * nr * sizeof(double));

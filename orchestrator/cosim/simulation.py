@@ -405,4 +405,15 @@ class Simulation:
         for s in self.slaves.values():
             s.close()
         self.slaves = {}
-        gc.collect()  # free the slaves' Python leftovers while their callbacks exist
+        # a Python FMU leaves Python objects behind: collect them now, while their
+        # callbacks exist; the project's native FMUs (plain C) leave none, and the
+        # collection was a quarter of a native run (0.05 s of the 8 s EOS case's 0.22 s)
+        if not all(_plain_c(info) for info in self.plan.fmus.values()):
+            gc.collect()
+
+
+def _plain_c(info) -> bool:
+    """Whether an FMU is one of the project's native (C only) FMUs or containers."""
+    md = info.model_description
+    return md is not None and str(getattr(md, "generationTool", "") or "").startswith(
+        "jitterfmu nativefmu")

@@ -335,7 +335,9 @@ def uncertainty_sections(out_dir, instruments, unit):
                     rows.append([ln["configuration"], inst, axis, first_metric,
                                  f"{100 * float(pc):g} %", _fmt(q["value"]),
                                  f"[{_fmt(q['low'])}, {_fmt(q['high'])}]",
-                                 "yes" if q["converged"] else "no",
+                                 "yes" if q["converged"] else "no" + (
+                                     f" (about {q['samples_for_2pct']} samples)"
+                                     if q.get("samples_for_2pct") else ""),
                                  _fmt(ln.get("requirement")),
                                  _fmt(ln.get("p_meet"), 3)])
                 req = ln.get("requirement")

@@ -159,13 +159,17 @@ class Draws:
 def draw(items, n: int, seed: int, frequencies_hz=None) -> Draws:
     """Sample every uncertain input ``n`` times.
 
+    Sample ``s`` is drawn from its own generator, ``numpy.random.default_rng([seed,
+    s])``: the first ``n`` samples of a larger count are these ``n``, so a Monte Carlo
+    run can be extended, or resumed from the samples it kept, without changing them.
+
     Parameters
     ----------
     items : sequence of Uncertain
     n : int
         Samples (>= 1).
     seed : int
-        Seed of ``numpy.random.default_rng``; the same seed gives the same samples.
+        Seed (>= 0); the same seed gives the same samples.
     frequencies_hz : ndarray, shape (n_m,), optional
         Modal frequencies of the structure (the modal kinds select modes by band).
 
@@ -175,7 +179,8 @@ def draw(items, n: int, seed: int, frequencies_hz=None) -> Draws:
     """
     if not (isinstance(n, int) and n >= 1):
         raise UncertaintyError(f"samples is {n!r}; expected a whole number >= 1")
-    rng = np.random.default_rng(seed)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise UncertaintyError(f"seed is {seed!r}; expected a whole number >= 0")
     values, modes = {}, {}
     for it in items:
         if it.kind in ("modal_frequency", "modal_damping"):
@@ -186,11 +191,17 @@ def draw(items, n: int, seed: int, frequencies_hz=None) -> Draws:
                                        f"{list(it.band)} Hz")
             modes[it.name] = idx
             k = idx.size if it.per_mode else 1
-            values[it.name] = it.distribution.sample(rng, (n, k))
-        elif it.kind == "phase":
-            values[it.name] = rng.integers(1, 2**31 - 1, size=(n, len(it.instances)))
-        else:   # amplitude, gain: one independent factor per instance
-            values[it.name] = it.distribution.sample(rng, (n, len(it.instances)))
+        else:   # amplitude, gain, phase: one independent value per instance
+            k = len(it.instances)
+        values[it.name] = np.empty((n, k), np.int64 if it.kind == "phase" else float)
+    for s in range(n):
+        rng = np.random.default_rng([int(seed), s])
+        for it in items:
+            row = values[it.name][s]
+            if it.kind == "phase":
+                row[:] = rng.integers(1, 2**31 - 1, size=row.size)
+            else:
+                row[:] = it.distribution.sample(rng, row.size)
     labels = {it.name: list(it.instances) for it in items if it.instances}
     return Draws(n, values, modes, labels)
 
@@ -246,7 +257,9 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         ``mean``, ``std`` (of the finite samples; ``n_infinite`` counts the others: a
         sample outside the model, which fails every bound), ``quantiles`` (``P_c -> {value, low, high, rel_width,
         converged}``, the 95 % bootstrap interval and ``converged`` when its width is
-        below 2 % of the value, and ``meets``: ``prob(X < X_max) >= P_c``), ``p_meet``
+        below 2 % of the value, ``samples_for_2pct`` the sample count at which it would be
+        (the interval narrowing as ``1/sqrt(n)``; None when the value is infinite), and
+        ``meets``: ``prob(X < X_max) >= P_c``), ``p_meet``
         (fraction of samples ``< X_max``, with its binomial standard error ``p_meet_se``), ``sensitivity`` (input -> rank
         correlation, largest magnitude first) and ``interpretation``.
     """
@@ -260,14 +273,22 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
            "mean": float(fin.mean()) if fin.size else math.inf,
            "std": float(fin.std(ddof=1)) if fin.size > 1 else 0.0, "quantiles": {},
            "interpretation": INTERPRETATION}
+    top = float(fin.max()) if fin.size else -math.inf
+
+    def cap(q):   # interpolated towards an infinite sample: infinite
+        return math.inf if q > top else float(q)
+
     for pc in confidence:
-        v = float(np.quantile(x, pc))
+        v = cap(np.quantile(x, pc))
         bq = np.quantile(x[boot], pc, axis=1)
-        lo, hi = (float(q) for q in np.quantile(bq, [0.025, 0.975]))
-        v, lo, hi = (math.inf if q >= _BIG else q for q in (v, lo, hi))
+        lo, hi = (cap(q) for q in np.quantile(bq, [0.025, 0.975]))
         width = (hi - lo) / abs(v) if v and math.isfinite(hi) else math.inf
+        # the interval narrows as 1/sqrt(n): the samples it would take to reach 2 %
+        need = (x.size if width < 0.02 else math.ceil(x.size * (width / 0.02) ** 2)
+                if 0 < width < math.inf else None)
         out["quantiles"][float(pc)] = {"value": v, "low": lo, "high": hi,
-                                       "rel_width": width, "converged": bool(width < 0.02)}
+                                       "rel_width": width, "converged": bool(width < 0.02),
+                                       "samples_for_2pct": need}
     if not math.isnan(requirement):
         for pc in confidence:
             chk = check_requirement(x[:, None], requirement, pc, "ensemble")

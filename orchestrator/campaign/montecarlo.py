@@ -12,6 +12,12 @@ configuration, instrument, axis and metric), ``uncertainty.json`` (per line: mea
 the value at each confidence level with its bootstrap interval, the probability of
 meeting the requirement, the sensitivity ranking and the ECSS interpretation) and
 ``uncertainty_summary.csv`` (one row per line and confidence level).
+
+Samples are kept as they finish, under ``uncertainty_parts/<digest>/`` (the digest of
+the cases with their FMU files, the metrics and the ``[uncertainty]`` table less its
+sample count): a run that is stopped keeps what it computed, and the same command
+resumes it; more samples with the same seed extend it (sample ``s`` is the same draw
+whatever the count, :func:`orchestrator.analysis.uncertainty.draw`).
 """
 
 from __future__ import annotations
@@ -165,6 +171,65 @@ def _chunk(campaign, scenario_dir, fmu_dir, draws, samples) -> tuple:
     return _evaluate(campaign, _WORKER["runner"], _WORKER["ctx"], draws, samples)
 
 
+PARTS_DIR = "uncertainty_parts"
+_PARTS_FORMAT = 1
+
+
+def _identity(campaign, runner, ctx) -> str:
+    """What a kept sample depends on: every case with its FMU files, the lines, metrics,
+    skip and the ``[uncertainty]`` table less its sample count and confidence levels."""
+    unc = campaign.uncertainty
+    fp = getattr(runner, "fingerprint", None)
+    cases = [(c.key, fp(c.scenario) if fp else "") for c in campaign.cases if not c.sweep]
+    data = {"format": _PARTS_FORMAT, "cases": cases, "pairs": ctx["pairs"],
+            "configs": ctx["configs"], "events": ctx["events"],
+            "metrics": [list(m) for m in campaign.metrics], "skip": campaign.skip,
+            "seed": unc["seed"], "engine": unc.get("engine", "linear"),
+            "parameters": [repr(it) for it in unc["parameters"]]}
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _load_parts(folder: Path, values, status) -> np.ndarray:
+    """Fill ``values`` and ``status`` with the samples kept in ``folder``; which ones.
+
+    A part is data (``numpy.load`` without pickles) and is checked against the shapes
+    of this run; one that does not fit is named on stderr and its samples run again."""
+    import sys
+
+    done = np.zeros(values.shape[0], bool)
+    for f in sorted(folder.glob("part-*.npz")):
+        try:
+            with np.load(f, allow_pickle=False) as z:
+                idx, v, st = z["samples"], z["values"], z["status"]
+            ok = (idx.ndim == 1 and idx.dtype.kind == "i" and v.dtype == float
+                  and v.shape == (idx.size,) + values.shape[1:]
+                  and st.shape == (idx.size,) + status.shape[1:] and st.dtype.kind == "i"
+                  and (idx >= 0).all())
+        except Exception as exc:   # unreadable: a part cut short, or not ours
+            ok, why = False, f"{type(exc).__name__}: {exc}"
+        else:
+            why = "its arrays do not have the shapes of this campaign's samples"
+        if not ok:
+            print(f"jitterfmu: ignoring kept samples {str(f)!r} ({why}); they run again",
+                  file=sys.stderr)
+            continue
+        keep = idx < values.shape[0]      # a run of fewer samples uses the first ones
+        values[idx[keep]], status[idx[keep]] = v[keep], st[keep]
+        done[idx[keep]] = True
+    return done
+
+
+def _save_part(folder: Path, samples, v, st) -> None:
+    """Keep finished samples (written whole, then renamed into place)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    name = f"part-{samples[0]:07d}-{samples[-1]:07d}.npz"
+    tmp = folder / f".tmp-{name}"
+    with open(tmp, "wb") as fh:
+        np.savez(fh, samples=np.asarray(samples, np.int64), values=np.asarray(v, float),
+                 status=np.asarray(st, np.int64))
+    tmp.replace(folder / name)
+
+
 def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None, *,
                     workers: int = 0, scheduler=None) -> Path | None:
     """Run a campaign's ``[uncertainty]`` on the linear engine; ``uncertainty.json``.
@@ -202,26 +267,51 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
         lin0, structs, _ = ctx["base"][ctx["configs"][0]]
         freqs = lin0.blocks[structs[0]].model.frequencies_hz if structs else None
     draws = draw(items, n, unc["seed"], freqs)
-    bar = ProgressBar(n, "uncertainty", "sample", enabled=progress)
-    parts = max(1, int(workers)) if scheduler is None else 2 * max(1, int(workers) or 2)
-    chunks = [list(c) for c in np.array_split(np.arange(n), min(n, 4 * parts)) if c.size]
     values = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]), m),
                      np.nan)
     status = np.zeros((n, len(ctx["configs"])), int)
+    folder = Path(out_dir) / PARTS_DIR / _identity(campaign, runner, ctx)[:24]
+    done = (np.zeros(n, bool) if unc.get("engine") == "cosim"
+            else _load_parts(folder, values, status))
+    todo = np.flatnonzero(~done)
+    resumed = int(done.sum())
+    bar = ProgressBar(todo.size, "uncertainty", "sample", enabled=progress)
+    parts = max(1, int(workers)) if scheduler is None else 2 * max(1, int(workers) or 2)
+    # chunks of at most 25 samples: what a stop loses, and what a worker reports at once
+    n_chunks = min(todo.size, max(4 * parts, math.ceil(todo.size / 25)))
+    chunks = [list(c) for c in np.array_split(todo, max(n_chunks, 1)) if c.size]
+
+    def finished(c, v, st):
+        values[c], status[c] = v, st
+        _save_part(folder, c, v, st)
+        done[c] = True
+        for _ in c:
+            bar.update("ok")
+
+    from .engine import _stop_on_signals
+    from .runner import CampaignInterrupted
+
     try:
-        if unc.get("engine") == "cosim":
-            values, status = _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler,
-                                         runner, bar)
-        elif scheduler is None and workers <= 1:
-            for c in chunks:
-                values[c], status[c] = _evaluate(campaign, runner, ctx, draws, c)
-                for _ in c:
-                    bar.update("ok")
-        else:
-            for c, (v, st) in _parallel(chunks, campaign, runner, draws, workers, scheduler):
-                values[c], status[c] = v, st
-                for _ in c:
-                    bar.update("ok")
+        with _stop_on_signals():
+            if unc.get("engine") == "cosim":
+                values, status = _cosimulate(campaign, out_dir, ctx, draws, workers,
+                                             scheduler, runner, bar)
+            elif scheduler is None and workers <= 1:
+                for c in chunks:
+                    finished(c, *_evaluate(campaign, runner, ctx, draws, c))
+            elif chunks:
+                for c, (v, st) in _parallel(chunks, campaign, runner, draws, workers,
+                                            scheduler):
+                    finished(c, v, st)
+    except (CampaignInterrupted, KeyboardInterrupt) as exc:
+        import signal
+
+        signum = getattr(exc, "signum", signal.SIGINT)
+        kept = int(done.sum())
+        raise CampaignInterrupted(signum, (
+            f"uncertainty of {campaign.name!r} stopped by {signal.Signals(signum).name}: "
+            f"kept {kept} of {n} samples in {str(folder)!r}; run the same command again "
+            "to resume")) from None
     finally:
         bar.close()
     pairs, configs = ctx["pairs"], ctx["configs"]
@@ -252,7 +342,9 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                                     "metric": kind, "window": window, "unit": campaign.unit,
                                     "confidence": pc, "value": q["value"],
                                     "boot_low": q["low"], "boot_high": q["high"],
-                                    "converged": q["converged"], "requirement": req,
+                                    "converged": q["converged"],
+                                    "samples_for_2pct": q["samples_for_2pct"],
+                                    "requirement": req,
                                     "p_meet": st.get("p_meet", math.nan)})
     out = Path(out_dir)
     write_table(pa.Table.from_pylist(rows), out / SAMPLES_FILE)
@@ -276,6 +368,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                               "over the record; limit_reached: a record reached a rail or "
                               "limit, and the sample counts as exceeding every requirement",
               "wall_s": time.perf_counter() - wall,
+              "resumed": resumed, "kept_in": str(folder),
               "memory": "per sample: the metrics of each record; one record at a time",
               "lines": lines}
     write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(report, default=float)))
@@ -312,10 +405,13 @@ def _parallel(chunks, campaign, runner, draws, workers, scheduler):
     os.environ.update({k: "1" for k in _BLAS_THREADS})
     try:
         ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx) as pool:
+        pool = ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx)
+        try:
             futs = {pool.submit(_chunk, *args, c): c for c in chunks}
             for fut in done(futs):
                 yield futs[fut], fut.result()
+        finally:   # stopped: the chunks not started are dropped, not waited for
+            pool.shutdown(wait=True, cancel_futures=True)
     finally:
         for k, v in saved.items():
             if v is None:

@@ -150,12 +150,18 @@ def run(args) -> int:
         many = camp.uncertainty["samples"] >= 40
         workers = args.workers if args.workers is not None else (
             (os.cpu_count() or 1) if many else 0)
-        path = run_uncertainty(camp, out, runner if engine == "linear" else None,
-                               progress=False if args.quiet else None,
-                               workers=workers, scheduler=args.scheduler)
+        try:
+            path = run_uncertainty(camp, out, runner if engine == "linear" else None,
+                                   progress=False if args.quiet else None,
+                                   workers=workers, scheduler=args.scheduler)
+        except CampaignInterrupted as exc:
+            print(f"jitterfmu: {exc}", file=sys.stderr)
+            return 128 + exc.signum
         rep = json.loads(path.read_text(encoding="utf-8"))
-        print(f"uncertainty: {rep['samples']} samples in {rep['wall_s']:.1f} s ({path}); "
-              f"{rep['interpretation']}")
+        resumed = (f", {rep['resumed']} of them kept from an earlier run"
+                   if rep.get("resumed") else "")
+        print(f"uncertainty: {rep['samples']} samples in {rep['wall_s']:.1f} s{resumed} "
+              f"({path}); {rep['interpretation']}")
         for cf, k in rep["unstable"].items():
             if k or rep["limit_reached"][cf]:
                 print(f"  {cf}: {k} sample(s) with an unstable loop "
@@ -164,7 +170,9 @@ def run(args) -> int:
                       "exceeding every requirement)")
         for line in rep["lines"]:
             qs = ", ".join(f"P{100 * float(pc):g} = {q['value']:.4g}"
-                           + ("" if q["converged"] else " (not converged)")
+                           + ("" if q["converged"] else " (not converged" + (
+                               f"; about {q['samples_for_2pct']} samples would be)"
+                               if q.get("samples_for_2pct") else ")"))
                            for pc, q in line.get("quantiles", {}).items())
             meet = (f", meets {line['requirement']:g} with p = {line['p_meet']:.3f}"
                     if "p_meet" in line else "")

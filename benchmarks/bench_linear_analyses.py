@@ -46,6 +46,10 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3,
                     help="sweeps from scratch, each on a fresh runner")
     args = ap.parse_args(argv)
+    if args.samples < 20:
+        ap.error(f"--samples is {args.samples}; give at least 20: the per-sample cost is the "
+                 "slope between a quarter of the samples and all of them, and below 20 the "
+                 "workers' start-up swamps it (8 samples gave a negative slope)")
     warnings.simplefilter("ignore")
     fmu_dir = eos.ensure_fmus(args.fmu_dir)
     budget = load_campaign(eos.CAMPAIGN)

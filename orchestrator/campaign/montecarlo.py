@@ -26,15 +26,18 @@ import dataclasses
 import hashlib
 import json
 import math
+import signal
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 
+from ..files import atomic_write
 from ..progress import ProgressBar
 from .spec import ANGLE_UNITS
-from .store import write_json, write_table
+from .store import canonical, write_json, write_table
 
 __all__ = ["run_uncertainty", "SAMPLES_FILE", "UNCERTAINTY_FILE"]
 
@@ -186,7 +189,7 @@ def _identity(campaign, runner, ctx) -> str:
             "metrics": [list(m) for m in campaign.metrics], "skip": campaign.skip,
             "seed": unc["seed"], "engine": unc.get("engine", "linear"),
             "parameters": [repr(it) for it in unc["parameters"]]}
-    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+    return hashlib.sha256(canonical(data).encode()).hexdigest()
 
 
 def _load_parts(folder: Path, values, status) -> np.ndarray:
@@ -194,8 +197,6 @@ def _load_parts(folder: Path, values, status) -> np.ndarray:
 
     A part is data (``numpy.load`` without pickles) and is checked against the shapes
     of this run; one that does not fit is named on stderr and its samples run again."""
-    import sys
-
     done = np.zeros(values.shape[0], bool)
     for f in sorted(folder.glob("part-*.npz")):
         try:
@@ -220,14 +221,13 @@ def _load_parts(folder: Path, values, status) -> np.ndarray:
 
 
 def _save_part(folder: Path, samples, v, st) -> None:
-    """Keep finished samples (written whole, then renamed into place)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    name = f"part-{samples[0]:07d}-{samples[-1]:07d}.npz"
-    tmp = folder / f".tmp-{name}"
-    with open(tmp, "wb") as fh:
-        np.savez(fh, samples=np.asarray(samples, np.int64), values=np.asarray(v, float),
-                 status=np.asarray(st, np.int64))
-    tmp.replace(folder / name)
+    """Keep finished samples (:func:`orchestrator.files.atomic_write`)."""
+    def write(tmp):
+        with open(tmp, "wb") as fh:   # a file object: savez adds no suffix to it
+            np.savez(fh, samples=np.asarray(samples, np.int64),
+                     values=np.asarray(v, float), status=np.asarray(st, np.int64))
+
+    atomic_write(folder / f"part-{samples[0]:07d}-{samples[-1]:07d}.npz", write)
 
 
 def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None, *,
@@ -270,9 +270,10 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     values = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]), m),
                      np.nan)
     status = np.zeros((n, len(ctx["configs"])), int)
-    folder = Path(out_dir) / PARTS_DIR / _identity(campaign, runner, ctx)[:24]
-    done = (np.zeros(n, bool) if unc.get("engine") == "cosim"
-            else _load_parts(folder, values, status))
+    cosim = unc.get("engine") == "cosim"   # its cases keep themselves (run_campaign)
+    folder = None if cosim else Path(out_dir) / PARTS_DIR / _identity(campaign, runner,
+                                                                       ctx)[:24]
+    done = np.zeros(n, bool) if cosim else _load_parts(folder, values, status)
     todo = np.flatnonzero(~done)
     resumed = int(done.sum())
     bar = ProgressBar(todo.size, "uncertainty", "sample", enabled=progress)
@@ -281,37 +282,29 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     n_chunks = min(todo.size, max(4 * parts, math.ceil(todo.size / 25)))
     chunks = [list(c) for c in np.array_split(todo, max(n_chunks, 1)) if c.size]
 
-    def finished(c, v, st):
-        values[c], status[c] = v, st
-        _save_part(folder, c, v, st)
-        done[c] = True
-        for _ in c:
-            bar.update("ok")
-
     from .engine import _stop_on_signals
     from .runner import CampaignInterrupted
 
     try:
-        with _stop_on_signals():
-            if unc.get("engine") == "cosim":
-                values, status = _cosimulate(campaign, out_dir, ctx, draws, workers,
-                                             scheduler, runner, bar)
-            elif scheduler is None and workers <= 1:
-                for c in chunks:
-                    finished(c, *_evaluate(campaign, runner, ctx, draws, c))
-            elif chunks:
-                for c, (v, st) in _parallel(chunks, campaign, runner, draws, workers,
-                                            scheduler):
-                    finished(c, v, st)
-    except (CampaignInterrupted, KeyboardInterrupt) as exc:
-        import signal
-
-        signum = getattr(exc, "signum", signal.SIGINT)
-        kept = int(done.sum())
-        raise CampaignInterrupted(signum, (
-            f"uncertainty of {campaign.name!r} stopped by {signal.Signals(signum).name}: "
-            f"kept {kept} of {n} samples in {str(folder)!r}; run the same command again "
-            "to resume")) from None
+        if cosim:   # its cases are kept by run_campaign, which says so when stopped
+            values, status = _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler,
+                                         runner, bar)
+        else:
+            try:
+                with _stop_on_signals():
+                    for c, (v, st) in _results(campaign, runner, ctx, draws, chunks,
+                                               workers, scheduler):
+                        values[c], status[c] = v, st
+                        _save_part(folder, c, v, st)
+                        done[c] = True
+                        for _ in c:
+                            bar.update("ok")
+            except (CampaignInterrupted, KeyboardInterrupt) as exc:
+                signum = getattr(exc, "signum", signal.SIGINT)
+                raise CampaignInterrupted(signum, (
+                    f"uncertainty of {campaign.name!r} stopped by "
+                    f"{signal.Signals(signum).name}: kept {int(done.sum())} of {n} samples "
+                    f"in {str(folder)!r}; run the same command again to resume")) from None
     finally:
         bar.close()
     pairs, configs = ctx["pairs"], ctx["configs"]
@@ -368,11 +361,21 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                               "over the record; limit_reached: a record reached a rail or "
                               "limit, and the sample counts as exceeding every requirement",
               "wall_s": time.perf_counter() - wall,
-              "resumed": resumed, "kept_in": str(folder),
+              "resumed": resumed, "kept_in": str(folder or Path(out_dir) /
+                                                   "uncertainty_cases"),
               "memory": "per sample: the metrics of each record; one record at a time",
               "lines": lines}
     write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(report, default=float)))
     return out / UNCERTAINTY_FILE
+
+
+def _results(campaign, runner, ctx, draws, chunks, workers, scheduler):
+    """``(chunk, (values, status))`` as chunks finish: in this process, or elsewhere."""
+    if scheduler is None and workers <= 1:
+        for c in chunks:
+            yield c, _evaluate(campaign, runner, ctx, draws, c)
+    elif chunks:
+        yield from _parallel(chunks, campaign, runner, draws, workers, scheduler)
 
 
 def _parallel(chunks, campaign, runner, draws, workers, scheduler):

@@ -36,6 +36,7 @@ the instance and the first time, in one sentence (:class:`NonlinearError`).
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,6 +56,8 @@ _MIN_TICKS = 64
 # 10.7 ms by its kept Toeplitz product, 5.1 ms by FFT, and the Toeplitz matrix 15 ms to
 # build; at 16 ticks the product wins, 1.5 against 2.1 ms)
 _TOEPLITZ_TICKS = 24
+# tick times per grid, (n_ticks, every) -> times: computed once for all loops on a grid
+_TIMES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 class NonlinearError(AnalysisError):
@@ -319,12 +322,17 @@ class FastResponse(SteadyState):
         ndarray, shape (n_ticks // every + 1,)
             Read-only, cached.
         """
+        tb = self.lin.plan.timebase
         key = (n_ticks, every)
-        t = self._times.get(key)
+        try:   # shared by every loop on an equal tick grid (a Monte Carlo's samples)
+            cache = _TIMES.setdefault(tb, {})
+        except TypeError:   # a grid that is not hashable: this loop's own
+            cache = self._times
+        t = cache.get(key)
         if t is None:
-            t = np.array(self.lin.plan.timebase.times(range(0, n_ticks + 1, every)))
+            t = np.array(tb.times(range(0, n_ticks + 1, every)))
             t.flags.writeable = False
-            self._times[key] = t
+            cache[key] = t
         return t
 
     def input_matrix(self, series: dict, n_ticks: int) -> np.ndarray:
@@ -496,7 +504,11 @@ class FastResponse(SteadyState):
             # a margin far above the round-off of the bound itself
             skip = np.all(bounds * (1.0 + 1e-6) < room, axis=0)
         # outputs: C M^q x_0 + (h * w), per run type
-        Y = np.zeros((E, K, r))
+        # Y holds the computed rows alone (a bounded row is not): row c in column at[c]
+        need = np.flatnonzero(~skip)
+        at = np.full(r, -1)
+        at[need] = np.arange(need.size)
+        Y = np.zeros((E, K, need.size))
         for key, idx in by_type.items():
             t, n_u = types[key], len(idx)
             sel = np.flatnonzero(~skip[t.live])
@@ -507,31 +519,41 @@ class FastResponse(SteadyState):
                     out[e] += self._forced(t, active, Wa[windows[key]], sel)
             rows = windows[key].ravel()
             out = out.reshape(E, n_u * t.L, sel.size)
-            if sel.size == r:
+            if sel.size == need.size:
                 Y[:, rows] = out
             else:
-                Y[:, rows[:, None], t.live[sel]] = out
-        return [self._record(y, check, np.where(skip, b, np.nan)) for y, b in zip(Y, bounds)]
+                Y[:, rows[:, None], at[t.live[sel]]] = out
+        return [self._record(y, check, np.where(skip, b, np.nan), at)
+                for y, b in zip(Y, bounds)]
 
-    def _record(self, Y: np.ndarray, check: bool, bounds=None) -> Record:
+    def _record(self, Y: np.ndarray, check: bool, bounds=None, at=None) -> Record:
         """A record from the computed rows ``Y`` (n_ticks + 1, r): limits checked.
-        ``bounds`` (r,): where not NaN, the row was not computed and this bounds it."""
+        ``bounds`` (r,): where not NaN, the row was not computed and this bounds it;
+        ``at`` (r,): then the column of ``Y`` holding each computed row (default: row
+        ``c`` in column ``c``)."""
         K = Y.shape[0]
         times = self.times(K - 1)
         n_ref = len(self._computed)
         limits, reached = {}, []
-        top, bottom = Y.max(axis=0)[self._check_col], Y.min(axis=0)[self._check_col]
+        cols = np.asarray(self._check_col, int)
+        if bounds is not None:   # the rows a bound stands for were not computed
+            cols = cols[np.isnan(bounds[cols])]
+        cols = np.unique(cols)
+        ycols = cols if at is None else at[cols]
+        top = dict(zip(cols.tolist(), Y[:, ycols].max(axis=0).tolist()))
+        bottom = dict(zip(cols.tolist(), Y[:, ycols].min(axis=0).tolist()))
         for j, (ref, lo, hi, what) in enumerate(self._checks):
-            if bounds is not None and not np.isnan(bounds[self._check_col[j]]):
-                limits[ref] = float(bounds[self._check_col[j]] / min(hi, -lo))
+            c = self._check_col[j]
+            if bounds is not None and not np.isnan(bounds[c]):
+                limits[ref] = float(bounds[c] / min(hi, -lo))
                 continue
-            used = max(top[j] / hi if hi > 0 else 0.0, bottom[j] / lo if lo < 0 else 0.0)
+            used = max(top[c] / hi if hi > 0 else 0.0, bottom[c] / lo if lo < 0 else 0.0)
             limits[ref] = float(used)
-            if not (top[j] > hi or bottom[j] < lo):
+            if not (top[c] > hi or bottom[c] < lo):
                 continue
             reached.append(ref)
             if check:
-                y = Y[:, self._check_col[j]]
+                y = Y[:, c if at is None else at[c]]
                 bad = np.flatnonzero((y > hi) | (y < lo))[0]
                 raise NonlinearError(
                     f"{ref} reaches its {what} ({y[bad]:.4g} outside [{lo:.4g}, {hi:.4g}]) "

@@ -191,6 +191,10 @@ def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):
         rec = fr.run_many([runner.inputs(fr, sc)], check=False, bound_limits=bound)[0]
         assert "piezo_swir_mount1.voltage" in rec.reached
         assert rec.limits["piezo_swir_mount1.voltage"] > 1.0
+        # checked, the sentence names the rail whichever rows were computed (the bounded
+        # rows leave the record's columns)
+        with pytest.raises(AnalysisError, match=r"piezo_swir_mount1\.voltage reaches"):
+            fr.run_many([runner.inputs(fr, sc)], check=True, bound_limits=bound)
 
 
 @pytest.mark.parametrize("param, value, words", [

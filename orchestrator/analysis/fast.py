@@ -36,7 +36,6 @@ the instance and the first time, in one sentence (:class:`NonlinearError`).
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,8 +55,9 @@ _MIN_TICKS = 64
 # 10.7 ms by its kept Toeplitz product, 5.1 ms by FFT, and the Toeplitz matrix 15 ms to
 # build; at 16 ticks the product wins, 1.5 against 2.1 ms)
 _TOEPLITZ_TICKS = 24
-# tick times per grid, (n_ticks, every) -> times: computed once for all loops on a grid
-_TIMES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+# tick times, (start, base, n_ticks, every) -> times: they depend on the grid's start and
+# base step alone, so every loop on that grid (a Monte Carlo's samples) shares them
+_TIMES: dict = {}
 
 
 class NonlinearError(AnalysisError):
@@ -163,7 +163,6 @@ class FastResponse(SteadyState):
             k = j + 1
         self._types = {}
         self._schur = None
-        self._times = {}
         self._kernels = {}
 
     # ------------------------------------------------------------------ compile
@@ -323,16 +322,14 @@ class FastResponse(SteadyState):
             Read-only, cached.
         """
         tb = self.lin.plan.timebase
-        key = (n_ticks, every)
-        try:   # shared by every loop on an equal tick grid (a Monte Carlo's samples)
-            cache = _TIMES.setdefault(tb, {})
-        except TypeError:   # a grid that is not hashable: this loop's own
-            cache = self._times
-        t = cache.get(key)
+        key = (tb.start, tb.base, n_ticks, every)
+        t = _TIMES.get(key)
         if t is None:
             t = np.array(tb.times(range(0, n_ticks + 1, every)))
             t.flags.writeable = False
-            cache[key] = t
+            if len(_TIMES) > 32:
+                _TIMES.clear()
+            _TIMES[key] = t
         return t
 
     def input_matrix(self, series: dict, n_ticks: int) -> np.ndarray:
@@ -504,10 +501,9 @@ class FastResponse(SteadyState):
             # a margin far above the round-off of the bound itself
             skip = np.all(bounds * (1.0 + 1e-6) < room, axis=0)
         # outputs: C M^q x_0 + (h * w), per run type
-        # Y holds the computed rows alone (a bounded row is not): row c in column at[c]
+        # Y holds the computed rows alone (a bounded row is not), in row order
         need = np.flatnonzero(~skip)
-        at = np.full(r, -1)
-        at[need] = np.arange(need.size)
+        at = np.cumsum(~skip) - 1           # the column of each computed row
         Y = np.zeros((E, K, need.size))
         for key, idx in by_type.items():
             t, n_u = types[key], len(idx)
@@ -523,21 +519,22 @@ class FastResponse(SteadyState):
                 Y[:, rows] = out
             else:
                 Y[:, rows[:, None], at[t.live[sel]]] = out
-        return [self._record(y, check, np.where(skip, b, np.nan), at)
-                for y, b in zip(Y, bounds)]
+        return [self._record(y, check, np.where(skip, b, np.nan)) for y, b in zip(Y, bounds)]
 
-    def _record(self, Y: np.ndarray, check: bool, bounds=None, at=None) -> Record:
-        """A record from the computed rows ``Y`` (n_ticks + 1, r): limits checked.
-        ``bounds`` (r,): where not NaN, the row was not computed and this bounds it;
-        ``at`` (r,): then the column of ``Y`` holding each computed row (default: row
-        ``c`` in column ``c``)."""
+    def _record(self, Y: np.ndarray, check: bool, bounds=None) -> Record:
+        """A record from the computed rows ``Y`` (n_ticks + 1, computed rows): limits
+        checked.  ``bounds`` (r,): where not NaN, the row was not computed (``Y`` leaves
+        it out) and this bounds it."""
         K = Y.shape[0]
         times = self.times(K - 1)
         n_ref = len(self._computed)
         limits, reached = {}, []
         cols = np.asarray(self._check_col, int)
+        at = None   # the column of Y holding each computed row
         if bounds is not None:   # the rows a bound stands for were not computed
-            cols = cols[np.isnan(bounds[cols])]
+            computed = np.isnan(bounds)
+            at = np.cumsum(computed) - 1
+            cols = cols[computed[cols]]
         cols = np.unique(cols)
         ycols = cols if at is None else at[cols]
         top = dict(zip(cols.tolist(), Y[:, ycols].max(axis=0).tolist()))

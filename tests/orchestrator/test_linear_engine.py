@@ -362,3 +362,44 @@ def test_states_no_record_can_need_are_dropped_exactly(eos_pair, monkeypatch):
     pa, pb = unstable_poles(fr), unstable_poles(full)
     assert len(pa) == len(pb)
     np.testing.assert_allclose(np.abs(pa), np.abs(pb), rtol=0, atol=1e-9)
+
+
+def test_the_growing_eos_pole_is_the_acs_taking_damping_from_one_flexible_mode(eos_pair):
+    """The EOS loop's slowly growing pole (docs/coupling.md, found and left) is the 10 Hz
+    ACS removing damping from the 2.58 Hz flexible mode: it sits at that mode's
+    frequency, it is gone with the ACS taken out, and that mode's damping alone moves it
+    across the unit circle (x0.5 grows faster, x1.5 decays). The threshold factor lies
+    between 1 and 1.5: what makes a Monte Carlo with damping x0.5-2 per mode count about
+    40 % of its isolation-off samples unstable (docs/linear_engine.md)."""
+    from orchestrator.analysis.blocks import structure_block
+    from orchestrator.analysis.fast import FastResponse
+    from orchestrator.analysis.sweep import unstable_poles
+
+    runner = eos_pair[-1]
+    case = next(c for c in _eos_campaign().cases if c.configuration == "isolation off")
+    fr = runner.compiled(case.scenario)
+    lin = fr.lin
+    T = fr.P * lin.base
+
+    def growing(loop):   # complex poles outside the unit circle: (|z|, Hz)
+        return [(abs(z), abs(np.angle(z)) / (2 * np.pi * T))
+                for z in unstable_poles(FastResponse(loop, fr.refs)) if abs(z.imag) > 1e-9]
+
+    poles = growing(lin)
+    assert len(poles) == 2 and 1.0001 < poles[0][0] < 1.01   # one pair
+    name = next(n for n, b in lin.blocks.items() if b.kind == "structure")
+    b = lin.blocks[name]
+    f = b.model.frequencies_hz
+    mode = int(np.argmin(np.abs(f - poles[0][1])))
+    assert abs(f[mode] - poles[0][1]) < 0.05 and 2.0 < f[mode] < 3.0
+    assert growing(lin.opened(["acs"])) == []
+
+    def with_damping(factor):
+        c = b.model.modal_damping.copy()
+        c[mode] *= factor
+        return lin.with_block(structure_block(dataclasses.replace(b.model, modal_damping=c),
+                                              name, b.period, b.period * lin.base,
+                                              b.feedthrough, blockwise=True))
+
+    assert growing(with_damping(0.5))[0][0] > poles[0][0]
+    assert growing(with_damping(1.5)) == []

@@ -323,8 +323,8 @@ def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path |
                 z.write(src / name, f"sources/{name}")
             for arcname, path in binaries.items():
                 z.write(path, arcname)
-            for name, content in model_data(spec, vrs).items():
-                z.writestr(f"resources/{name}", content)
+            for name, content in model_data(spec, vrs).items():   # binary: stored
+                z.writestr(f"resources/{name}", content, zipfile.ZIP_STORED)
     return target
 
 

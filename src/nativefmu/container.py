@@ -325,6 +325,7 @@ def export_fmu(scenario: Scenario | str | Path, out: str | Path, *, outputs=None
             for arcname, path in binaries.items():
                 z.write(path, arcname)
             for path, (_, _, resources, _) in inner.items():
-                for name, content in sorted(resources.items()):
-                    z.writestr(f"resources/{prefix_of[path]}/{name}", content)
+                for name, content in sorted(resources.items()):   # the binary data stored
+                    z.writestr(f"resources/{prefix_of[path]}/{name}", content,
+                               zipfile.ZIP_STORED if name.endswith(".dat") else None)
     return out

@@ -1,17 +1,20 @@
-"""Model data of the native FMUs: one plain text file per FMU in ``resources/``.
+"""Model data of the native FMUs: one file per FMU in ``resources/``.
 
 The C kernels read it with ``jf_data_*`` (``csrc/data.c``)::
 
-    jitterfmu-native-data 1
-    <name> <rows> <cols>
-    <rows * cols values, row-major, as C99 hexadecimal floats>
+    jitterfmu-native-data 2\n
+    <name> <rows> <cols>\n
+    <rows * cols values, row-major, IEEE 754 binary64, little-endian (8 bytes each)>
+    ...
 
-Hexadecimal floats (``float.hex``) round-trip every double exactly through ``strtod``,
-so the C code sees the same bits as the Python slave.  One function per kernel turns the
+A text header per array and the values' own bits: every double exactly, read without a
+parser (no locale, no rounding) in a fraction of the time the earlier hexadecimal text
+took (3.5 MB of text for the EOS structure, parsed at every instantiation).  The reader
+assembles each value from its bytes, so a big-endian host reads the same numbers.
+:func:`decode` reads a file back (to inspect one).  One function per kernel turns the
 Python FMU's model (reduced model, stack preset, control law) into the arrays its
-kernel reads; the step-independent products (output matrices, feedthrough) are
-computed here with the Python package's own code, the step-dependent discretisation in
-C.
+kernel reads; the step-independent products (output matrices, feedthrough) are computed
+here with the Python package's own code, the step-dependent discretisation in C.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from structfmu.discrete import ZohStepper, discretize
 from structfmu.reduced import ReducedModel
 from structfmu.statespace import first_order
 
-__all__ = ["KERNELS", "NativeUnsupportedError", "encode", "kernel_of", "model_data"]
+__all__ = ["KERNELS", "NativeUnsupportedError", "decode", "encode", "kernel_of", "model_data"]
 
 #: slave class -> C kernel (``csrc/<kernel>.c``, data file ``<kernel>.dat``).
 KERNELS: dict[str, str] = {
@@ -61,35 +64,66 @@ def kernel_of(spec: FmuSpec) -> str:
             f"native kernels exist for {sorted(KERNELS)}") from None
 
 
+MAGIC = b"jitterfmu-native-data 2\n"
+
+
 def encode(arrays: Mapping[str, object]) -> bytes:
     """The data file holding ``arrays`` (scalars, vectors as one row, or matrices).
 
     Parameters
     ----------
     arrays : mapping of str to array_like
-        Name (no spaces, < 64 characters) -> values; 0-d and 1-d arrays are written as
-        one row.
+        Name (1-63 printable characters, no spaces) -> finite values; 0-d and 1-d
+        arrays are written as one row.
 
     Returns
     -------
     bytes
-        ASCII content of the file.
+        Content of the file (format in the module docstring).
     """
-    lines = ["jitterfmu-native-data 1"]
+    parts = [MAGIC]
     for name, value in arrays.items():
-        if not name or len(name) >= 64 or any(c.isspace() for c in name):
-            raise ValueError(f"data array name {name!r} must be 1-63 characters, no spaces")
+        if not (0 < len(name) < 64 and name.isascii() and name.isprintable()
+                and not any(c.isspace() for c in name)):
+            raise ValueError(f"data array name {name!r} must be 1-63 printable ASCII "
+                             "characters, no spaces")
         arr = np.asarray(value, dtype=float)
         if arr.ndim > 2:
             raise ValueError(f"data array {name!r} has {arr.ndim} dimensions; expected <= 2")
         arr = arr.reshape(1, -1) if arr.ndim < 2 else arr
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"data array {name!r} has non-finite values")
-        lines.append(f"{name} {arr.shape[0]} {arr.shape[1]}")
-        flat = [float(v).hex() for v in arr.ravel()]
-        for i in range(0, len(flat), 4):
-            lines.append(" ".join(flat[i:i + 4]))
-    return ("\n".join(lines) + "\n").encode("ascii")
+        parts.append(f"{name} {arr.shape[0]} {arr.shape[1]}\n".encode("ascii"))
+        parts.append(np.ascontiguousarray(arr, dtype="<f8").tobytes())
+    return b"".join(parts)
+
+
+def decode(content: bytes) -> dict:
+    """The arrays of a data file (:func:`encode`'s inverse), each of shape (rows, cols).
+
+    Raises
+    ------
+    ValueError
+        When ``content`` is not such a file, in one sentence saying where.
+    """
+    if not content.startswith(MAGIC):
+        raise ValueError("not a jitterfmu native data file of version 2 (its first line "
+                         f"must be {MAGIC.decode().strip()!r})")
+    out, at = {}, len(MAGIC)
+    while at < len(content):
+        end = content.find(b"\n", at, at + 128)
+        head = content[at:end].decode("ascii", "replace").split(" ") if end > 0 else []
+        if len(head) != 3 or not (head[1].isdigit() and head[2].isdigit()):
+            raise ValueError(f"malformed array header at byte {at} (array {len(out) + 1})")
+        rows, cols = int(head[1]), int(head[2])
+        stop = end + 1 + 8 * rows * cols
+        if stop > len(content):
+            raise ValueError(f"array {head[0]!r} is cut short: {rows} x {cols} values need "
+                             f"{8 * rows * cols} bytes, {len(content) - end - 1} are left")
+        out[head[0]] = np.frombuffer(content, "<f8", rows * cols, end + 1).reshape(
+            rows, cols).astype(float)
+        at = stop
+    return out
 
 
 def _resource_bytes(spec: FmuSpec, name: str) -> bytes:

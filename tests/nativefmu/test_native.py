@@ -620,24 +620,64 @@ int main(int argc, char **argv) {
 """
 
 
-def test_model_data_round_trips_every_double_exactly(tmp_path):
-    """Hex floats through nativefmu.data.encode and csrc/data.c (its own parser, not the
-    locale-dependent strtod): subnormals, signed zero, extremes, random doubles."""
+@pytest.fixture(scope="module")
+def data_harness(tmp_path_factory):
+    """The C harness above, built against csrc/data.c: ``run(folder, n) -> process``."""
     from importlib import resources
 
-    from nativefmu.data import encode
-
     csrc = resources.files("nativefmu") / "csrc"
-    rng = np.random.default_rng(5)
-    values = [0.0, -0.0, 5e-324, -2.2250738585072014e-308, 1.7976931348623157e308, 1 / 3,
-              np.pi, -1e-300, 123456789.0, *rng.standard_normal(20) * 10.0 ** rng.integers(
-                  -300, 300, 20)]
-    (tmp_path / "t.dat").write_bytes(encode({"x": values}))
-    (tmp_path / "h.c").write_text(HARNESS)
-    exe = tmp_path / "h"
-    subprocess.run(["gcc", *CFLAGS, "-I", str(csrc), "-o", str(exe), str(tmp_path / "h.c"),
+    tmp = tmp_path_factory.mktemp("data_harness")
+    (tmp / "h.c").write_text(HARNESS)
+    exe = tmp / "h"
+    subprocess.run(["gcc", *CFLAGS, "-I", str(csrc), "-o", str(exe), str(tmp / "h.c"),
                     str(csrc / "data.c"), "-lm"], check=True)
-    out = subprocess.run([str(exe), str(tmp_path) + "/", str(len(values))],
-                         capture_output=True, text=True, check=True).stdout.split()
-    back = np.array([float.fromhex(s) for s in out])
+    return lambda folder, n: subprocess.run([str(exe), str(folder) + "/", str(n)],
+                                            capture_output=True, text=True)
+
+
+DATA_VALUES = [0.0, -0.0, 5e-324, -2.2250738585072014e-308, 1.7976931348623157e308, 1 / 3,
+               np.pi, -1e-300, 123456789.0]
+
+
+def test_model_data_round_trips_every_double_exactly(tmp_path, data_harness):
+    """Binary doubles through nativefmu.data.encode and csrc/data.c (assembled from their
+    bytes, no parser, no locale): subnormals, signed zero, extremes, random doubles, in C
+    and back through nativefmu.data.decode."""
+    from nativefmu.data import decode, encode
+
+    rng = np.random.default_rng(5)
+    values = [*DATA_VALUES, *rng.standard_normal(20) * 10.0 ** rng.integers(-300, 300, 20)]
+    content = encode({"n": 3, "x": values})
+    (tmp_path / "t.dat").write_bytes(content)
+    out = data_harness(tmp_path, len(values))
+    assert out.returncode == 0, out.stderr
+    back = np.array([float.fromhex(s) for s in out.stdout.split()])
     np.testing.assert_array_equal(back.view(np.uint64), np.array(values).view(np.uint64))
+    arrays = decode(content)
+    assert list(arrays) == ["n", "x"] and arrays["n"].shape == (1, 1)
+    np.testing.assert_array_equal(arrays["x"].ravel().view(np.uint64),
+                                  np.array(values).view(np.uint64))
+
+
+@pytest.mark.parametrize("damage, words", [
+    (lambda c: c[:-3], "is cut short at array 1"),
+    (lambda c: c.replace(b"data 2", b"data 1"), "is not a jitterfmu native data file of "
+                                                "version 2"),
+    (lambda c: c[:-8] + np.array([np.nan]).astype("<f8").tobytes(), "is non-finite at "
+                                                                     "array 1"),
+    (lambda c: c.replace(b"x 1 9", b"x 1 9x"), "is malformed at array 1"),
+    (lambda c: c + b"y 1 1\n", "is cut short at array 2"),
+])
+def test_damaged_model_data_is_refused_in_one_sentence(tmp_path, data_harness, damage,
+                                                       words):
+    """A cut, foreign, non-finite or malformed data file: the C reader refuses it, saying
+    what and where (never values read past its end); Python's decode refuses it too."""
+    from nativefmu.data import decode, encode
+
+    content = damage(encode({"x": DATA_VALUES}))
+    (tmp_path / "t.dat").write_bytes(content)
+    out = data_harness(tmp_path, len(DATA_VALUES))
+    assert out.returncode == 1 and f"t.dat {words}" in out.stderr, out.stderr
+    if "non-finite" not in words:
+        with pytest.raises(ValueError):
+            decode(content)

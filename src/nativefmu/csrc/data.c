@@ -1,15 +1,16 @@
 /* Model data file of a native FMU (resources/<file>), read without Python.
  *
- * Text, one array per record:
+ * One array per record, a text header and the values' own bits:
  *
- *   jitterfmu-native-data 1
- *   <name> <rows> <cols>
- *   <rows * cols values, row-major, C99 hexadecimal floats such as 0x1.8p+1>
+ *   jitterfmu-native-data 2\n
+ *   <name> <rows> <cols>\n
+ *   <rows * cols values, row-major, IEEE 754 binary64, little-endian, 8 bytes each>
  *   ...
  *
- * Hexadecimal floats hold every double exactly.  They are parsed here rather than with
- * strtod, whose decimal point follows the host's locale (a tool running with
- * LC_NUMERIC=de_DE would read "0x1.8p+1" as 1).
+ * Every double exactly, and no parser on the values: no locale (a tool running with
+ * LC_NUMERIC=de_DE cannot change them), no rounding.  Each value is assembled from its
+ * eight bytes, so a big-endian host reads the same numbers.  Everything read is checked
+ * against the file's size; a non-finite value is refused (the writer never writes one).
  */
 #include <math.h>
 #include <stdint.h>
@@ -18,13 +19,6 @@
 #include <string.h>
 
 #include "jfmu.h"
-
-static int hexval(char c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-}
 
 #define MAX_NAME 64
 
@@ -41,9 +35,9 @@ struct JfData {
     Record *records;
 };
 
-static char *read_file(JfInstance *inst, const char *path) {
+static unsigned char *read_file(JfInstance *inst, const char *path, size_t *size_out) {
     FILE *f = fopen(path, "rb");
-    char *buf;
+    unsigned char *buf;
     long size;
     if (f == NULL) {
         jf_log(inst, 3, "cannot open model data %s", path);
@@ -54,78 +48,52 @@ static char *read_file(JfInstance *inst, const char *path) {
         jf_log(inst, 3, "cannot read model data %s", path);
         return NULL;
     }
-    buf = (char *)jf_alloc(inst, (size_t)size + 1, 1);
+    buf = (unsigned char *)jf_alloc(inst, (size_t)size + 1, 1);
     if (buf != NULL && fread(buf, 1, (size_t)size, f) != (size_t)size) {
         free(buf);
         buf = NULL;
         jf_log(inst, 3, "cannot read model data %s", path);
     }
     fclose(f);
-    if (buf != NULL) buf[size] = '\0';
+    *size_out = (size_t)size;
     return buf;
 }
 
-/* A C99 hexadecimal float ([-]0x<hex>[.<hex>]p<exp>) starting at p; *end after it, or
- * *end == p if there is none.  Exact: at most 16 significant hex digits are kept, and
- * float.hex() writes 14. */
-static double parse_hex(const char *p, const char **end) {
-    const char *q = p;
-    uint64_t mant = 0;
-    int exp2 = 0, neg = 0, digits = 0, any = 0, e = 0, eneg = 0, d;
-    *end = p;
-    if (*q == '-' || *q == '+') neg = *q++ == '-';
-    if (q[0] != '0' || (q[1] != 'x' && q[1] != 'X')) return 0.0;
-    q += 2;
-    for (; (d = hexval(*q)) >= 0; q++, any = 1) {
-        if (digits < 16) {
-            mant = mant * 16 + (uint64_t)d;
-            if (mant) digits++;
-        } else {
-            exp2 += 4;
-        }
+static const char MAGIC[] = "jitterfmu-native-data 2\n";
+
+/* A decimal count at *p (before end), then the separator sep; 0 if there is none. */
+static int read_count(const unsigned char **p, const unsigned char *end, char sep,
+                      size_t *out) {
+    const unsigned char *q = *p;
+    size_t v = 0;
+    if (q >= end || *q < '0' || *q > '9') return 0;
+    for (; q < end && *q >= '0' && *q <= '9'; q++) {
+        if (v > (SIZE_MAX - 9) / 10) return 0;
+        v = v * 10 + (size_t)(*q - '0');
     }
-    if (*q == '.') {
-        for (q++; (d = hexval(*q)) >= 0; q++, any = 1) {
-            if (digits < 16) {
-                mant = mant * 16 + (uint64_t)d;
-                if (mant) digits++;
-                exp2 -= 4;
-            }
-        }
-    }
-    if (!any || (*q != 'p' && *q != 'P')) return 0.0;
-    q++;
-    if (*q == '-' || *q == '+') eneg = *q++ == '-';
-    if (*q < '0' || *q > '9') return 0.0;
-    for (; *q >= '0' && *q <= '9'; q++)
-        if (e < 100000) e = e * 10 + (*q - '0');
-    *end = q;
-    return (neg ? -1.0 : 1.0) * ldexp((double)mant, exp2 + (eneg ? -e : e));
+    if (q >= end || *q != (unsigned char)sep) return 0;
+    *out = v;
+    *p = q + 1;
+    return 1;
 }
 
-static const char *skip_space(const char *p) {
-    while (*p == ' ' || *p == '\n' || *p == '\r' || *p == '\t') p++;
-    return p;
-}
-
-static const char *read_word(const char *p, char *out, size_t n) {
-    size_t k = 0;
-    p = skip_space(p);
-    while (*p && *p != ' ' && *p != '\n' && *p != '\r' && *p != '\t') {
-        if (k + 1 < n) out[k++] = *p;
-        p++;
-    }
-    out[k] = '\0';
-    return p;
+/* The little-endian binary64 at p. */
+static double get_le_double(const unsigned char *p) {
+    uint64_t u = 0;
+    double d;
+    int k;
+    for (k = 7; k >= 0; k--) u = (u << 8) | p[k];
+    memcpy(&d, &u, sizeof d);
+    return d;
 }
 
 JfData *jf_data_open(JfInstance *inst, const char *file_name) {
     JfData *data;
-    char *text, *end;
-    const char *p;
-    char word[MAX_NAME];
-    size_t cap = 16;
+    unsigned char *buf;
+    const unsigned char *p, *end;
+    size_t cap = 16, size = 0, at = 1;
     size_t len = strlen(inst->resource_dir) + strlen(file_name) + 1;
+    const char *why = "malformed";
 
     data = (JfData *)jf_alloc(inst, 1, sizeof(JfData));
     if (data == NULL) return NULL;
@@ -138,24 +106,23 @@ JfData *jf_data_open(JfInstance *inst, const char *file_name) {
     }
     strcpy(data->path, inst->resource_dir);
     strcat(data->path, file_name);
-    text = read_file(inst, data->path);
-    if (text == NULL) {
+    buf = read_file(inst, data->path, &size);
+    if (buf == NULL) {
         jf_data_close(data);
         return NULL;
     }
-    p = read_word(text, word, sizeof word);
-    if (strcmp(word, "jitterfmu-native-data") != 0 || strtol(p, &end, 10) != 1) {
-        jf_log(inst, 3, "%s is not a jitterfmu native data file of version 1", data->path);
-        free(text);
+    if (size < sizeof MAGIC - 1 || memcmp(buf, MAGIC, sizeof MAGIC - 1) != 0) {
+        jf_log(inst, 3, "%s is not a jitterfmu native data file of version 2", data->path);
+        free(buf);
         jf_data_close(data);
         return NULL;
     }
-    p = end;
-    for (;;) {
+    p = buf + sizeof MAGIC - 1;
+    end = buf + size;
+    while (p < end) {
         Record *rec;
-        size_t i, count;
-        p = skip_space(p);
-        if (*p == '\0') break;
+        size_t i, k, count;
+        at = data->n + 1;
         if (data->n == cap) {
             Record *more = (Record *)realloc(data->records, 2 * cap * sizeof(Record));
             if (more == NULL) goto bad;
@@ -164,31 +131,36 @@ JfData *jf_data_open(JfInstance *inst, const char *file_name) {
         }
         rec = &data->records[data->n];
         memset(rec, 0, sizeof *rec);
-        p = read_word(p, rec->name, sizeof rec->name);
-        rec->rows = (size_t)strtoul(p, &end, 10);
-        if (end == p) goto bad;
-        p = end;
-        rec->cols = (size_t)strtoul(p, &end, 10);
-        if (end == p) goto bad;
-        p = end;
+        for (k = 0; p < end && *p != ' ' && k + 1 < MAX_NAME; k++, p++) {
+            if (*p <= ' ' || *p > '~') goto bad;
+            rec->name[k] = (char)*p;
+        }
+        if (k == 0 || p >= end || *p != ' ') goto bad;
+        p++;
+        if (!read_count(&p, end, ' ', &rec->rows) || !read_count(&p, end, '\n', &rec->cols))
+            goto bad;
         data->n++;
+        if (rec->cols && rec->rows > SIZE_MAX / 8 / rec->cols) goto bad;
         count = rec->rows * rec->cols;
+        if ((size_t)(end - p) / 8 < count) {
+            why = "cut short";
+            goto bad;
+        }
         rec->values = (double *)jf_alloc(inst, count, sizeof(double));
         if (rec->values == NULL) goto bad;
-        for (i = 0; i < count; i++) {
-            const char *next;
-            p = skip_space(p);
-            rec->values[i] = parse_hex(p, &next);
-            if (next == p) goto bad;
-            p = next;
+        for (i = 0; i < count; i++, p += 8) {
+            rec->values[i] = get_le_double(p);
+            if (!isfinite(rec->values[i])) {
+                why = "non-finite";
+                goto bad;
+            }
         }
     }
-    free(text);
+    free(buf);
     return data;
 bad:
-    jf_log(inst, 3, "model data %s is malformed near record %lu", data->path,
-           (unsigned long)data->n);
-    free(text);
+    jf_log(inst, 3, "model data %s is %s at array %lu", data->path, why, (unsigned long)at);
+    free(buf);
     jf_data_close(data);
     return NULL;
 }

@@ -60,7 +60,7 @@ void jf_log(JfInstance *inst, int status, const char *fmt, ...);
 /* calloc that logs on failure. */
 void *jf_alloc(JfInstance *inst, size_t n, size_t size);
 
-/* Model data file: named real arrays, values as C99 hexadecimal floats. */
+/* Model data file: named real arrays, values as little-endian binary64 (csrc/data.c). */
 typedef struct JfData JfData;
 JfData *jf_data_open(JfInstance *inst, const char *file_name);
 /* Array `name` of shape (rows, cols), copied into a new allocation; NULL if missing or

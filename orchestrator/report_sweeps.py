@@ -371,12 +371,22 @@ def uncertainty_sections(out_dir, instruments, unit):
     text = (f"{rep['samples']} samples (seed {rep['seed']}), linear engine; "
             f"interpretation: {rep['interpretation']}; converged: the 95 % bootstrap "
             "interval of the value is narrower than 2 % of it.")
+    drivers = rep.get("drivers") or {}
+
+    def most(key, cf):   # the input most related to a status, in words
+        d = (drivers.get(key) or {}).get(cf) or {}
+        if not d:
+            return ""
+        name, rho = next(iter(d.items()))
+        return f"; most related input: {name}, rank correlation {rho:+.2f}"
+
     for cf, k in (rep.get("unstable") or {}).items():
         lim = (rep.get("limit_reached") or {}).get(cf, 0)
         fast = (rep.get("diverging_in_record") or {}).get(cf, 0)
         if k or lim:
             text += (f" {cf}: {k} sample(s) with an unstable closed loop ({fast} doubling "
                      f"within the record; their records are evaluated as the co-simulation "
-                     f"would give them) and {lim} whose record reached a rail or limit, "
-                     "counted as exceeding every requirement (the CDF stops below 1).")
+                     f"would give them{most('unstable', cf)}) and {lim} whose record "
+                     f"reached a rail or limit{most('limit_reached', cf)}, counted as "
+                     "exceeding every requirement (the CDF stops below 1).")
     return figures, rows, text

@@ -342,6 +342,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     out = Path(out_dir)
     write_table(pa.Table.from_pylist(rows), out / SAMPLES_FILE)
     write_table(pa.Table.from_pylist(summary), out / "uncertainty_summary.csv", csv=True)
+    drivers = _drivers(status, configs, scalar)
     report = {"samples": n, "seed": unc["seed"], "confidence": list(unc["confidence"]),
               "interpretation": INTERPRETATION, "engine": unc.get("engine", "linear"),
               "parameters": [{"name": it.name, "kind": it.kind, "instances":
@@ -355,6 +356,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                                       for ci, cf in enumerate(configs)},
               "limit_reached": {cf: int(np.sum(status[:, ci] & 1 > 0))
                                 for ci, cf in enumerate(configs)},
+              "drivers": drivers,
               "status_means": "unstable: the sample's closed loop has a pole outside the unit "
                               "circle (its records are evaluated as the co-simulation would "
                               "give them); diverging_in_record: that pole more than doubles "
@@ -367,6 +369,24 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
               "lines": lines}
     write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(report, default=float)))
     return out / UNCERTAINTY_FILE
+
+
+def _drivers(status, configs, scalar, top: int = 5) -> dict:
+    """Per status (``unstable``, ``limit_reached``) and configuration, the uncertain
+    inputs most related to it: rank correlation of each input with the sample's flag
+    (largest magnitude first, ``top`` of them); a configuration where no sample or every
+    sample has the flag has none."""
+    from ..analysis.uncertainty import rank_correlation
+
+    out = {}
+    for key, bit in (("unstable", 2), ("limit_reached", 1)):
+        out[key] = {}
+        for ci, cf in enumerate(configs):
+            flag = ((status[:, ci] & bit) > 0).astype(float)
+            if 0 < flag.sum() < flag.size:
+                rho = {name: rank_correlation(v, flag) for name, v in scalar.items()}
+                out[key][cf] = dict(sorted(rho.items(), key=lambda kv: -abs(kv[1]))[:top])
+    return out
 
 
 def _results(campaign, runner, ctx, draws, chunks, workers, scheduler):

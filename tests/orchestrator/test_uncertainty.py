@@ -222,7 +222,7 @@ def test_unstable_samples_are_counted_and_fail_once_out_of_the_model(tmp_path, t
            "parameters": [{"name": "g", "kind": "gain", "instances": ["ctrl_diag",
                                                                        "ctrl_long"],
                            "distribution": "uniform", "low": 1.0, "high": 6.0}]}
-    _, rep = _run(tmp_path, _campaign(unc), truss_fmus)
+    camp, rep = _run(tmp_path, _campaign(unc), truss_fmus)
     k = rep["unstable"]["on"]
     assert 0 < k < 30 and rep["diverging_in_record"]["on"] <= k
     lim = rep["limit_reached"]["on"]
@@ -230,6 +230,14 @@ def test_unstable_samples_are_counted_and_fail_once_out_of_the_model(tmp_path, t
         assert line["unstable"] == k and line["n_infinite"] == lim
         if "p_meet" in line:
             assert line["p_meet"] <= 1 - lim / 30 + 1e-12
+    # the diagonal's factor decides it: the input most related to the unstable samples
+    drivers = rep["drivers"]["unstable"]["on"]
+    assert next(iter(drivers)) == "g [ctrl_diag]" and drivers["g [ctrl_diag]"] > 0.6
+    assert abs(drivers["g [ctrl_long]"]) < drivers["g [ctrl_diag]"]
+    from orchestrator.report_sweeps import uncertainty_sections
+    text = uncertainty_sections(tmp_path, camp.instruments, camp.unit)[2]
+    assert (f"on: {k} sample(s) with an unstable closed loop" in text
+            and "most related input: g [ctrl_diag], rank correlation +" in text)
 
 
 @pytest.mark.slow
@@ -365,3 +373,22 @@ def test_a_stopped_run_keeps_its_samples_and_resumes_to_the_same_numbers(
     rep = json.loads(run_uncertainty(camp, out, runner, progress=False).read_text())
     assert "ignoring kept samples" in capsys.readouterr().err
     assert rep["resumed"] < 10 and _samples(out) == _samples(whole)
+
+
+def test_status_drivers_rank_the_input_that_sets_the_flag():
+    """A flag set exactly where one input passes a threshold: that input first, with a
+    rank correlation near the point-biserial of a threshold at 40 % (about 0.85), an
+    independent input near 0; no flag or every flag set ranks nothing."""
+    from orchestrator.campaign.montecarlo import _drivers
+
+    rng = np.random.default_rng(4)
+    a, b = rng.uniform(size=2000), rng.uniform(size=2000)
+    status = np.zeros((2000, 2), int)
+    status[:, 0] = np.where(a < 0.4, 2, 0)         # unstable below 0.4 in "off"
+    status[:, 1] = 1                               # every sample limited in "on"
+    d = _drivers(status, ["off", "on"], {"a": a, "b": b})
+    assert list(d["unstable"]) == ["off"] and list(d["unstable"]["off"]) == ["a", "b"]
+    # ranks of a against a 0/1 flag at 40 %: -sqrt(3 p (1 - p)) = -0.849 for p = 0.4
+    assert d["unstable"]["off"]["a"] == pytest.approx(-np.sqrt(3 * 0.4 * 0.6), abs=0.02)
+    assert abs(d["unstable"]["off"]["b"]) < 0.1
+    assert d["limit_reached"] == {}

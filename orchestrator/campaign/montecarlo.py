@@ -234,6 +234,11 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                     workers: int = 0, scheduler=None) -> Path | None:
     """Run a campaign's ``[uncertainty]`` on the linear engine; ``uncertainty.json``.
 
+    With ``max_samples`` in the table the run extends itself: after ``samples`` it adds
+    samples (the same per-sample draws a larger count gives) until every finite value
+    at every confidence level has a bootstrap interval below 2 % of it, or
+    ``max_samples`` are done; each round's count and widest interval are reported.
+
     Parameters
     ----------
     campaign : Campaign
@@ -250,7 +255,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     scheduler : str or distributed.Client, optional
         A Dask scheduler to run the samples on instead (same numbers).
     """
-    from ..analysis.uncertainty import INTERPRETATION, draw, statistics
+    from ..analysis.uncertainty import draw
     from .linear import LinearRunner
 
     unc = campaign.uncertainty
@@ -259,24 +264,51 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     wall = time.perf_counter()
     runner = runner if isinstance(runner, LinearRunner) else LinearRunner(campaign.scenario_dir)
     items = unc["parameters"]
-    n, m = unc["samples"], len(campaign.metrics)
     if unc.get("engine") == "cosim":   # no linear loop: modal kinds are refused there
         ctx, freqs = _layout(campaign), None
     else:
         ctx = _setup(campaign, runner)
         lin0, structs, _ = ctx["base"][ctx["configs"][0]]
         freqs = lin0.blocks[structs[0]].model.frequencies_hz if structs else None
-    draws = draw(items, n, unc["seed"], freqs)
-    values = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]), m),
-                     np.nan)
-    status = np.zeros((n, len(ctx["configs"])), int)
     cosim = unc.get("engine") == "cosim"   # its cases keep themselves (run_campaign)
     folder = None if cosim else Path(out_dir) / PARTS_DIR / _identity(campaign, runner,
                                                                        ctx)[:24]
+    n, top = unc["samples"], unc.get("max_samples") or unc["samples"]
+    rounds = []
+    while True:
+        draws = draw(items, n, unc["seed"], freqs)
+        values, status, resumed = _samples(campaign, out_dir, runner, ctx, draws, folder,
+                                           workers, scheduler, progress,
+                                           f" (round {len(rounds) + 1})" if top > n or
+                                           rounds else "")
+        lines, rows, summary = _lines(campaign, ctx, draws, values, status)
+        widest, need = _convergence(lines)
+        rounds.append({"samples": n, "widest_interval": widest, "resumed": resumed})
+        if need is None or n >= top:
+            break
+        n = min(top, max(n + 1, min(4 * n, need)))   # at most four times more a round
+    out = Path(out_dir)
+    write_table(pa.Table.from_pylist(rows), out / SAMPLES_FILE)
+    write_table(pa.Table.from_pylist(summary), out / "uncertainty_summary.csv", csv=True)
+    write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(
+        _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall),
+        default=float)))
+    return out / UNCERTAINTY_FILE
+
+
+def _samples(campaign, out_dir, runner, ctx, draws, folder, workers, scheduler, progress,
+             round_label: str) -> tuple:
+    """``(values, status, resumed)`` of every sample of ``draws``: the kept ones read
+    back, the others evaluated (and kept as they finish)."""
+    n, m = draws.n, len(campaign.metrics)
+    values = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]), m),
+                     np.nan)
+    status = np.zeros((n, len(ctx["configs"])), int)
+    cosim = folder is None
     done = np.zeros(n, bool) if cosim else _load_parts(folder, values, status)
     todo = np.flatnonzero(~done)
     resumed = int(done.sum())
-    bar = ProgressBar(todo.size, "uncertainty", "sample", enabled=progress)
+    bar = ProgressBar(todo.size, "uncertainty" + round_label, "sample", enabled=progress)
     parts = max(1, int(workers)) if scheduler is None else 2 * max(1, int(workers) or 2)
     # chunks of at most 25 samples: what a stop loses, and what a worker reports at once
     n_chunks = min(todo.size, max(4 * parts, math.ceil(todo.size / 25)))
@@ -307,6 +339,16 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                     f"in {str(folder)!r}; run the same command again to resume")) from None
     finally:
         bar.close()
+    return values, status, resumed
+
+
+def _lines(campaign, ctx, draws, values, status) -> tuple:
+    """``(lines, rows, summary)``: the statistics of every line (configuration,
+    instrument, axis, metric), the per-sample table rows and the summary rows."""
+    from ..analysis.uncertainty import statistics
+
+    unc = campaign.uncertainty
+    n = draws.n
     pairs, configs = ctx["pairs"], ctx["configs"]
     rss = np.sqrt(np.sum(values**2, axis=2))                   # (n, configs, pairs, m)
     scale = ANGLE_UNITS[campaign.unit]
@@ -339,36 +381,58 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                                     "samples_for_2pct": q["samples_for_2pct"],
                                     "requirement": req,
                                     "p_meet": st.get("p_meet", math.nan)})
-    out = Path(out_dir)
-    write_table(pa.Table.from_pylist(rows), out / SAMPLES_FILE)
-    write_table(pa.Table.from_pylist(summary), out / "uncertainty_summary.csv", csv=True)
-    drivers = _drivers(status, configs, scalar)
-    report = {"samples": n, "seed": unc["seed"], "confidence": list(unc["confidence"]),
-              "interpretation": INTERPRETATION, "engine": unc.get("engine", "linear"),
-              "parameters": [{"name": it.name, "kind": it.kind, "instances":
-                              list(it.instances), "per_mode": it.per_mode,
-                              "band": list(it.band),
-                              "distribution": None if it.distribution is None else
-                              dataclasses.asdict(it.distribution)} for it in items],
-              "unstable": {cf: int(np.sum(status[:, ci] & 2 > 0))
-                           for ci, cf in enumerate(configs)},
-              "diverging_in_record": {cf: int(np.sum(status[:, ci] & 4 > 0))
-                                      for ci, cf in enumerate(configs)},
-              "limit_reached": {cf: int(np.sum(status[:, ci] & 1 > 0))
-                                for ci, cf in enumerate(configs)},
-              "drivers": drivers,
-              "status_means": "unstable: the sample's closed loop has a pole outside the unit "
-                              "circle (its records are evaluated as the co-simulation would "
-                              "give them); diverging_in_record: that pole more than doubles "
-                              "over the record; limit_reached: a record reached a rail or "
-                              "limit, and the sample counts as exceeding every requirement",
-              "wall_s": time.perf_counter() - wall,
-              "resumed": resumed, "kept_in": str(folder or Path(out_dir) /
-                                                   "uncertainty_cases"),
-              "memory": "per sample: the metrics of each record; one record at a time",
-              "lines": lines}
-    write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(report, default=float)))
-    return out / UNCERTAINTY_FILE
+    return lines, rows, summary
+
+
+def _convergence(lines) -> tuple:
+    """``(widest, need)``: the widest relative bootstrap interval of a finite value over
+    every line and level (None without one), and the sample count that would narrow every one to 2 % (None
+    when all are below it).  An infinite value (more samples outside the model than
+    ``1 - P_c``) has no width: it is left out."""
+    widest, need = None, None
+    for line in lines:
+        for q in line.get("quantiles", {}).values():
+            if not math.isfinite(q["value"]):
+                continue
+            widest = max(widest or 0.0, q["rel_width"])
+            if not q["converged"]:
+                k = q["samples_for_2pct"]
+                need = max(need or 0, k if k is not None else 2**62)
+    return widest, need
+
+
+def _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall) -> dict:
+    """The content of ``uncertainty.json``."""
+    from ..analysis.uncertainty import INTERPRETATION
+
+    unc = campaign.uncertainty
+    configs = ctx["configs"]
+    return {"samples": draws.n, "seed": unc["seed"], "confidence": list(unc["confidence"]),
+            "interpretation": INTERPRETATION, "engine": unc.get("engine", "linear"),
+            "max_samples": unc.get("max_samples"), "rounds": rounds,
+            "parameters": [{"name": it.name, "kind": it.kind, "instances":
+                            list(it.instances), "per_mode": it.per_mode,
+                            "band": list(it.band),
+                            "distribution": None if it.distribution is None else
+                            dataclasses.asdict(it.distribution)}
+                           for it in unc["parameters"]],
+            "unstable": {cf: int(np.sum(status[:, ci] & 2 > 0))
+                         for ci, cf in enumerate(configs)},
+            "diverging_in_record": {cf: int(np.sum(status[:, ci] & 4 > 0))
+                                    for ci, cf in enumerate(configs)},
+            "limit_reached": {cf: int(np.sum(status[:, ci] & 1 > 0))
+                              for ci, cf in enumerate(configs)},
+            "drivers": _drivers(status, configs, draws.scalar_inputs()),
+            "status_means": "unstable: the sample's closed loop has a pole outside the unit "
+                            "circle (its records are evaluated as the co-simulation would "
+                            "give them); diverging_in_record: that pole more than doubles "
+                            "over the record; limit_reached: a record reached a rail or "
+                            "limit, and the sample counts as exceeding every requirement",
+            "wall_s": time.perf_counter() - wall,
+            "resumed": rounds[0]["resumed"], "kept_in": str(folder or Path(out_dir) /
+                                                            "uncertainty_cases"),
+            "memory": "per sample: the metrics of each record; one record at a time",
+            "lines": lines}
 
 
 def _drivers(status, configs, scalar, top: int = 5) -> dict:

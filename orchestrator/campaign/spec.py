@@ -49,7 +49,7 @@ RSS_EVENT = "RSS"
 # Valid keys of every table of a campaign file.
 _KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metrics",
          "requirements", "wheel_sweeps", "uncertainty")
-_UNCERTAINTY_KEYS = ("samples", "seed", "confidence", "parameters", "engine")
+_UNCERTAINTY_KEYS = ("samples", "max_samples", "seed", "confidence", "parameters", "engine")
 _PARAMETER_KEYS = ("name", "kind", "distribution", "low", "high", "mean", "std", "median",
                    "sigma", "instances", "per_mode", "band")
 _CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm",
@@ -484,6 +484,11 @@ def _uncertainty(table, fmus: dict):
     n = table.get("samples", 200)
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise CampaignError(f"[uncertainty] samples is {n!r}; expected a whole number >= 1")
+    top = table.get("max_samples")
+    if top is not None and (isinstance(top, bool) or not isinstance(top, int) or top < n):
+        raise CampaignError(f"[uncertainty] max_samples is {top!r}; expected a whole number "
+                            f">= samples ({n}): the run extends itself from samples up to "
+                            "max_samples until its values converge")
     seed = table.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise CampaignError(f"[uncertainty] seed is {seed!r}; expected a whole number >= 0")
@@ -549,8 +554,9 @@ def _uncertainty(table, fmus: dict):
             raise CampaignError(f"uncertain {modal[0]!r} moves the structure's modes, which a "
                                 "co-simulation would need a structure FMU per sample for; "
                                 "run it on the linear engine (engine = \"linear\")")
-    return {"samples": n, "seed": seed, "confidence": tuple(float(c) for c in conf),
-            "parameters": tuple(out), "engine": engine}
+    return {"samples": n, "max_samples": top, "seed": seed,
+            "confidence": tuple(float(c) for c in conf), "parameters": tuple(out),
+            "engine": engine}
 
 
 def _overrides(item, what: str) -> dict:

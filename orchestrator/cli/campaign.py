@@ -147,7 +147,7 @@ def run(args) -> int:
     if camp.uncertainty:
         # from 40 samples on, one worker per CPU (each closes its own loops) unless
         # --workers says otherwise
-        many = camp.uncertainty["samples"] >= 40
+        many = (camp.uncertainty.get("max_samples") or camp.uncertainty["samples"]) >= 40
         workers = args.workers if args.workers is not None else (
             (os.cpu_count() or 1) if many else 0)
         try:
@@ -162,6 +162,14 @@ def run(args) -> int:
                    if rep.get("resumed") else "")
         print(f"uncertainty: {rep['samples']} samples in {rep['wall_s']:.1f} s{resumed} "
               f"({path}); {rep['interpretation']}")
+        if rep.get("max_samples"):
+            steps = " -> ".join(str(r["samples"]) for r in rep["rounds"])
+            widest = rep["rounds"][-1]["widest_interval"]
+            print(f"  extended until converged: {steps} samples (at most "
+                  f"{rep['max_samples']}); " + (
+                      "no finite value to converge" if widest is None else
+                      f"widest interval of a finite value {100 * widest:.2g} %"
+                      + ("" if widest < 0.02 else ": not converged at max_samples")))
         for cf, k in rep["unstable"].items():
             if k or rep["limit_reached"][cf]:
                 print(f"  {cf}: {k} sample(s) with an unstable loop "

@@ -165,6 +165,9 @@ def test_sensitivity_names_the_only_input_that_matters(tmp_path, truss_fmus):
     ({"parameters": [{"kind": "gain", "instances": ["a"], "distribution": "normal",
                       "mean": 1.0, "std": 0.0}]}, "std > 0"),
     ({"parameters": []}, "needs 'parameters'"),
+    ({"samples": 100, "max_samples": 50, "parameters": [
+        {"kind": "phase", "instances": ["a"]}]}, "max_samples is 50; expected a whole "
+                                                 "number >= samples \\(100\\)"),
 ])
 def test_bad_uncertainty_is_one_sentence_before_any_case(unc, words):
     data = {"campaign": {"name": "x", "scenario": {
@@ -210,6 +213,38 @@ def test_pool_and_dask_give_the_same_samples(tmp_path, truss_fmus):
         got[mode] = [r["value"] for r in
                      pq.read_table(out / "uncertainty_samples.parquet").to_pylist()]
     assert got["pool"] == got["serial"] and got["dask"] == got["serial"]
+
+
+@pytest.mark.slow
+def test_max_samples_extends_the_run_until_its_values_converge(tmp_path, truss_fmus):
+    """From 40 samples, a uniform amplitude (jitter = factor x nominal): each round adds
+    the samples its widest interval asks for, and the run stops once every 95 % value's
+    bootstrap interval is below 2 %, well before max_samples. The samples are the
+    per-sample draws: a plain run of the final count gives the same numbers; and its
+    95 % values are the closed form's (nominal x (0.8 + 0.4 x 0.95)) within 2 %."""
+    import pyarrow.parquet as pq
+    unc = {"samples": 40, "max_samples": 5000, "seed": 3, "confidence": [0.95],
+           "parameters": [{"name": "amp", "kind": "amplitude", "instances": ["excitation"],
+                           "distribution": "uniform", "low": 0.8, "high": 1.2}]}
+    _, rep = _run(tmp_path / "grown", _campaign(unc), truss_fmus)
+    counts = [r["samples"] for r in rep["rounds"]]
+    assert counts[0] == 40 and counts == sorted(set(counts)) and len(counts) >= 2
+    assert rep["samples"] == counts[-1] < 5000
+    assert rep["rounds"][-1]["widest_interval"] < 0.02 <= rep["rounds"][-2]["widest_interval"]
+    assert all(q["converged"] for line in rep["lines"] for q in line["quantiles"].values())
+    assert rep["rounds"][1]["resumed"] == 40     # the first round's samples were kept
+    nominal = {(r["instrument"], r["axis"], r["metric"]): r["value"]
+               for r in pq.read_table(tmp_path / "grown" / "summary.parquet").to_pylist()
+               if r["event"] == "RSS"}
+    for line in rep["lines"]:
+        want = nominal[(line["instrument"], line["axis"], line["metric"])] * (0.8 + 0.38)
+        assert line["quantiles"]["0.95"]["value"] == pytest.approx(want, rel=0.02)
+    plain = dict(unc, samples=rep["samples"])
+    del plain["max_samples"]
+    _, once = _run(tmp_path / "once", _campaign(plain), truss_fmus)
+    a = pq.read_table(tmp_path / "grown" / "uncertainty_samples.parquet").to_pylist()
+    b = pq.read_table(tmp_path / "once" / "uncertainty_samples.parquet").to_pylist()
+    assert a == b and once["lines"] == rep["lines"]
 
 
 @pytest.mark.slow

@@ -282,7 +282,10 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         v = cap(np.quantile(x, pc))
         bq = np.quantile(x[boot], pc, axis=1)
         lo, hi = (cap(q) for q in np.quantile(bq, [0.025, 0.975]))
-        width = (hi - lo) / abs(v) if v and math.isfinite(hi) else math.inf
+        # every resample gives the same value (a zero line, a value every sample shares):
+        # the interval has no width; otherwise relative, infinite at 0 or above the model
+        width = (0.0 if hi == lo else (hi - lo) / abs(v) if v and math.isfinite(hi)
+                 else math.inf)
         # the interval narrows as 1/sqrt(n): the samples it would take to reach 2 %
         need = (x.size if width < 0.02 else math.ceil(x.size * (width / 0.02) ** 2)
                 if 0 < width < math.inf else None)

@@ -281,14 +281,14 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                                            workers, scheduler, progress,
                                            f" (round {len(rounds) + 1})" if top > n or
                                            rounds else "")
-        lines, rows, summary = _lines(campaign, ctx, draws, values, status)
+        lines, summary = _lines(campaign, ctx, draws, values, status)
         widest, need = _convergence(lines)
         rounds.append({"samples": n, "widest_interval": widest, "resumed": resumed})
         if need is None or n >= top:
             break
         n = min(top, max(n + 1, min(4 * n, need)))   # at most four times more a round
     out = Path(out_dir)
-    write_table(pa.Table.from_pylist(rows), out / SAMPLES_FILE)
+    write_table(pa.Table.from_pylist(_rows(campaign, ctx, values)), out / SAMPLES_FILE)
     write_table(pa.Table.from_pylist(summary), out / "uncertainty_summary.csv", csv=True)
     write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(
         _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall),
@@ -342,53 +342,64 @@ def _samples(campaign, out_dir, runner, ctx, draws, folder, workers, scheduler, 
     return values, status, resumed
 
 
+def _budgets(campaign, ctx, values):
+    """``(configuration, instrument, axis, metric, window, x)`` of every line, ``x`` the
+    RSS over the events of each sample in the campaign's unit (inf: out of the model;
+    NaN: not evaluated)."""
+    rss = np.sqrt(np.sum(values**2, axis=2))                   # (n, configs, pairs, m)
+    scale = ANGLE_UNITS[campaign.unit]
+    for ci, cf in enumerate(ctx["configs"]):
+        for j, (inst, axis, _) in enumerate(ctx["pairs"]):
+            for k, (kind, window) in enumerate(campaign.metrics):
+                yield ci, cf, inst, axis, kind, window, rss[:, ci, j, k] * scale
+
+
+def _rows(campaign, ctx, values) -> list:
+    """The per-sample table (``uncertainty_samples.parquet``): one row per sample and
+    line."""
+    return [{"sample": i, "configuration": cf, "instrument": inst, "axis": axis,
+             "metric": kind, "window": window, "unit": campaign.unit, "value": float(v)}
+            for _, cf, inst, axis, kind, window, x in _budgets(campaign, ctx, values)
+            for i, v in enumerate(x)]
+
+
 def _lines(campaign, ctx, draws, values, status) -> tuple:
-    """``(lines, rows, summary)``: the statistics of every line (configuration,
-    instrument, axis, metric), the per-sample table rows and the summary rows."""
+    """``(lines, summary)``: the statistics of every line (configuration, instrument,
+    axis, metric) and the summary rows."""
     from ..analysis.uncertainty import statistics
 
     unc = campaign.uncertainty
-    n = draws.n
-    pairs, configs = ctx["pairs"], ctx["configs"]
-    rss = np.sqrt(np.sum(values**2, axis=2))                   # (n, configs, pairs, m)
-    scale = ANGLE_UNITS[campaign.unit]
     scalar = draws.scalar_inputs()
-    lines, rows, summary = [], [], []
-    for ci, cf in enumerate(configs):
-        for j, (inst, axis, _) in enumerate(pairs):
-            for k, (kind, window) in enumerate(campaign.metrics):
-                x = rss[:, ci, j, k] * scale       # inf: unstable or out of the model
-                ok = ~np.isnan(x)
-                req = campaign.requirement(inst, axis, kind, window)
-                st = statistics(x[ok], unc["confidence"], req,
-                                inputs={nm: v[ok] for nm, v in scalar.items()},
-                                seed=unc["seed"]) if ok.any() else {}
-                st["sensitivity"] = dict(list(st.get("sensitivity", {}).items())[:10])
-                lines.append({"configuration": cf, "instrument": inst, "axis": axis,
-                              "metric": kind, "window": window, "unit": campaign.unit,
-                              "requirement": req, "samples_used": int(ok.sum()),
-                              "unstable": int(np.sum(status[:, ci] & 2 > 0)),
-                              "limit_reached": int(np.sum(status[:, ci] & 1 > 0)), **st})
-                rows += [{"sample": i, "configuration": cf, "instrument": inst,
-                          "axis": axis, "metric": kind, "window": window,
-                          "unit": campaign.unit, "value": float(x[i])} for i in range(n)]
-                for pc, q in st.get("quantiles", {}).items():
-                    summary.append({"configuration": cf, "instrument": inst, "axis": axis,
-                                    "metric": kind, "window": window, "unit": campaign.unit,
-                                    "confidence": pc, "value": q["value"],
-                                    "boot_low": q["low"], "boot_high": q["high"],
-                                    "converged": q["converged"],
-                                    "samples_for_2pct": q["samples_for_2pct"],
-                                    "requirement": req,
-                                    "p_meet": st.get("p_meet", math.nan)})
-    return lines, rows, summary
+    lines, summary = [], []
+    for ci, cf, inst, axis, kind, window, x in _budgets(campaign, ctx, values):
+        ok = ~np.isnan(x)
+        req = campaign.requirement(inst, axis, kind, window)
+        st = statistics(x[ok], unc["confidence"], req,
+                        inputs={nm: v[ok] for nm, v in scalar.items()},
+                        seed=unc["seed"]) if ok.any() else {}
+        st["sensitivity"] = dict(list(st.get("sensitivity", {}).items())[:10])
+        lines.append({"configuration": cf, "instrument": inst, "axis": axis,
+                      "metric": kind, "window": window, "unit": campaign.unit,
+                      "requirement": req, "samples_used": int(ok.sum()),
+                      "unstable": int(np.sum(status[:, ci] & 2 > 0)),
+                      "limit_reached": int(np.sum(status[:, ci] & 1 > 0)), **st})
+        for pc, q in st.get("quantiles", {}).items():
+            summary.append({"configuration": cf, "instrument": inst, "axis": axis,
+                            "metric": kind, "window": window, "unit": campaign.unit,
+                            "confidence": pc, "value": q["value"],
+                            "boot_low": q["low"], "boot_high": q["high"],
+                            "converged": q["converged"],
+                            "samples_for_2pct": q["samples_for_2pct"],
+                            "requirement": req,
+                            "p_meet": st.get("p_meet", math.nan)})
+    return lines, summary
 
 
 def _convergence(lines) -> tuple:
     """``(widest, need)``: the widest relative bootstrap interval of a finite value over
-    every line and level (None without one), and the sample count that would narrow every one to 2 % (None
-    when all are below it).  An infinite value (more samples outside the model than
-    ``1 - P_c``) has no width: it is left out."""
+    every line and level (None without one), and the sample count that would narrow
+    every one to 2 % (None when all are below it).  An infinite value (more samples
+    outside the model than ``1 - P_c``) has no width: it is left out."""
     widest, need = None, None
     for line in lines:
         for q in line.get("quantiles", {}).values():

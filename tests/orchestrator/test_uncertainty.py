@@ -427,3 +427,13 @@ def test_status_drivers_rank_the_input_that_sets_the_flag():
     assert d["unstable"]["off"]["a"] == pytest.approx(-np.sqrt(3 * 0.4 * 0.6), abs=0.02)
     assert abs(d["unstable"]["off"]["b"]) < 0.1
     assert d["limit_reached"] == {}
+
+
+def test_a_value_every_sample_shares_has_a_zero_width_interval():
+    """A line no event excites (every sample 0) or one value for all: every resample
+    gives it, so it is converged (a relative width of 0, not the 0/0 of a zero value),
+    and a run that extends itself until converged does not wait on it."""
+    for value in (0.0, 3.5):
+        q = statistics(np.full(50, value), [0.95])["quantiles"][0.95]
+        assert q["value"] == value and q["rel_width"] == 0.0 and q["converged"]
+        assert q["samples_for_2pct"] == 50

@@ -279,6 +279,12 @@ def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
     return fig
 
 
+def strongest(correlations: dict, k: int) -> list:
+    """The ``k`` names of largest ``|correlation|``, largest first (``uncertainty.json``
+    keeps its tables sorted by name)."""
+    return sorted(correlations, key=lambda name: (-abs(correlations[name]), name))[:k]
+
+
 def uncertainty_sections(out_dir, instruments, unit):
     """CDF and sensitivity figures of ``uncertainty.json``, and its table rows.
 
@@ -345,7 +351,7 @@ def uncertainty_sections(out_dir, instruments, unit):
                     axs[i][0].axvline(req, color="crimson", ls="--", lw=1.0)
             if lines:
                 sens = lines[-1].get("sensitivity", {})
-                names = list(sens)[:6][::-1]
+                names = strongest(sens, 6)[::-1]
                 axs[i][1].barh(range(len(names)), [sens[n] for n in names], color="0.45",
                                height=0.6)
                 axs[i][1].set_yticks(range(len(names)), names, fontsize=7)
@@ -377,8 +383,8 @@ def uncertainty_sections(out_dir, instruments, unit):
         d = (drivers.get(key) or {}).get(cf) or {}
         if not d:
             return ""
-        name, rho = next(iter(d.items()))
-        return f"; most related input: {name}, rank correlation {rho:+.2f}"
+        name = strongest(d, 1)[0]
+        return f"; most related input: {name}, rank correlation {d[name]:+.2f}"
 
     for cf, k in (rep.get("unstable") or {}).items():
         lim = (rep.get("limit_reached") or {}).get(cf, 0)

@@ -421,12 +421,16 @@ def test_status_drivers_rank_the_input_that_sets_the_flag():
     status = np.zeros((2000, 2), int)
     status[:, 0] = np.where(a < 0.4, 2, 0)         # unstable below 0.4 in "off"
     status[:, 1] = 1                               # every sample limited in "on"
-    d = _drivers(status, ["off", "on"], {"a": a, "b": b})
-    assert list(d["unstable"]) == ["off"] and list(d["unstable"]["off"]) == ["a", "b"]
+    d = _drivers(status, ["off", "on"], {"b": b, "z": a})
+    assert list(d["unstable"]) == ["off"] and list(d["unstable"]["off"]) == ["z", "b"]
     # ranks of a against a 0/1 flag at 40 %: -sqrt(3 p (1 - p)) = -0.849 for p = 0.4
-    assert d["unstable"]["off"]["a"] == pytest.approx(-np.sqrt(3 * 0.4 * 0.6), abs=0.02)
+    assert d["unstable"]["off"]["z"] == pytest.approx(-np.sqrt(3 * 0.4 * 0.6), abs=0.02)
     assert abs(d["unstable"]["off"]["b"]) < 0.1
     assert d["limit_reached"] == {}
+    # uncertainty.json sorts its keys by name: the report ranks by magnitude again
+    from orchestrator.report_sweeps import strongest
+    back = json.loads(json.dumps(d["unstable"]["off"], sort_keys=True))
+    assert list(back) == ["b", "z"] and strongest(back, 1) == ["z"]
 
 
 def test_a_value_every_sample_shares_has_a_zero_width_interval():

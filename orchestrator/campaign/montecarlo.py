@@ -288,7 +288,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
             break
         n = min(top, max(n + 1, min(4 * n, need)))   # at most four times more a round
     out = Path(out_dir)
-    write_table(pa.Table.from_pylist(_rows(campaign, ctx, values)), out / SAMPLES_FILE)
+    write_table(_samples_table(campaign, ctx, values), out / SAMPLES_FILE)
     write_table(pa.Table.from_pylist(summary), out / "uncertainty_summary.csv", csv=True)
     write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(
         _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall),
@@ -354,13 +354,24 @@ def _budgets(campaign, ctx, values):
                 yield ci, cf, inst, axis, kind, window, rss[:, ci, j, k] * scale
 
 
-def _rows(campaign, ctx, values) -> list:
+def _samples_table(campaign, ctx, values) -> pa.Table:
     """The per-sample table (``uncertainty_samples.parquet``): one row per sample and
-    line."""
-    return [{"sample": i, "configuration": cf, "instrument": inst, "axis": axis,
-             "metric": kind, "window": window, "unit": campaign.unit, "value": float(v)}
-            for _, cf, inst, axis, kind, window, x in _budgets(campaign, ctx, values)
-            for i, v in enumerate(x)]
+    line, built column by column (tens of thousands of samples times every line would
+    be millions of Python rows)."""
+    cols = {k: [] for k in ("configuration", "instrument", "axis", "metric", "window")}
+    xs = []
+    for _, cf, inst, axis, kind, window, x in _budgets(campaign, ctx, values):
+        for k, v in zip(cols, (cf, inst, axis, kind, window)):
+            cols[k].append(v)
+        xs.append(x)
+    n, k = values.shape[0], len(xs)
+    rep = np.repeat(np.arange(k), n)     # line of each row, samples within a line
+    table = {"sample": pa.array(np.tile(np.arange(n, dtype=np.int64), k))}
+    for name, v in cols.items():
+        table[name] = pa.array(v).take(pa.array(rep))
+    table["unit"] = pa.array([campaign.unit] * (n * k), pa.string())
+    table["value"] = pa.array(np.concatenate(xs) if xs else np.zeros(0), pa.float64())
+    return pa.table(table)
 
 
 def _lines(campaign, ctx, draws, values, status) -> tuple:

@@ -314,7 +314,16 @@ def uncertainty_sections(out_dir, instruments, unit):
     if not path.is_file() or not samples_path.is_file():
         return [], [], ""
     rep = json.loads(path.read_text(encoding="utf-8"))
-    samples = pq.read_table(samples_path).to_pylist()
+    table = pq.read_table(samples_path, columns=["configuration", "instrument", "axis",
+                                                  "metric", "value"])
+    # the samples of each line (configuration, instrument, axis, metric), by column:
+    # a run extended to tens of thousands of samples has millions of rows
+    keys = list(zip(*(table[c].to_pylist() for c in ("configuration", "instrument", "axis",
+                                                      "metric"))))
+    values = table["value"].to_numpy(zero_copy_only=False)
+    index = {}
+    for j, key in enumerate(keys):
+        index.setdefault(key, []).append(j)
     figures, rows = [], []
     first_metric = rep["lines"][0]["metric"] if rep["lines"] else None
     for inst, axes in instruments.items():
@@ -326,9 +335,8 @@ def uncertainty_sections(out_dir, instruments, unit):
             lines = [ln for ln in rep["lines"] if ln["instrument"] == inst
                      and ln["axis"] == axis and ln["metric"] == first_metric]
             for ln in lines:
-                allx = np.array([r["value"] for r in samples if (r["configuration"],
-                                r["instrument"], r["axis"], r["metric"]) ==
-                                (ln["configuration"], inst, axis, first_metric)])
+                allx = values[index.get((ln["configuration"], inst, axis, first_metric),
+                                        [])]
                 x = np.sort(allx[np.isfinite(allx)])   # inf: unstable, never below a bound
                 if x.size == 0:
                     continue

@@ -281,7 +281,19 @@ def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
 
 def strongest(correlations: dict, k: int) -> list:
     """The ``k`` names of largest ``|correlation|``, largest first (``uncertainty.json``
-    keeps its tables sorted by name)."""
+    keeps its tables sorted by name).
+
+    Parameters
+    ----------
+    correlations : dict of str to float
+        Input name -> rank correlation (``sensitivity``, ``drivers``).
+    k : int
+        How many names.
+
+    Returns
+    -------
+    list of str
+    """
     return sorted(correlations, key=lambda name: (-abs(correlations[name]), name))[:k]
 
 

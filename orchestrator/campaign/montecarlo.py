@@ -36,7 +36,8 @@ import pyarrow as pa
 
 from ..files import atomic_write
 from ..progress import ProgressBar
-from .spec import ANGLE_UNITS
+from .mcresults import (DIVERGING, LIMIT, UNSTABLE, _convergence, _lines, _report,
+                        _samples_table)
 from .store import canonical, write_json, write_table
 
 __all__ = ["run_uncertainty", "SAMPLES_FILE", "UNCERTAINTY_FILE"]
@@ -143,7 +144,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                 bad = unstable_poles(fr)
                 if bad:   # reported; the record is what the co-simulation would give
                     growth = abs(bad[0]) ** (record_ticks / fr.P)
-                    status[row, ci] |= 2 | (4 if growth > 2.0 else 0)
+                    status[row, ci] |= UNSTABLE | (DIVERGING if growth > 2.0 else 0)
             # the events of a configuration share its loop: computed together
             Ws, scales = zip(*(_sample_input(runner, fr, *ctx["inputs"][(cf, ev)], draws,
                                              items, s) for ev in ctx["events"]))
@@ -151,7 +152,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                                                  scales=scales)):
                 if rec.reached:   # a rail or limit: outside the linear model
                     values[row, ci] = np.inf
-                    status[row, ci] |= 1
+                    status[row, ci] |= LIMIT
                     break
                 keep = rec.times >= rec.times[0] + campaign.skip - 0.5 * dt
                 x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
@@ -342,139 +343,6 @@ def _samples(campaign, out_dir, runner, ctx, draws, folder, workers, scheduler, 
     return values, status, resumed
 
 
-def _budgets(campaign, ctx, values):
-    """``(configuration, instrument, axis, metric, window, x)`` of every line, ``x`` the
-    RSS over the events of each sample in the campaign's unit (inf: out of the model;
-    NaN: not evaluated)."""
-    rss = np.sqrt(np.sum(values**2, axis=2))                   # (n, configs, pairs, m)
-    scale = ANGLE_UNITS[campaign.unit]
-    for ci, cf in enumerate(ctx["configs"]):
-        for j, (inst, axis, _) in enumerate(ctx["pairs"]):
-            for k, (kind, window) in enumerate(campaign.metrics):
-                yield ci, cf, inst, axis, kind, window, rss[:, ci, j, k] * scale
-
-
-def _samples_table(campaign, ctx, values) -> pa.Table:
-    """The per-sample table (``uncertainty_samples.parquet``): one row per sample and
-    line, built column by column (tens of thousands of samples times every line would
-    be millions of Python rows)."""
-    cols = {k: [] for k in ("configuration", "instrument", "axis", "metric", "window")}
-    xs = []
-    for _, cf, inst, axis, kind, window, x in _budgets(campaign, ctx, values):
-        for k, v in zip(cols, (cf, inst, axis, kind, window)):
-            cols[k].append(v)
-        xs.append(x)
-    n, k = values.shape[0], len(xs)
-    rep = np.repeat(np.arange(k), n)     # line of each row, samples within a line
-    table = {"sample": pa.array(np.tile(np.arange(n, dtype=np.int64), k))}
-    for name, v in cols.items():
-        table[name] = pa.array(v).take(pa.array(rep))
-    table["unit"] = pa.array([campaign.unit] * (n * k), pa.string())
-    table["value"] = pa.array(np.concatenate(xs) if xs else np.zeros(0), pa.float64())
-    return pa.table(table)
-
-
-def _lines(campaign, ctx, draws, values, status) -> tuple:
-    """``(lines, summary)``: the statistics of every line (configuration, instrument,
-    axis, metric) and the summary rows."""
-    from ..analysis.uncertainty import statistics
-
-    unc = campaign.uncertainty
-    scalar = draws.scalar_inputs()
-    lines, summary = [], []
-    for ci, cf, inst, axis, kind, window, x in _budgets(campaign, ctx, values):
-        ok = ~np.isnan(x)
-        req = campaign.requirement(inst, axis, kind, window)
-        st = statistics(x[ok], unc["confidence"], req,
-                        inputs={nm: v[ok] for nm, v in scalar.items()},
-                        seed=unc["seed"]) if ok.any() else {}
-        st["sensitivity"] = dict(list(st.get("sensitivity", {}).items())[:10])
-        lines.append({"configuration": cf, "instrument": inst, "axis": axis,
-                      "metric": kind, "window": window, "unit": campaign.unit,
-                      "requirement": req, "samples_used": int(ok.sum()),
-                      "unstable": int(np.sum(status[:, ci] & 2 > 0)),
-                      "limit_reached": int(np.sum(status[:, ci] & 1 > 0)), **st})
-        for pc, q in st.get("quantiles", {}).items():
-            summary.append({"configuration": cf, "instrument": inst, "axis": axis,
-                            "metric": kind, "window": window, "unit": campaign.unit,
-                            "confidence": pc, "value": q["value"],
-                            "boot_low": q["low"], "boot_high": q["high"],
-                            "converged": q["converged"],
-                            "samples_for_2pct": q["samples_for_2pct"],
-                            "requirement": req,
-                            "p_meet": st.get("p_meet", math.nan)})
-    return lines, summary
-
-
-def _convergence(lines) -> tuple:
-    """``(widest, need)``: the widest relative bootstrap interval of a finite value over
-    every line and level (None without one), and the sample count that would narrow
-    every one to 2 % (None when all are below it).  An infinite value (more samples
-    outside the model than ``1 - P_c``) has no width: it is left out."""
-    widest, need = None, None
-    for line in lines:
-        for q in line.get("quantiles", {}).values():
-            if not math.isfinite(q["value"]):
-                continue
-            widest = max(widest or 0.0, q["rel_width"])
-            if not q["converged"]:
-                k = q["samples_for_2pct"]
-                need = max(need or 0, k if k is not None else 2**62)
-    return widest, need
-
-
-def _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall) -> dict:
-    """The content of ``uncertainty.json``."""
-    from ..analysis.uncertainty import INTERPRETATION
-
-    unc = campaign.uncertainty
-    configs = ctx["configs"]
-    return {"samples": draws.n, "seed": unc["seed"], "confidence": list(unc["confidence"]),
-            "interpretation": INTERPRETATION, "engine": unc.get("engine", "linear"),
-            "max_samples": unc.get("max_samples"), "rounds": rounds,
-            "parameters": [{"name": it.name, "kind": it.kind, "instances":
-                            list(it.instances), "per_mode": it.per_mode,
-                            "band": list(it.band),
-                            "distribution": None if it.distribution is None else
-                            dataclasses.asdict(it.distribution)}
-                           for it in unc["parameters"]],
-            "unstable": {cf: int(np.sum(status[:, ci] & 2 > 0))
-                         for ci, cf in enumerate(configs)},
-            "diverging_in_record": {cf: int(np.sum(status[:, ci] & 4 > 0))
-                                    for ci, cf in enumerate(configs)},
-            "limit_reached": {cf: int(np.sum(status[:, ci] & 1 > 0))
-                              for ci, cf in enumerate(configs)},
-            "drivers": _drivers(status, configs, draws.scalar_inputs()),
-            "status_means": "unstable: the sample's closed loop has a pole outside the unit "
-                            "circle (its records are evaluated as the co-simulation would "
-                            "give them); diverging_in_record: that pole more than doubles "
-                            "over the record; limit_reached: a record reached a rail or "
-                            "limit, and the sample counts as exceeding every requirement",
-            "wall_s": time.perf_counter() - wall,
-            "resumed": rounds[0]["resumed"], "kept_in": str(folder or Path(out_dir) /
-                                                            "uncertainty_cases"),
-            "memory": "per sample: the metrics of each record; one record at a time",
-            "lines": lines}
-
-
-def _drivers(status, configs, scalar, top: int = 5) -> dict:
-    """Per status (``unstable``, ``limit_reached``) and configuration, the uncertain
-    inputs most related to it: rank correlation of each input with the sample's flag
-    (largest magnitude first, ``top`` of them); a configuration where no sample or every
-    sample has the flag has none."""
-    from ..analysis.uncertainty import rank_correlation
-
-    out = {}
-    for key, bit in (("unstable", 2), ("limit_reached", 1)):
-        out[key] = {}
-        for ci, cf in enumerate(configs):
-            flag = ((status[:, ci] & bit) > 0).astype(float)
-            if 0 < flag.sum() < flag.size:
-                rho = {name: rank_correlation(v, flag) for name, v in scalar.items()}
-                out[key][cf] = dict(sorted(rho.items(), key=lambda kv: -abs(kv[1]))[:top])
-    return out
-
-
 def _results(campaign, runner, ctx, draws, chunks, workers, scheduler):
     """``(chunk, (values, status))`` as chunks finish: in this process, or elsewhere."""
     if scheduler is None and workers <= 1:
@@ -583,7 +451,7 @@ def _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler, runner, bar):
         st = case_status(folder / "cases", case.key)
         if not st or st.get("status") != "ok":
             values[s, ci] = np.inf        # a failed co-simulation: no jitter to give
-            status[s, ci] |= 1
+            status[s, ci] |= LIMIT
             continue
         for r in pq.read_table(folder / "cases" / case.key / METRICS_FILE).to_pylist():
             values[s, ci, ei, index[(r["instrument"], r["axis"])],

@@ -37,7 +37,7 @@ from fmutools.atomic import replaced_when_done
 from fmutools.build import FmuSpec, build_fmu
 from fmutools.registry import collect_specs
 from fmutools.validate import validate_fmu
-from nativefmu.data import KERNELS, kernel_of, model_data
+from nativefmu.data import KERNELS, kernel_of, model_data, zip_compression
 from nativefmu.fmi3xml import build_description, fmi3_model_description
 from structfmu.fmuspec import build_structure_fmu, spec_from_npz
 
@@ -323,8 +323,8 @@ def build_native(spec: FmuSpec, out_dir: str | Path, *, python_fmu: str | Path |
                 z.write(src / name, f"sources/{name}")
             for arcname, path in binaries.items():
                 z.write(path, arcname)
-            for name, content in model_data(spec, vrs).items():   # binary: stored
-                z.writestr(f"resources/{name}", content, zipfile.ZIP_STORED)
+            for name, content in model_data(spec, vrs).items():
+                z.writestr(f"resources/{name}", content, zip_compression(name))
     return target
 
 

@@ -44,6 +44,7 @@ from nativefmu.build import (
     mingw_compiler,
 )
 from nativefmu.container_tables import ContainerVariable, c_tables, model_description
+from nativefmu.data import zip_compression
 from nativefmu.fmi3xml import build_description, fmi3_model_description, fmi3_token
 from orchestrator.cosim.bus import Bus
 from orchestrator.cosim.fastloop import SOURCE as FASTLOOP_SOURCE
@@ -325,7 +326,7 @@ def export_fmu(scenario: Scenario | str | Path, out: str | Path, *, outputs=None
             for arcname, path in binaries.items():
                 z.write(path, arcname)
             for path, (_, _, resources, _) in inner.items():
-                for name, content in sorted(resources.items()):   # the binary data stored
+                for name, content in sorted(resources.items()):
                     z.writestr(f"resources/{prefix_of[path]}/{name}", content,
-                               zipfile.ZIP_STORED if name.endswith(".dat") else None)
+                               zip_compression(name))
     return out

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import io
 import tempfile
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -37,7 +38,8 @@ from structfmu.discrete import ZohStepper, discretize
 from structfmu.reduced import ReducedModel
 from structfmu.statespace import first_order
 
-__all__ = ["KERNELS", "NativeUnsupportedError", "decode", "encode", "kernel_of", "model_data"]
+__all__ = ["KERNELS", "NativeUnsupportedError", "decode", "encode", "kernel_of", "model_data",
+           "zip_compression"]
 
 #: slave class -> C kernel (``csrc/<kernel>.c``, data file ``<kernel>.dat``).
 KERNELS: dict[str, str] = {
@@ -65,6 +67,12 @@ def kernel_of(spec: FmuSpec) -> str:
 
 
 MAGIC = b"jitterfmu-native-data 2\n"
+
+
+def zip_compression(name: str) -> int:
+    """How an FMU archive holds its resource ``name``: a data file (binary doubles, which
+    deflate poorly and are read at every instantiation) stored, anything else deflated."""
+    return zipfile.ZIP_STORED if name.endswith(".dat") else zipfile.ZIP_DEFLATED
 
 
 def encode(arrays: Mapping[str, object]) -> bytes:

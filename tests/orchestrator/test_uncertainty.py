@@ -414,7 +414,7 @@ def test_status_drivers_rank_the_input_that_sets_the_flag():
     """A flag set exactly where one input passes a threshold: that input first, with a
     rank correlation near the point-biserial of a threshold at 40 % (about 0.85), an
     independent input near 0; no flag or every flag set ranks nothing."""
-    from orchestrator.campaign.montecarlo import _drivers
+    from orchestrator.campaign.mcresults import _drivers
 
     rng = np.random.default_rng(4)
     a, b = rng.uniform(size=2000), rng.uniform(size=2000)

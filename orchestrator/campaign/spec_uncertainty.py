@@ -1,0 +1,114 @@
+"""The ``[uncertainty]`` table of a campaign file: sample counts, seed, confidence levels
+and the uncertain inputs, each checked and refused in one sentence before any case runs."""
+
+from __future__ import annotations
+
+import math
+
+from ..analysis.uncertainty import DISTRIBUTIONS, KINDS, Distribution, Uncertain
+from .spec import ENGINES, CampaignError, _check_keys
+
+__all__ = ["parse_uncertainty"]
+
+_UNCERTAINTY_KEYS = ("samples", "max_samples", "seed", "confidence", "parameters", "engine")
+_PARAMETER_KEYS = ("name", "kind", "distribution", "low", "high", "mean", "std", "median",
+                   "sigma", "instances", "per_mode", "band")
+
+
+def parse_uncertainty(table, fmus: dict):
+    """``[uncertainty]`` as a dict (None when the file has none), checked.
+
+    Parameters
+    ----------
+    table : dict or None
+        The file's ``[uncertainty]`` table.
+    fmus : dict
+        The base scenario's instances (``instances = "all"`` and the names are checked
+        against them).
+
+    Raises
+    ------
+    CampaignError
+        One sentence naming the key or parameter that is wrong.
+    """
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise CampaignError("[uncertainty] must be a table")
+    _check_keys(table, _UNCERTAINTY_KEYS, "[uncertainty]")
+    n = table.get("samples", 200)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise CampaignError(f"[uncertainty] samples is {n!r}; expected a whole number >= 1")
+    top = table.get("max_samples")
+    if top is not None and (isinstance(top, bool) or not isinstance(top, int) or top < n):
+        raise CampaignError(f"[uncertainty] max_samples is {top!r}; expected a whole number "
+                            f">= samples ({n}): the run extends itself from samples up to "
+                            "max_samples until its values converge")
+    seed = table.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise CampaignError(f"[uncertainty] seed is {seed!r}; expected a whole number >= 0")
+    conf = table.get("confidence", [0.95, 0.9973])
+    if not (isinstance(conf, list) and conf and all(
+            isinstance(c, (int, float)) and not isinstance(c, bool) and 0 < c < 1
+            for c in conf)):
+        raise CampaignError(f"[uncertainty] confidence is {conf!r}; expected a list of "
+                            "levels in (0, 1), e.g. [0.95, 0.9973]")
+    engine = table.get("engine", "linear")
+    if engine not in ENGINES:
+        raise CampaignError(f"[uncertainty] engine is {engine!r}; expected one of "
+                            f"{list(ENGINES)}")
+    items = table.get("parameters", [])
+    if not isinstance(items, list) or not items:
+        raise CampaignError("[uncertainty] needs 'parameters', a non-empty list of tables")
+    out = []
+    for i, p in enumerate(items):
+        what = f"uncertain parameter {i + 1}"
+        if not isinstance(p, dict):
+            raise CampaignError(f"{what} is a {type(p).__name__}; expected a table")
+        _check_keys(p, _PARAMETER_KEYS, what)
+        kind = p.get("kind")
+        if kind not in KINDS:
+            raise CampaignError(f"{what} has kind {kind!r}; expected one of {list(KINDS)}")
+        name = str(p.get("name", kind))
+        insts = p.get("instances", [])
+        if kind in ("amplitude", "phase", "gain"):
+            if insts == "all":
+                prefix = {"gain": "ctrl"}.get(kind, "dist")
+                insts = sorted(k for k in fmus if k.startswith(prefix))
+            if not isinstance(insts, list) or not insts or any(x not in fmus for x in insts):
+                raise CampaignError(f"{what} ({kind}) instances is {p.get('instances')!r}; "
+                                    "expected \"all\" or a list of instances of the base "
+                                    f"scenario (instances: {sorted(fmus)})")
+        dist = None
+        if kind != "phase":
+            dname = p.get("distribution")
+            if dname not in DISTRIBUTIONS:
+                raise CampaignError(f"{what} has distribution {dname!r}; expected one of "
+                                    f"{list(DISTRIBUTIONS)}")
+            args = {k: float(p[k]) for k in ("low", "high", "mean", "std", "median", "sigma")
+                    if k in p}
+            try:
+                dist = Distribution(dname, **args)
+            except ValueError as exc:
+                raise CampaignError(f"{what}: {exc}") from None
+            if not dist.low >= 0 and kind in ("modal_frequency", "modal_damping"):
+                raise CampaignError(f"{what} ({kind}) is a factor on the modes and can reach "
+                                    f"{dist.low}; give it bounds low >= 0 (negative damping "
+                                    "or frequency is not a structure)")
+        band = p.get("band", [0.0, math.inf])
+        if not (isinstance(band, list) and len(band) == 2 and band[0] < band[1]):
+            raise CampaignError(f"{what} band is {band!r}; expected [low, high] in Hz")
+        out.append(Uncertain(name, kind, dist, tuple(insts), bool(p.get("per_mode", False)),
+                             (float(band[0]), float(band[1]))))
+    names = [u.name for u in out]
+    if len(set(names)) != len(names):
+        raise CampaignError(f"uncertain parameters have duplicate names {names}; name them")
+    if engine == "cosim":
+        modal = [u.name for u in out if u.kind in ("modal_frequency", "modal_damping")]
+        if modal:
+            raise CampaignError(f"uncertain {modal[0]!r} moves the structure's modes, which a "
+                                "co-simulation would need a structure FMU per sample for; "
+                                "run it on the linear engine (engine = \"linear\")")
+    return {"samples": n, "max_samples": top, "seed": seed,
+            "confidence": tuple(float(c) for c in conf), "parameters": tuple(out),
+            "engine": engine}

@@ -19,7 +19,9 @@ from pathlib import Path
 from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD
 from fmutools.archive import short_repr
 
-from ..scenario import check_keys, closest, load_toml_file
+from ..scenario import closest, load_toml_file
+from .spec_base import ENGINES, CampaignError, _check_keys
+from .spec_uncertainty import parse_uncertainty
 
 #: Factor from rad to each supported reporting unit.
 ANGLE_UNITS = {
@@ -51,8 +53,6 @@ _KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metri
          "requirements", "wheel_sweeps", "uncertainty")
 _CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm",
                   "engine", "verify")
-#: Campaign engines: the co-simulation master (the reference) and the linear fast path.
-ENGINES = ("cosim", "linear")
 _ITEM_KEYS = {
     "events": ("name", "overrides"),
     "configurations": ("name", "overrides"),
@@ -62,10 +62,6 @@ _ITEM_KEYS = {
     "requirements": ("instrument", "value", "axis", "metric", "window"),
     "wheel_sweeps": ("name", "instance", "overrides", "rpm", "points", "open"),
 }
-
-
-class CampaignError(ValueError):
-    """A campaign definition that is malformed or inconsistent."""
 
 
 @dataclass(frozen=True)
@@ -219,8 +215,6 @@ def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> C
         empty = "configurations" if not configurations else "events"
         raise CampaignError(f"[[{empty}]] is empty, so the campaign would run nothing; give "
                             f"at least one entry, or leave [[{empty}]] out for one baseline")
-    from .spec_uncertainty import parse_uncertainty
-
     unc = parse_uncertainty(data.get("uncertainty"), scenario["fmus"])
     overrides = tuple(
         [(f"event {v.name!r} override {k!r}", k, (x,))
@@ -482,10 +476,6 @@ def _overrides(item, what: str) -> dict:
 
 
 # ----------------------------------------------------------------------------- helpers
-
-
-def _check_keys(table, allowed, what: str) -> None:
-    check_keys(table, allowed, what, CampaignError)
 
 
 def _table_list(items, what: str, allowed) -> list:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from ..analysis.uncertainty import DISTRIBUTIONS, KINDS, Distribution, Uncertain
-from .spec import ENGINES, CampaignError, _check_keys
+from .spec_base import ENGINES, CampaignError, _check_keys
 
 __all__ = ["parse_uncertainty"]
 

@@ -297,6 +297,32 @@ def strongest(correlations: dict, k: int) -> list:
     return sorted(correlations, key=lambda name: (-abs(correlations[name]), name))[:k]
 
 
+def _sensitivity_bars(ax, line: dict) -> None:
+    """The six inputs that explain most of a line's budget (first-order index, bars),
+    each with its rank correlation; a file without indices shows the correlations."""
+    sens, first = line.get("sensitivity", {}), line.get("first_order")
+    if first:
+        names = sorted(first, key=lambda k: (-first[k], k))[:6][::-1]
+        vals, lim = [max(first[n], 0.0) for n in names], (0, 1)
+        title = "share explained alone, rank corr. at right"
+    else:
+        names = strongest(sens, 6)[::-1]
+        vals, lim = [sens[n] for n in names], (-1, 1)
+        title = "rank correlation"
+    ax.barh(range(len(names)), vals, color="0.45", height=0.6)
+    if first:
+        for k, n in enumerate(names):
+            if n in sens:
+                ax.text(0.98, k, f"{sens[n]:+.2f}", ha="right", va="center", fontsize=6,
+                        transform=ax.get_yaxis_transform())
+    ax.set_yticks(range(len(names)), names, fontsize=7)
+    pad = max(4 - len(names), 0) / 2       # one bar stays a bar, centred
+    ax.set_ylim(-0.5 - pad, len(names) - 0.5 + pad)
+    ax.set_xlim(*lim)
+    ax.axvline(0, color="k", lw=0.5)
+    ax.set_title(f"{title} ({line['configuration']})", fontsize=7)
+
+
 def uncertainty_sections(out_dir, instruments, unit):
     """CDF and sensitivity figures of ``uncertainty.json``, and its table rows.
 
@@ -370,17 +396,7 @@ def uncertainty_sections(out_dir, instruments, unit):
                 if req is not None and not math.isnan(req):
                     axs[i][0].axvline(req, color="crimson", ls="--", lw=1.0)
             if lines:
-                sens = lines[-1].get("sensitivity", {})
-                names = strongest(sens, 6)[::-1]
-                axs[i][1].barh(range(len(names)), [sens[n] for n in names], color="0.45",
-                               height=0.6)
-                axs[i][1].set_yticks(range(len(names)), names, fontsize=7)
-                pad = max(4 - len(names), 0) / 2       # one bar stays a bar, centred
-                axs[i][1].set_ylim(-0.5 - pad, len(names) - 0.5 + pad)
-                axs[i][1].set_xlim(-1, 1)
-                axs[i][1].axvline(0, color="k", lw=0.5)
-                axs[i][1].set_title(f"rank correlation ({lines[-1]['configuration']})",
-                                    fontsize=7)
+                _sensitivity_bars(axs[i][1], lines[-1])
             shown = [ln.get_xdata() for ln in axs[i][0].get_lines()]
             shown = np.concatenate([np.ravel(x) for x in shown]) if shown else np.array([])
             shown = shown[np.isfinite(shown) & (shown > 0)]
@@ -415,4 +431,23 @@ def uncertainty_sections(out_dir, instruments, unit):
                      f"would give them{most('unstable', cf)}) and {lim} whose record "
                      f"reached a rail or limit{most('limit_reached', cf)}, counted as "
                      "exceeding every requirement (the CDF stops below 1).")
+    text += _leaders(rep.get("lines", []))
     return figures, rows, text
+
+
+def _leaders(lines) -> str:
+    """Per configuration, the input that explains the largest share of a line's budget
+    alone (first-order index), in words; nothing for a file without indices."""
+    best = {}
+    for ln in lines:
+        for name, share in (ln.get("first_order") or {}).items():
+            cf = ln["configuration"]
+            if share > best.get(cf, (None, 0.0))[1]:
+                best[cf] = (name, share, f"{ln['instrument']} {ln['axis']}",
+                            (ln.get("sensitivity") or {}).get(name))
+    out = ""
+    for cf, (name, share, where, rho) in best.items():
+        corr = "" if rho is None else f", rank correlation {rho:+.2f}"
+        out += (f" {cf}: the input that explains most of a budget alone is {name} "
+                f"({100 * share:.0f} % of the spread of {where}{corr}).")
+    return out

@@ -231,7 +231,11 @@ def rank_correlation(x: np.ndarray, y: np.ndarray) -> float:
     float
         In [-1, 1]; 0 when either sample is constant.
     """
-    rx, ry = _ranks(np.asarray(x, float)), _ranks(np.asarray(y, float))
+    return _rank_corr(_ranks(np.asarray(x, float)), _ranks(np.asarray(y, float)))
+
+
+def _rank_corr(rx: np.ndarray, ry: np.ndarray) -> float:
+    """Pearson correlation of two rank samples."""
     sx, sy = rx.std(), ry.std()
     if sx == 0 or sy == 0:
         return 0.0
@@ -262,17 +266,23 @@ def first_order_index(x: np.ndarray, y: np.ndarray, bins: int | None = None) -> 
         About 0 (its sampling scatter, either sign) for an input that does not matter, 1
         for a ``y`` that is a function of ``x`` alone; 0 when either sample is constant.
     """
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    n = x.size
-    if n < 3 or np.ptp(x) == 0:
+    x = np.asarray(x, float)
+    if x.size < 3 or np.ptp(x) == 0:
         return 0.0
-    ry = _ranks(y)
+    return _first_order(_ranks(x), _ranks(np.asarray(y, float)), bins)
+
+
+def _first_order(rx: np.ndarray, ry: np.ndarray, bins: int | None = None) -> float:
+    """:func:`first_order_index` of rank samples."""
+    n = rx.size
+    if n < 3 or np.ptp(rx) == 0:
+        return 0.0
     sy = np.sum((ry - ry.mean()) ** 2)
     if sy == 0:
         return 0.0
     b = int(bins) if bins is not None else max(2, min(25, n // 40))
     b = max(2, min(b, n - 1))
-    label = np.minimum((_ranks(x) * b / n).astype(int), b - 1)
+    label = np.minimum((rx * b / n).astype(int), b - 1)
     count = np.bincount(label, minlength=b)
     mean = np.bincount(label, weights=ry, minlength=b) / np.maximum(count, 1)
     eta2 = float(np.sum(count * (mean - ry.mean()) ** 2) / sy)
@@ -349,8 +359,10 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         p = check_requirement(x[:, None], requirement, 1.0, "ensemble").probability
         out["p_meet"] = p
         out["p_meet_se"] = math.sqrt(max(p * (1 - p), 0.0) / x.size)
-    sens = {name: rank_correlation(v, x) for name, v in (inputs or {}).items()}
+    ry = _ranks(x)   # each sample's ranks once for both measures
+    ranked = {name: _ranks(np.asarray(v, float)) for name, v in (inputs or {}).items()}
+    sens = {name: _rank_corr(rv, ry) for name, rv in ranked.items()}
     out["sensitivity"] = dict(sorted(sens.items(), key=lambda kv: -abs(kv[1])))
-    first = {name: first_order_index(v, x) for name, v in (inputs or {}).items()}
+    first = {name: _first_order(rv, ry) for name, rv in ranked.items()}
     out["first_order"] = dict(sorted(first.items(), key=lambda kv: -kv[1]))
     return out

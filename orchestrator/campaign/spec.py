@@ -20,7 +20,7 @@ from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD
 from fmutools.archive import short_repr
 
 from ..scenario import closest, load_toml_file
-from .spec_base import ENGINES, CampaignError, _check_keys
+from .spec_base import ENGINES, CampaignError, check_table_keys
 from .spec_uncertainty import parse_uncertainty
 
 #: Factor from rad to each supported reporting unit.
@@ -173,8 +173,8 @@ def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> C
     head = data.get("campaign")
     if not isinstance(head, dict):
         raise CampaignError("campaign file has no [campaign] table")
-    _check_keys(data, _KEYS, "campaign file")
-    _check_keys(head, _CAMPAIGN_KEYS, "[campaign]")
+    check_table_keys(data, _KEYS, "campaign file")
+    check_table_keys(head, _CAMPAIGN_KEYS, "[campaign]")
     name = str(head.get("name", "campaign"))
     scenario, scenario_dir = _base_scenario(head, name, base_dir)
     unit = str(head.get("unit", "arcsec"))
@@ -487,7 +487,7 @@ def _table_list(items, what: str, allowed) -> list:
             raise CampaignError(f"[[{what}]] entry {i + 1} is a {type(it).__name__}; expected "
                                 "a table")
         label = f" ({it['name']!r})" if isinstance(it.get("name"), str) else ""
-        _check_keys(it, allowed, f"[[{what}]] entry {i + 1}{label}")
+        check_table_keys(it, allowed, f"[[{what}]] entry {i + 1}{label}")
     return items
 
 

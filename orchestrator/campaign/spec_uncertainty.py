@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from ..analysis.uncertainty import DISTRIBUTIONS, KINDS, Distribution, Uncertain
-from .spec_base import ENGINES, CampaignError, _check_keys
+from .spec_base import ENGINES, CampaignError, check_table_keys
 
 __all__ = ["parse_uncertainty"]
 
@@ -35,7 +35,7 @@ def parse_uncertainty(table, fmus: dict):
         return None
     if not isinstance(table, dict):
         raise CampaignError("[uncertainty] must be a table")
-    _check_keys(table, _UNCERTAINTY_KEYS, "[uncertainty]")
+    check_table_keys(table, _UNCERTAINTY_KEYS, "[uncertainty]")
     n = table.get("samples", 200)
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise CampaignError(f"[uncertainty] samples is {n!r}; expected a whole number >= 1")
@@ -65,7 +65,7 @@ def parse_uncertainty(table, fmus: dict):
         what = f"uncertain parameter {i + 1}"
         if not isinstance(p, dict):
             raise CampaignError(f"{what} is a {type(p).__name__}; expected a table")
-        _check_keys(p, _PARAMETER_KEYS, what)
+        check_table_keys(p, _PARAMETER_KEYS, what)
         kind = p.get("kind")
         if kind not in KINDS:
             raise CampaignError(f"{what} has kind {kind!r}; expected one of {list(KINDS)}")

@@ -78,20 +78,19 @@ def split(camp, events, out, runner, configuration=None) -> dict:
         source[ev.name] = found[0]
     ctx = mcm._setup(camp, runner)
     folder = Path(out) / mcm.PARTS_DIR / mcm._identity(camp, runner, ctx)[:24]
-    parts = sorted(folder.glob("part-*.npz"))
-    if not parts:
+    n = unc.get("max_samples") or unc["samples"]   # the most a run of this file keeps
+    v = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]),
+                 len(camp.metrics)), np.nan)
+    st = np.zeros((n, len(ctx["configs"])), int)
+    done = mcm._load_parts(folder, v, st)   # checked as a resumed run checks them
+    if not done.any():
         raise ValueError(f"no kept samples of this campaign under {folder}: run `jitterfmu "
                          "campaign` of the same file into that folder first")
-    idx, vals, stat = [], [], []
-    for f in parts:
-        with np.load(f, allow_pickle=False) as z:
-            idx.append(z["samples"]), vals.append(z["values"]), stat.append(z["status"])
-    order = np.argsort(np.concatenate(idx))
-    v, st = np.concatenate(vals)[order], np.concatenate(stat)[order]
-    n = v.shape[0]
     lin0, structs, _ = ctx["base"][ctx["configs"][0]]
     freqs = lin0.blocks[structs[0]].model.frequencies_hz if structs else None
-    inputs = draw(unc["parameters"], n, unc["seed"], freqs).scalar_inputs()
+    inputs = {k: x[done] for k, x in
+              draw(unc["parameters"], n, unc["seed"], freqs).scalar_inputs().items()}
+    v, st, n = v[done], st[done], int(done.sum())
     amp = {e: inputs[f"{it.name} [{inst}]"] if len(it.instances) > 1 else inputs[it.name]
            for e, (it, inst) in source.items()}   # event -> its amplitude factor (n,)
     cfs = ctx["configs"]

@@ -266,10 +266,7 @@ def first_order_index(x: np.ndarray, y: np.ndarray, bins: int | None = None) -> 
         About 0 (its sampling scatter, either sign) for an input that does not matter, 1
         for a ``y`` that is a function of ``x`` alone; 0 when either sample is constant.
     """
-    x = np.asarray(x, float)
-    if x.size < 3 or np.ptp(x) == 0:
-        return 0.0
-    return _first_order(_ranks(x), _ranks(np.asarray(y, float)), bins)
+    return _first_order(_ranks(np.asarray(x, float)), _ranks(np.asarray(y, float)), bins)
 
 
 def _first_order(rx: np.ndarray, ry: np.ndarray, bins: int | None = None) -> float:

@@ -68,7 +68,7 @@ def _lines(campaign, ctx, draws, values, status) -> tuple:
         # the ten inputs of either ranking that lead it, with both measures
         keep = set(list(st.get("sensitivity", {}))[:10]) | set(list(st.get("first_order", {}))[:10])
         for key in ("sensitivity", "first_order"):
-            st[key] = {k: x for k, x in st.get(key, {}).items() if k in keep}
+            st[key] = {k: val for k, val in st.get(key, {}).items() if k in keep}
         lines.append({"configuration": cf, "instrument": inst, "axis": axis,
                       "metric": kind, "window": window, "unit": campaign.unit,
                       "requirement": req, "samples_used": int(ok.sum()),

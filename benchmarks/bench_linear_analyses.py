@@ -2,25 +2,36 @@
 
 Run::
 
-    .venv/bin/python benchmarks/bench_linear_analyses.py [--samples 20] [--repeat 3]
+    .venv/bin/python benchmarks/bench_linear_analyses.py [--samples 20] [--core-samples 6]
+        [--repeat 3]
 
 * **RWA sweep**: 500 wheel speeds 0-6000 rpm, all 5 instruments x 3 axes, isolation off
   and on (``campaigns/eos_rwa_sweep.toml``), steady state on the linear engine; beside it
   the cost of the alternative, one co-simulated case per speed (the budget's RWA case,
   8 s at 1 kHz, timed here) times 500.  ``--repeat`` sweeps from scratch, each on a
   fresh runner: the median is printed, and the range.
-* **Monte Carlo**: the budget (12 events x 2 configurations) with modal frequencies
-  +-5 % and damping x0.5-2 (every mode on its own) and amplitudes +-20 % (every source
-  on its own), ``--samples`` samples, extrapolated to 1000; beside it 1000 x 24
-  co-simulated cases at the measured case cost; ``--workers`` processes (one BLAS
-  thread each).  Peak memory of this process is printed with both sample counts: it
-  does not grow with the samples.
+* **Monte Carlo**: the budget (12 events x 2 configurations) under the shipped
+  ``campaigns/eos_uncertainty.toml`` (modal frequencies +-5 % and damping x0.5-2, every
+  mode on its own, amplitudes +-20 %, every source on its own).  The cost of a sample is
+  timed on one core in this process (``--core-samples``, after a first one builds the
+  run types), and 1000 samples on ``--workers`` cores are that times 1000 over the
+  cores; beside it 1000 x 24 co-simulated cases at the measured case cost.  Whole runs
+  of a quarter of ``--samples`` and of ``--samples`` on ``--workers`` processes give
+  the command's own rate and the peak memory with both counts: it does not grow with
+  the samples.
+* **The exact floor of a sample** (``--no-floor`` leaves it out): the products an exact
+  engine cannot leave out, on the nominal loops the samples perturb (their memory
+  states, live rows and driven channels): the free responses of the 24 records, the row
+  and column Krylov products of every run type, its ``M^L`` and the eigenvalues of the
+  super-period map.  Printed as flops over this machine's one-thread square dgemm rate
+  (a lower bound: no product runs faster than that), and as the same products timed in
+  their own shapes on one thread; beside it, the measured cost of a sample.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import math
 import sys
 import tempfile
 import time
@@ -32,10 +43,109 @@ from _measure import peak_rss_mb  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from orchestrator.analysis.uncertainty import Distribution, Uncertain  # noqa: E402
+from orchestrator.analysis._threads import one_blas_thread  # noqa: E402
+from orchestrator.analysis.steady import balance  # noqa: E402
+from orchestrator.analysis.uncertainty import draw  # noqa: E402
 from orchestrator.campaign import (LinearRunner, MasterRunner, load_campaign,  # noqa: E402
                                    run_uncertainty, run_wheel_sweeps)
+from orchestrator.campaign import montecarlo as mcm  # noqa: E402
 from orchestrator.experiments import eos  # noqa: E402
+
+
+def _best(fn, repeat: int = 5) -> float:
+    """Shortest of ``repeat`` timed calls of ``fn`` (s)."""
+    best = math.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def _products(camp, runner) -> tuple:
+    """The products an exact sample cannot leave out, on the nominal loops.
+
+    Parameters
+    ----------
+    camp : Campaign
+        The Monte Carlo campaign (its cases, lines and ``[uncertainty]``).
+    runner : LinearRunner
+        Its runner.
+
+    Returns
+    -------
+    (gemms, eigs, rows)
+        ``gemms`` a list of ``(count, m, k, n)``: ``count`` products of an ``(m, k)`` by
+        a ``(k, n)`` matrix; ``eigs`` the balanced super-period maps whose eigenvalues a
+        sample needs (the nominal ones); ``rows`` a line per configuration naming its sizes.
+    """
+    ctx = mcm._setup(camp, runner)
+    items = camp.uncertainty["parameters"]
+    lin0, structs, _ = ctx["base"][ctx["configs"][0]]
+    draws = draw(items, 1, camp.uncertainty["seed"],
+                 lin0.blocks[structs[0]].model.frequencies_hz)
+    gemms, eigs, rows = [], [], []
+    for cf in ctx["configs"]:
+        lin, _, fr = ctx["base"][cf]
+        s = fr.n_memory
+        Ws = [mcm._sample_input(runner, fr, *ctx["inputs"][(cf, ev)], draws, items, 0)[0]
+              for ev in ctx["events"]]
+        E, K = len(Ws), Ws[0].shape[0]
+        k = np.unique(np.concatenate([np.flatnonzero(np.any(W != 0, axis=0))
+                                      for W in Ws])).size
+        n_los = len(fr._computed)
+        runs = {}
+        for sig, L in fr._runs:
+            runs[(sig, L)] = runs.get((sig, L), 0) + 1
+        n_periods = K / fr.P
+        lives = []
+        for (sig, L), per_period in runs.items():
+            t = fr._type(sig, L)
+            lives.append(t.live.size)
+            n_u = max(1, round(per_period * n_periods))
+            if L > 1:
+                gemms += [(L - 1, t.live.size, s, s),     # row Krylov C M^q
+                          (L - 1, s, s, k)]               # column Krylov M^q N
+                gemms.append((L.bit_length() + bin(L).count("1") - 2, s, s, s))   # M^L
+            gemms.append((1, E * n_u, s, L * n_los))      # free responses
+        eigs.append(balance(fr.period_map())[0])
+        rows.append(f"{cf}: memory state {s}, live rows {'/'.join(map(str, lives))}, "
+                    f"{k} driven channels, {E} records of {K} ticks, {n_los} lines")
+    return gemms, eigs, rows
+
+
+def exact_floor(camp, runner) -> tuple:
+    """The exact floor of one Monte Carlo sample on one core, two ways.
+
+    Parameters
+    ----------
+    camp : Campaign
+        The Monte Carlo campaign.
+    runner : LinearRunner
+        Its runner.
+
+    Returns
+    -------
+    (gflop, rate, t_bound, t_shapes, rows)
+        Flops of the products (GFlop; eigenvalues at ``10 n^3``), this machine's
+        one-thread square dgemm rate (GFlop/s), ``gflop / rate`` (s, a lower bound), the
+        same products and eigenvalues timed in their own shapes (s), and the sizes.
+    """
+    one_blas_thread()
+    gemms, eigs, rows = _products(camp, runner)
+    rng = np.random.default_rng(0)
+    flop = (sum(2.0 * c * m * k * n for c, m, k, n in gemms)
+            + sum(10.0 * P.shape[0]**3 for P in eigs))
+    n = max(P.shape[0] for P in eigs)
+    A, B = rng.standard_normal((n, n)), rng.standard_normal((n, n))
+    rate = 2.0 * n**3 * 20 / _best(lambda: [A @ B for _ in range(20)]) / 1e9
+    t_shapes = 0.0
+    for c, m, k, nn in gemms:
+        X, Y = rng.standard_normal((m, k)), rng.standard_normal((k, nn))
+        t_shapes += c * _best(lambda: X @ Y)
+    for P in eigs:   # the nominal loop's own map: its eigenvalues converge as a sample's
+        t_shapes += _best(lambda: np.linalg.eigvals(P), 3)
+    return flop / 1e9, rate, flop / 1e9 / rate, t_shapes, rows
 
 
 def main(argv=None) -> int:
@@ -45,11 +155,13 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2, help="Monte Carlo worker processes")
     ap.add_argument("--repeat", type=int, default=3,
                     help="sweeps from scratch, each on a fresh runner")
+    ap.add_argument("--core-samples", type=int, default=6,
+                    help="samples timed on one core in this process")
+    ap.add_argument("--no-floor", dest="floor", action="store_false",
+                    help="leave out the exact floor of a sample")
     args = ap.parse_args(argv)
-    if args.samples < 20:
-        ap.error(f"--samples is {args.samples}; give at least 20: the per-sample cost is the "
-                 "slope between a quarter of the samples and all of them, and below 20 the "
-                 "workers' start-up swamps it (8 samples gave a negative slope)")
+    if args.samples < 1 or args.core_samples < 1:
+        ap.error("--samples and --core-samples count samples; give at least 1 each")
     warnings.simplefilter("ignore")
     fmu_dir = eos.ensure_fmus(args.fmu_dir)
     budget = load_campaign(eos.CAMPAIGN)
@@ -79,25 +191,27 @@ def main(argv=None) -> int:
         run_wheel_sweeps(sweep, tmp / "sweep2", runner)
         t_again = time.perf_counter() - t0
 
-        items = (Uncertain("frequency", "modal_frequency",
-                           Distribution("uniform", 0.95, 1.05), per_mode=True),
-                 Uncertain("damping", "modal_damping", Distribution("uniform", 0.5, 2.0),
-                           per_mode=True),
-                 Uncertain("amplitude", "amplitude", Distribution("uniform", 0.8, 1.2),
-                           instances=tuple(sorted(n for n in budget.cases[0].scenario["fmus"]
-                                                  if n.startswith("dist_")))))
+        # the Monte Carlo of the shipped uncertainty file (campaigns/eos_uncertainty.toml)
+        unc_file = eos.CAMPAIGN.parent / "eos_uncertainty.toml"
         lrun = LinearRunner(budget.scenario_dir, fmu_dir=fmu_dir)
-        timings = {}
-        for n in (max(2, args.samples // 4), args.samples):
-            camp = dataclasses.replace(budget, uncertainty={
-                "samples": n, "seed": 1, "confidence": (0.95,), "parameters": items})
+        rss = {}
+        for n in sorted({max(1, args.samples // 4), args.samples}):
+            camp = load_campaign(eos.CAMPAIGN, unc_file, n)
             (tmp / f"mc{n}").mkdir()
             t0 = time.perf_counter()
             run_uncertainty(camp, tmp / f"mc{n}", lrun, progress=False, workers=args.workers)
-            timings[n] = (time.perf_counter() - t0, peak_rss_mb())
-    n1, n2 = sorted(timings)
-    per_sample = (timings[n2][0] - timings[n1][0]) / (n2 - n1)
-    setup = timings[n1][0] - n1 * per_sample
+            t_mc, rss[n] = time.perf_counter() - t0, peak_rss_mb()
+        # one core, in this process: the cost of a sample itself (no start-up, no pool)
+        one_blas_thread()
+        ctx = mcm._setup(camp, lrun)
+        lin0, structs, _ = ctx["base"][ctx["configs"][0]]
+        draws = draw(camp.uncertainty["parameters"], args.core_samples + 1,
+                     camp.uncertainty["seed"], lin0.blocks[structs[0]].model.frequencies_hz)
+        mcm._evaluate(camp, lrun, ctx, draws, [0])          # first use: run types built
+        t0 = time.perf_counter()
+        mcm._evaluate(camp, lrun, ctx, draws, list(range(1, args.core_samples + 1)))
+        t_core = (time.perf_counter() - t0) / args.core_samples
+        floor = exact_floor(camp, lrun) if args.floor else None
     print(f"one co-simulated EOS case (8 s at 1 kHz, native FMUs): {t_case:.2f} s")
     print(f"{'analysis':<48}{'linear (s)':>12}{'co-simulation (s)':>20}")
     print(f"{'RWA sweep, 500 speeds x 15 axes x 2 configs':<48}{t_sweep:>12.2f}"
@@ -106,17 +220,27 @@ def main(argv=None) -> int:
         print(f"  (median of {len(scratch)} from scratch, {min(scratch):.2f}-"
               f"{max(scratch):.2f} s)")
     print(f"{'  the same again, loops kept (per-speed work only)':<48}{t_again:>12.2f}")
-    print(f"{f'Monte Carlo, per sample (24 records), {args.workers} workers':<48}{per_sample:>12.2f}"
-          f"{24 * t_case:>20.1f}")
-    print(f"{'Monte Carlo, 1000 samples (extrapolated)':<48}{setup + 1000 * per_sample:>12.0f}"
-          f"{24000 * t_case:>20.0f}")
-    # the slope can undercount (a measured 1000-sample campaign took 236 s where it said
-    # 154 s): the whole run's rate, set-up included, beside it
-    whole = timings[n2][0] / n2
-    print(f"{f'  the {n2}-sample run as a whole, per sample':<48}{whole:>12.2f}"
-          f"   (1000 at that rate: {1000 * whole:.0f} s)")
-    print(f"peak memory: {timings[n1][1]:.0f} MB after {n1} samples, {timings[n2][1]:.0f} MB "
-          f"after {n2}")
+    cores = args.workers
+    print(f"{'Monte Carlo, one sample (24 records), one core':<48}{t_core:>12.3f}"
+          f"{24 * t_case:>20.1f}  (mean of {args.core_samples} in this process)")
+    print(f"{f'Monte Carlo, 1000 samples on {cores} cores (at that)':<48}"
+          f"{1000 * t_core / cores:>12.0f}{24000 * t_case / cores:>20.0f}")
+    print(f"{f'  a {args.samples}-sample run, {cores} workers, per sample':<48}"
+          f"{t_mc / args.samples:>12.3f}   (the whole command: start-up, pool, statistics, "
+          "files)")
+    print("peak memory: " + ", ".join(f"{v:.0f} MB after {n} samples" for n, v in rss.items())
+          + " (a sample keeps its metrics only: it does not grow with the samples)")
+    if floor is not None:
+        gflop, rate, t_bound, t_shapes, rows = floor
+        print("exact floor of a sample (the products it cannot leave out; one core):")
+        for r in rows:
+            print(f"  {r}")
+        print(f"  {gflop:.1f} GFlop at {rate:.0f} GFlop/s (square dgemm here): {t_bound:.3f} s "
+              f"-> 1000 samples on {cores} cores >= {1000 * t_bound / cores:.0f} s")
+        print(f"  the same products timed in their shapes: {t_shapes:.3f} s -> "
+              f"{1000 * t_shapes / cores:.0f} s for 1000 on {cores} cores")
+        print(f"  measured: {t_core:.3f} s a sample, {t_core / t_bound:.1f}x the floor; the "
+              f"issue's 60 s for 1000 on {cores} cores is {60 * cores / 1000:.3f} s a sample")
     return 0
 
 

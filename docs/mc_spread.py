@@ -16,9 +16,11 @@ ways:
 
 Run::
 
-    .venv/bin/python docs/mc_spread.py CAMPAIGN.toml OUT [--configuration NAME]
+    .venv/bin/python docs/mc_spread.py CAMPAIGN.toml OUT [--uncertainty U.toml]
+        [--configuration NAME]
 
-The campaign must be the one that wrote ``OUT`` (the kept samples are found by its
+The campaign (with ``--uncertainty`` and ``--samples`` as the run had them) must be the
+one that wrote ``OUT`` (the kept samples are found by its
 identity), with an ``amplitude`` uncertainty on the source of every event.
 """
 
@@ -132,13 +134,16 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("campaign")
     ap.add_argument("out")
+    ap.add_argument("--uncertainty", help="the run's [uncertainty] file, if it had one")
+    ap.add_argument("--samples", type=int, help="the run's --samples, if it had one")
     ap.add_argument("--configuration", help="default: the first")
     ap.add_argument("--fmu-dir", default="fmus")
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
-    camp = load_campaign(args.campaign)
+    camp = load_campaign(args.campaign, args.uncertainty, args.samples)
     try:
-        r = split(camp, read_spec(args.campaign).events, args.out,
+        r = split(camp, read_spec(args.campaign, args.uncertainty, args.samples).events,
+                  args.out,
                   LinearRunner(camp.scenario_dir, fmu_dir=args.fmu_dir), args.configuration)
     except ValueError as exc:
         print(f"mc_spread: {exc}", file=sys.stderr)

@@ -199,19 +199,23 @@ def campaign_from_dict(data: Mapping, base_dir=None) -> Campaign:
     return expand(parse_spec(data, base_dir))
 
 
-def load_campaign(path) -> Campaign:
+def load_campaign(path, uncertainty=None, samples=None) -> Campaign:
     """Read a campaign TOML file (see :mod:`orchestrator.campaign` for the layout).
 
     Parameters
     ----------
     path : path-like
         Campaign file.
+    uncertainty : path-like, optional
+        A TOML file of one ``[uncertainty]`` table that replaces the campaign file's.
+    samples : int, optional
+        The Monte Carlo's sample count, in place of the table's.
 
     Returns
     -------
     Campaign
     """
-    return expand(read_spec(path))
+    return expand(read_spec(path, uncertainty, samples))
 
 
 def keyed(campaign: Campaign, runner) -> Campaign:

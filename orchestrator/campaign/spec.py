@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD
-from fmutools.archive import short_repr
+from fmutools.archive import PATH_CHARS, short_repr
 
 from ..scenario import closest, load_toml_file
 from .spec_base import ENGINES, CampaignError, check_table_keys
@@ -228,11 +228,53 @@ def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> C
                         engine, verify, wheel, unc, source, overrides)
 
 
-def read_spec(path) -> CampaignSpec:
-    """Read and check a campaign TOML file (see :mod:`orchestrator.campaign`)."""
+def read_spec(path, uncertainty=None, samples=None) -> CampaignSpec:
+    """Read and check a campaign TOML file (see :mod:`orchestrator.campaign`).
+
+    Parameters
+    ----------
+    path : path-like
+        The campaign file.
+    uncertainty : path-like, optional
+        A TOML file holding one ``[uncertainty]`` table, which replaces the campaign
+        file's (the same budget under an uncertainty of its own, without a copy of the
+        campaign).
+    samples : int, optional
+        The sample count, in place of the table's ``samples``.
+
+    Returns
+    -------
+    CampaignSpec
+
+    Raises
+    ------
+    CampaignError
+        One sentence naming the file, the table and what is wrong.
+    """
     path = Path(path)
     data = load_toml_file(path, "campaign file", CampaignError)
     source = f"campaign file {str(path)!r}"
+    if uncertainty is not None:
+        shown = short_repr(str(uncertainty), PATH_CHARS)
+        extra = load_toml_file(uncertainty, "uncertainty file", CampaignError)
+        if set(extra) != {"uncertainty"}:
+            other = ", ".join(repr(k) for k in sorted(set(extra) - {"uncertainty"}))
+            held = ("nothing" if not extra else f"{other} besides [uncertainty]"
+                    if "uncertainty" in extra else f"{other} and no [uncertainty] table")
+            raise CampaignError(f"uncertainty file {shown} holds {held}; expected one "
+                                "[uncertainty] table (the rest of the campaign stays in the "
+                                "campaign file)")
+        data = {**data, "uncertainty": extra["uncertainty"]}
+        source += f" with the [uncertainty] of {shown}"
+    if samples is not None:
+        if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+            raise CampaignError(f"the sample count is {samples!r}; expected a whole number "
+                                ">= 1")
+        if not isinstance(data.get("uncertainty"), dict):
+            raise CampaignError(f"{source} has no [uncertainty] table, so a sample count "
+                                "has nothing to count; add one, or give it in a file of its "
+                                "own (jitterfmu campaign --uncertainty FILE)")
+        data = {**data, "uncertainty": {**data["uncertainty"], "samples": samples}}
     try:
         return parse_spec(data, path.parent, source)
     except CampaignError as exc:

@@ -37,6 +37,13 @@ def add_arguments(parser) -> None:
                         help="with the linear engine, co-simulate the N cases with the "
                              "largest jitter and report the difference (default: the "
                              "campaign file's verify, else 2)")
+    parser.add_argument("--uncertainty", type=Path, default=None, metavar="FILE",
+                        help="a TOML file of one [uncertainty] table: the Monte Carlo of the "
+                             "campaign under it (replaces the campaign file's table), e.g. "
+                             "campaigns/eos_uncertainty.toml")
+    parser.add_argument("--samples", type=int, default=None, metavar="N",
+                        help="the Monte Carlo's sample count, in place of the table's (a "
+                             "larger count in the same --out keeps the samples run before)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -91,7 +98,7 @@ def run(args) -> int:
         write_summary,
     )
 
-    camp = load_campaign(args.campaign)
+    camp = load_campaign(args.campaign, args.uncertainty, args.samples)
     engine = args.engine or camp.engine
     if args.verify is not None and args.verify < 0:
         raise ValueError(f"--verify is {args.verify}; expected a number of cases >= 0")

@@ -42,6 +42,16 @@ def _campaign(uncertainty, configurations=None):
     }
 
 
+def _amp_and_gain(samples, seed, low, high):
+    """An ``[uncertainty]`` table: the excitation's amplitude +-20 % and the diagonal
+    loop's gain uniform in ``[low, high]``."""
+    return {"samples": samples, "seed": seed, "confidence": [0.95],
+            "parameters": [{"name": "amp", "kind": "amplitude", "instances": ["excitation"],
+                            "distribution": "uniform", "low": 0.8, "high": 1.2},
+                           {"name": "g", "kind": "gain", "instances": ["ctrl_diag"],
+                            "distribution": "uniform", "low": low, "high": high}]}
+
+
 def test_distributions_stay_in_bounds_and_repeat_with_the_seed():
     rng = np.random.default_rng(1)
     for d in (Distribution("uniform", 0.8, 1.2), Distribution("normal", 0.5, 1.5, mean=1.0,
@@ -510,11 +520,7 @@ def test_the_spread_split_of_docs_mc_spread(tmp_path, truss_fmus):
     spec = importlib.util.spec_from_file_location("mc_spread", root / "docs" / "mc_spread.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    unc = {"samples": 60, "seed": 2, "confidence": [0.95],
-           "parameters": [{"name": "amp", "kind": "amplitude", "instances": ["excitation"],
-                           "distribution": "uniform", "low": 0.8, "high": 1.2},
-                          {"name": "g", "kind": "gain", "instances": ["ctrl_diag"],
-                           "distribution": "uniform", "low": 0.7, "high": 1.3}]}
+    unc = _amp_and_gain(60, 2, 0.7, 1.3)
     data = _campaign(unc)
     camp, rep = _run(tmp_path, data, truss_fmus)
     runner = LinearRunner(camp.scenario_dir, fmu_dir=truss_fmus)
@@ -532,3 +538,90 @@ def test_the_spread_split_of_docs_mc_spread(tmp_path, truss_fmus):
     data["uncertainty"]["parameters"] = data["uncertainty"]["parameters"][1:]
     with pytest.raises(ValueError, match="has 0 amplitude-drawn sources"):
         mod.split(campaign_from_dict(data), parse_spec(data).events, tmp_path, runner)
+
+
+# ------------------------------------------------- the [uncertainty] table in a file of its own
+def _docs_uncertainty_block() -> str:
+    text = (Path(__file__).resolve().parents[2] / "docs" / "linear_engine.md").read_text(
+        encoding="utf-8")
+    import re
+    blocks = [b for b in re.findall(r"```toml\n(.*?)```", text, re.S)
+              if b.startswith("[uncertainty]")]
+    assert len(blocks) == 1
+    return blocks[0]
+
+
+def test_the_documented_and_shipped_uncertainty_tables_parse_against_the_eos_budget(
+        tmp_path):
+    """The docs' example (every kind and distribution) and the shipped EOS file are valid
+    TOML and pass the checks against the EOS budget's instances: a user pastes them."""
+    from orchestrator.campaign import load_campaign
+
+    root = Path(__file__).resolve().parents[2] / "campaigns"
+    path = tmp_path / "u.toml"
+    path.write_text(_docs_uncertainty_block(), encoding="utf-8")
+    camp = load_campaign(root / "eos_budget.toml", path)
+    kinds = {p.kind for p in camp.uncertainty["parameters"]}
+    assert kinds == {"modal_frequency", "modal_damping", "amplitude", "phase", "gain"}
+    assert camp.uncertainty["samples"] == 200
+    shipped = load_campaign(root / "eos_budget.toml", root / "eos_uncertainty.toml")
+    u = shipped.uncertainty
+    assert (u["samples"], u["seed"]) == (1000, 1)
+    amp = next(p for p in u["parameters"] if p.kind == "amplitude")
+    assert amp.instances == tuple(sorted(   # "all": every disturbance source of the budget
+        k for k in shipped.cases[0].scenario["fmus"] if k.startswith("dist_")))
+    assert "eos_uncertainty.toml" in shipped.source
+    assert load_campaign(root / "eos_budget.toml", root / "eos_uncertainty.toml",
+                         40).uncertainty["samples"] == 40
+
+
+@pytest.mark.parametrize("content, samples, words", [
+    ("[campaign]\nname = 'x'\n", None, r"holds 'campaign' and no \[uncertainty\] table; "
+                                        r"expected one \[uncertainty\] table"),
+    ("", None, "holds nothing"),
+    ("[uncertainty]\nsamples = 3\n[events]\n", None, r"holds 'events' besides"),
+    ("[uncertainty]\nsamples = 0\n", None, r"with the \[uncertainty\] of .*samples is 0"),
+    ("[uncertainty]\nparameters = [{kind = 'gain', instances = ['nope']}]\n", None,
+     "instances is"),
+    (None, 0, "the sample count is 0"),
+    (None, 5, r"has no \[uncertainty\] table, so a sample count has nothing to count"),
+])
+def test_a_bad_uncertainty_file_or_count_is_one_sentence(tmp_path, content, samples, words):
+    from orchestrator.campaign import load_campaign
+
+    root = Path(__file__).resolve().parents[2] / "campaigns"
+    unc = None
+    if content is not None:
+        unc = tmp_path / "u.toml"
+        unc.write_text(content, encoding="utf-8")
+    with pytest.raises(CampaignError, match=words) as info:
+        load_campaign(root / "eos_budget.toml", unc, samples)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.slow
+def test_cli_uncertainty_file_and_sample_count_equal_the_table_in_the_campaign(
+        tmp_path, truss_fmus, capsys):
+    """`jitterfmu campaign C --uncertainty U --samples 6` gives the samples of a campaign
+    file holding U's table with samples = 6, to the last bit; a larger --samples in the
+    same folder keeps those six."""
+    import tomli_w
+
+    from orchestrator.cli import main as cli_main
+
+    unc = _amp_and_gain(50, 4, 0.5, 1.5)
+    plain = _campaign(None)
+    del plain["uncertainty"]
+    (tmp_path / "c.toml").write_text(tomli_w.dumps(plain))
+    (tmp_path / "u.toml").write_text(tomli_w.dumps({"uncertainty": unc}))
+    argv = ["campaign", str(tmp_path / "c.toml"), "--uncertainty", str(tmp_path / "u.toml"),
+            "--out", str(tmp_path / "cli"), "--workers", "0", "--verify", "0", "--quiet",
+            "--fmu-dir", str(truss_fmus)]
+    assert cli_main(argv + ["--samples", "6"]) == 0
+    assert "uncertainty: 6 samples" in capsys.readouterr().out
+    _run(tmp_path / "inline", _campaign({**unc, "samples": 6}), truss_fmus)
+    assert _samples(tmp_path / "cli") == _samples(tmp_path / "inline")
+    assert cli_main(argv + ["--samples", "8"]) == 0
+    assert "8 samples" in capsys.readouterr().out
+    rep = json.loads((tmp_path / "cli" / "uncertainty.json").read_text())
+    assert rep["resumed"] == 6

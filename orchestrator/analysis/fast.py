@@ -42,7 +42,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from .blocks import AnalysisError
-from .fastparts import Record, _causal_conv, _fft_length, _relevant
+from .fastparts import Record, _causal_conv, _fft_length, _power, _powers, _relevant
 from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
@@ -80,6 +80,7 @@ class _RunType:
     N: np.ndarray       # (s, m)       its input columns
     D: np.ndarray       # (r_live, m)  feedthrough of the live rows
     cols: dict          # channel -> (M^(L-1-l) N_c (s, L), Markov parameters (L, r_live))
+    powers: tuple = ()  # M^(2^j) for 2^j < L: the doubling steps of the Krylov products
 
 
 class FastResponse(SteadyState):
@@ -198,13 +199,17 @@ class FastResponse(SteadyState):
         s = M.shape[0]
         # a row is zero by structure when its C and D rows are: C M^q and C M^(p-1) N
         live = np.flatnonzero(np.any(C != 0, axis=1) | np.any(D != 0, axis=1))
-        # row Krylov C M^q, q = 0 .. L-1, of the live rows
+        powers = _powers(M, L)
+        # row Krylov C M^q, q = 0 .. L-1, of the live rows, by doubling: the rows
+        # q in [2^j, 2^(j+1)) are those of [0, 2^j) times M^(2^j), one product each
         O = np.empty((L, live.size, s))
         O[0] = C[live]
-        for q in range(1, L):
-            O[q] = O[q - 1] @ M
-        t = _RunType(L, np.linalg.matrix_power(M, L), O.reshape(L * live.size, s), live,
-                     M, N, np.ascontiguousarray(D[live]), {})
+        for j, P in enumerate(powers):
+            lo = 1 << j
+            hi = min(2 * lo, L)
+            O[lo:hi] = (O[:hi - lo].reshape(-1, s) @ P).reshape(hi - lo, live.size, s)
+        t = _RunType(L, _power(M, L, powers), O.reshape(L * live.size, s), live, M, N,
+                     np.ascontiguousarray(D[live]), {}, powers)
         self._types[key] = t
         return t
 
@@ -214,17 +219,20 @@ class FastResponse(SteadyState):
         ``h_p = C M^(p-1) N`` (column Krylov of the channels not built before)."""
         miss = [int(c) for c in active if int(c) not in t.cols]
         if miss:
-            L, s = t.L, t.M.shape[0]
-            K = np.empty((L, s, len(miss)))
-            K[0] = t.N[:, miss]
-            for q in range(1, L):
-                K[q] = t.M @ K[q - 1]
-            h = np.empty((L, t.live.size, len(miss)))
+            L, s, c = t.L, t.M.shape[0], len(miss)
+            # column Krylov M^q N, q = 0 .. L-1, by doubling (as the rows in _type)
+            K = np.empty((s, L, c))
+            K[:, 0] = t.N[:, miss]
+            for j, P in enumerate(t.powers):
+                lo = 1 << j
+                hi = min(2 * lo, L)
+                K[:, lo:hi] = (P @ K[:, :hi - lo].reshape(s, -1)).reshape(s, hi - lo, c)
+            h = np.empty((L, t.live.size, c))
             h[0] = t.D[:, miss]
             if L > 1:
                 h[1:] = t.O.reshape(L, t.live.size, s)[:L - 1] @ t.N[:, miss]
-            for j, c in enumerate(miss):
-                t.cols[c] = (np.ascontiguousarray(K[::-1, :, j].T), h[:, :, j].copy())
+            for j, ch in enumerate(miss):
+                t.cols[ch] = (np.ascontiguousarray(K[:, ::-1, j]), h[:, :, j].copy())
         G = np.stack([t.cols[int(c)][0] for c in active], axis=-1)
         h = np.stack([t.cols[int(c)][1] for c in active], axis=-1)
         return G, h

@@ -1,5 +1,6 @@
 """Parts of the fast path (:mod:`orchestrator.analysis.fast`) that stand alone: the record
-it returns, the memory-state pruning and the causal FFT convolution of its runs."""
+it returns, the memory-state pruning, the causal FFT convolution of its runs and the
+powers by squaring of their maps."""
 
 from __future__ import annotations
 
@@ -105,3 +106,29 @@ def _causal_conv(Hf: np.ndarray, w: np.ndarray) -> np.ndarray:
 def _fft_length(L: int) -> int:
     """A fast FFT length for a linear convolution of two ``L``-long sequences."""
     return sfft.next_fast_len(2 * L - 1, real=True)
+
+
+def _powers(M: np.ndarray, L: int) -> tuple:
+    """``M^(2^j)`` for every ``2^j < L`` (by squaring): the doubling steps of a run's
+    Krylov products and the binary digits of its ``M^L``."""
+    out = []
+    if L > 1:
+        out.append(M)
+        while (1 << len(out)) < L:
+            out.append(out[-1] @ out[-1])
+    return tuple(out)
+
+
+def _power(M: np.ndarray, L: int, powers: tuple) -> np.ndarray:
+    """``M^L`` from ``powers = _powers(M, L)``, by the binary digits of ``L`` (a power of
+    two needs one squaring more)."""
+    digits = list(powers)
+    if not digits:   # L == 1
+        return M
+    if (1 << len(digits)) <= L:
+        digits.append(digits[-1] @ digits[-1])
+    out = None
+    for j, P in enumerate(digits):
+        if L >> j & 1:
+            out = P if out is None else P @ out
+    return out

@@ -174,6 +174,56 @@ def test_forced_response_by_toeplitz_product_equals_fft(eos_pair, monkeypatch):
     fr._kernels.clear()
     scale = np.maximum(np.abs(got[256]).max(axis=0), 1e-300)
     assert np.max(np.abs(got[0] - got[256]) / scale) < 1e-12
+
+
+@pytest.mark.parametrize("L", [1, 2, 3, 4, 8, 64, 99])
+def test_powers_by_squaring_give_the_matrix_power(L):
+    """``M^L`` from the doubling steps equals numpy's ``matrix_power`` for every kind of
+    ``L`` (1, powers of two, odd); on a contraction (norm 0.99) both are good to about
+    ``L n eps``, 1e-12 here."""
+    from orchestrator.analysis.fastparts import _power, _powers
+
+    rng = np.random.default_rng(L)
+    Q, _ = np.linalg.qr(rng.standard_normal((30, 30)))
+    M = 0.99 * Q
+    P = _powers(M, L)
+    assert len(P) == max(0, (L - 1).bit_length())   # M^(2^j) for 2^j < L
+    np.testing.assert_allclose(_power(M, L, P), np.linalg.matrix_power(M, L), rtol=0,
+                               atol=1e-12)
+
+
+def test_krylov_products_by_doubling_equal_the_sequential_ones(eos_pair):
+    """The row and column Krylov products and ``M^L`` of the EOS loop's 99-tick run,
+    computed by doubling, against one product per tick.  The tick map mixes metres,
+    volts and strains (its 2-norm is about 1e12), so the tolerance is measured here, on
+    this BLAS: the round-off between two other orders of the same products (one product
+    per tick against numpy's ``matrix_power`` at ``q = L - 1``), times 20 for the
+    roundings the squarings add (log2 L = 7 levels; 5x measured)."""
+    MP = np.linalg.matrix_power
+    fr = _isolation_on_loop(eos_pair)
+    sig, L = max(fr._runs, key=lambda r: r[1])
+    t = fr._type(sig, L)
+    M, C = t.M, fr._maps[sig][2][t.live]
+    ch = np.flatnonzero(np.any(t.N != 0, axis=0))[:3]
+    O, K, seq = [C], [t.N[:, ch]], M
+    for _ in range(1, L):
+        O.append(O[-1] @ M)
+        K.append(M @ K[-1])
+    for _ in range(2, L + 1):
+        seq = seq @ M
+    ML = MP(M, L)
+    O, K = np.concatenate(O), np.stack(K[::-1], axis=1)   # K: M^(L-1-l) N_c
+    G, _ = fr._columns(t, ch)
+    tiny = 1e-14   # a floor, where the two orders happen to agree to the last bit
+    for got, want, scatter in (
+            (t.O, O, np.abs(C @ MP(M, L - 1) - O[-C.shape[0]:]).max()),
+            (G, K, np.abs(MP(M, L - 1) @ t.N[:, ch] - K[:, 0]).max()),
+            (t.ML, seq, np.abs(ML - seq).max())):
+        assert np.abs(got - want).max() <= 20 * scatter + tiny * np.abs(want).max()
+    # and not vacuous: a power off by one is far outside
+    assert np.abs(MP(M, L + 1) - seq).max() > 1e3 * (20 * np.abs(ML - seq).max())
+
+
 def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):
     """A rail the linear record crosses fails the case in one sentence; nothing else."""
     camp = _eos_campaign(events=("SWIR pointing",), stop=1.5)

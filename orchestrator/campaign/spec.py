@@ -270,11 +270,12 @@ def read_spec(path, uncertainty=None, samples=None) -> CampaignSpec:
         if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
             raise CampaignError(f"the sample count is {samples!r}; expected a whole number "
                                 ">= 1")
-        if not isinstance(data.get("uncertainty"), dict):
+        if "uncertainty" not in data:
             raise CampaignError(f"{source} has no [uncertainty] table, so a sample count "
                                 "has nothing to count; add one, or give it in a file of its "
                                 "own (jitterfmu campaign --uncertainty FILE)")
-        data = {**data, "uncertainty": {**data["uncertainty"], "samples": samples}}
+        if isinstance(data["uncertainty"], dict):   # else parse_uncertainty says what
+            data = {**data, "uncertainty": {**data["uncertainty"], "samples": samples}}
     try:
         return parse_spec(data, path.parent, source)
     except CampaignError as exc:

@@ -22,8 +22,8 @@ Run::
 * **The exact floor of a sample** (``--no-floor`` leaves it out): the products an exact
   engine cannot leave out, on the nominal loops the samples perturb (their memory
   states, live rows and driven channels): the free responses of the 24 records, the row
-  and column Krylov products of every run type, its ``M^L`` and the eigenvalues of the
-  super-period map.  Printed as flops over this machine's one-thread square dgemm rate
+  and column Krylov products of every run type (in the doubling steps the engine uses),
+  its ``M^L`` and the eigenvalues of the super-period map.  Printed as flops over this machine's one-thread square dgemm rate
   (a lower bound: no product runs faster than that), and as the same products timed in
   their own shapes on one thread; beside it, the measured cost of a sample.
 """
@@ -103,9 +103,11 @@ def _products(camp, runner) -> tuple:
             t = fr._type(sig, L)
             lives.append(t.live.size)
             n_u = max(1, round(per_period * n_periods))
-            if L > 1:
-                gemms += [(L - 1, t.live.size, s, s),     # row Krylov C M^q
-                          (L - 1, s, s, k)]               # column Krylov M^q N
+            if L > 1:   # the Krylov products by doubling, as the engine does them
+                for j in range((L - 1).bit_length()):
+                    n_q = min(2 << j, L) - (1 << j)          # rows q in [2^j, 2^(j+1))
+                    gemms += [(1, n_q * t.live.size, s, s),  # row Krylov C M^q
+                              (1, s, s, n_q * k)]            # column Krylov M^q N
                 gemms.append((L.bit_length() + bin(L).count("1") - 2, s, s, s))   # M^L
             gemms.append((1, E * n_u, s, L * n_los))      # free responses
         eigs.append(balance(fr.period_map())[0])

@@ -72,8 +72,8 @@ def main(argv=None) -> int:
             worst = max(worst, max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k]))
         t_build, t_li = float(np.median(builds)), float(np.median(cases))
         fr = next(iter(runner._compiled.values()))
-        mem = sum(t.O.nbytes + t.ML.nbytes + sum(g.nbytes + h.nbytes for g, h in
-                                                 t.cols.values())
+        mem = sum(t.O.nbytes + t.ML.nbytes + sum(P.nbytes for P in t.powers)
+                  + sum(g.nbytes + h.nbytes for g, h in t.cols.values())
                   for t in fr._types.values()) / 2**20
     n = len(camp.cases)
     print(f"EOS budget, {n} cases, 8 s at 1 kHz; failed: cosim {co.n_failed}, "

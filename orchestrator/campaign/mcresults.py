@@ -103,6 +103,54 @@ def _convergence(lines) -> tuple:
     return widest, need
 
 
+def convergence_hint(report: dict) -> str | None:
+    """What converging the run would take, in one sentence (None when every finite value
+    is converged or no count can be estimated).
+
+    Per confidence level, the sample count that narrows every finite value's bootstrap
+    interval below 2 % and the time the samples beyond this run's would take at its own
+    rate (its wall time over the samples it computed, start-up included: an estimate).
+
+    Parameters
+    ----------
+    report : dict
+        The content of ``uncertainty.json``.
+
+    Returns
+    -------
+    str or None
+    """
+    need = {}
+    for line in report["lines"]:
+        for pc, q in line.get("quantiles", {}).items():
+            k = q.get("samples_for_2pct")
+            if math.isfinite(q["value"]) and not q["converged"] and k:
+                need[pc] = max(need.get(pc, 0), int(k))
+    n = report["samples"]
+    need = {pc: k for pc, k in need.items() if k > n}
+    if not need:
+        return None
+    computed = n - (report.get("resumed") or 0)
+    rate = report["wall_s"] / computed if computed > 0 and report.get("wall_s") else None
+    parts = []
+    for pc, k in sorted(need.items(), key=lambda kv: float(kv[0])):
+        when = f", {_duration((k - n) * rate)} more" if rate else ""
+        parts.append(f"P{100 * float(pc):g} about {k:,} samples{when}")
+    return ("to narrow every finite value's interval below 2 %: " + "; ".join(parts)
+            + (f" (at this run's {rate:.2g} s a sample; more workers or a Dask cluster "
+               "divide it)" if rate else "")
+            + f"; --samples N with the same --out keeps these {n}")
+
+
+def _duration(seconds: float) -> str:
+    """``seconds`` for a reader: s, min or h."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
 def _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall) -> dict:
     """The content of ``uncertainty.json``."""
     from ..analysis.uncertainty import INTERPRETATION

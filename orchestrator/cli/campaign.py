@@ -97,6 +97,7 @@ def run(args) -> int:
         verify_campaign,
         write_summary,
     )
+    from ..campaign.mcresults import convergence_hint
 
     camp = load_campaign(args.campaign, args.uncertainty, args.samples)
     engine = args.engine or camp.engine
@@ -193,6 +194,9 @@ def run(args) -> int:
                     if "p_meet" in line else "")
             print(f"  {line['configuration']:<16} {line['instrument']:>6}/{line['axis']:<6}"
                   f" {qs} {line['unit']}{meet}")
+        hint = convergence_hint(rep)
+        if hint:
+            print(f"  {hint}")
     return min(res.n_failed, 100)
 
 

@@ -625,3 +625,28 @@ def test_cli_uncertainty_file_and_sample_count_equal_the_table_in_the_campaign(
     assert "8 samples" in capsys.readouterr().out
     rep = json.loads((tmp_path / "cli" / "uncertainty.json").read_text())
     assert rep["resumed"] == 6
+
+
+def test_convergence_hint_names_per_level_the_count_and_the_time_at_the_runs_rate():
+    """The largest count over the finite, unconverged values of each level; the time of
+    the samples beyond the run's at its wall time over the samples it computed (not the
+    resumed ones); nothing when every finite value is converged."""
+    from orchestrator.campaign.mcresults import convergence_hint
+
+    def q(value, converged, k):
+        return {"value": value, "converged": converged, "samples_for_2pct": k}
+
+    lines = [{"quantiles": {"0.95": q(1.0, False, 4000), "0.9973": q(2.0, False, 9000)}},
+             {"quantiles": {"0.95": q(1.5, False, 2500), "0.9973": q(math.inf, False, None)}},
+             {"quantiles": {"0.95": q(1.2, True, None), "0.9973": q(2.1, False, 30000)}}]
+    rep = {"samples": 1000, "resumed": 600, "wall_s": 80.0, "lines": lines}   # 0.2 s a sample
+    text = convergence_hint(rep)
+    assert "P95 about 4,000 samples, 10 min more" in text          # 3000 x 0.2 s
+    assert "P99.73 about 30,000 samples, 97 min more" in text      # 29000 x 0.2 s
+    assert text.index("P95") < text.index("P99.73") and "keeps these 1000" in text
+    assert "\n" not in text
+    done = [{"quantiles": {"0.95": q(1.0, True, None), "0.9973": q(math.inf, False, None)}}]
+    assert convergence_hint({**rep, "lines": done}) is None
+    # a run that computed nothing (all resumed) gives the counts without a time
+    text = convergence_hint({**rep, "resumed": 1000})
+    assert "P95 about 4,000 samples" in text and "more" not in text.split(";")[0]

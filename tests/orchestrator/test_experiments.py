@@ -1,6 +1,7 @@
 """The paper's experiments as commands, checked against the paper's numbers."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -85,10 +86,18 @@ def test_reproduce_runs_the_python_build_when_asked(tmp_path, fmu_dir, capsys):
                "decay" in err
         assert err[-1].startswith("jitterfmu: reproduce truss-decay: done in ")
         assert '"closed_loop_cycles_to_90pct"' in captured.out
+    # the fitted damping is as good as the fit's termination: least_squares stops once
+    # its step is below xtol = 1e-8 (its default) of the parameter vector's norm (about
+    # 14: two frequencies near 9 Hz, two phases up to 2 pi, amplitudes below 1), up to
+    # 1.4e-7 in a decay rate s, so up to s / (2 pi f) = 2.3e-9 in zeta, 6e-7 of the
+    # longeron's 0.004: records that agree to the last bit can fit that far apart
+    # (measured: 2.8e-9 relative under OpenBLAS's Nehalem kernels, 4e-11 under SkylakeX)
     for member in ("diagonal", "longeron"):
         a = outs["native"]["open_loop_damping"][member]
         b = outs["python"]["open_loop_damping"][member]
-        assert a == pytest.approx(b, rel=1e-9)
+        f = max(outs["native"]["fits"][member]["freqs_hz"])
+        bound = 2 * 1e-8 * 14.0 / (2 * math.pi * f)   # two fits, each within xtol
+        assert abs(a - b) <= bound, (a, b, bound)
     assert outs["native"]["peak_voltage_v"] == pytest.approx(outs["python"]["peak_voltage_v"],
                                                              rel=1e-12)
     # and they are two builds: libm and numpy round differently in the last digits

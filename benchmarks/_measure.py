@@ -12,6 +12,7 @@ import os
 import resource
 import subprocess
 import sys
+import time
 
 MARK = "@@RESULT@@"
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -24,6 +25,17 @@ def peak_rss_mb() -> float:
             if line.startswith("VmHWM:"):
                 return int(line.split()[1]) / 1024.0
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # pragma: no cover
+
+
+def best_of(fn, repeat: int) -> tuple:
+    """``(seconds, result)``: the shortest of ``repeat`` timed calls of ``fn`` and the
+    last call's result."""
+    best, out = float("inf"), None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
 
 
 def cpu_s() -> float:

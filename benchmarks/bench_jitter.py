@@ -15,27 +15,21 @@ Both results are compared on the slice the brute force ran on.
 from __future__ import annotations
 
 import argparse
-import time
+import sys
+from pathlib import Path
 
-import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _measure import best_of  # noqa: E402
 
-from orchestrator.metrics import peak_to_peak
+import numpy as np  # noqa: E402
+from numpy.lib.stride_tricks import sliding_window_view  # noqa: E402
+
+from orchestrator.metrics import peak_to_peak  # noqa: E402
 
 
 def brute(x, n):
     v = sliding_window_view(x, n)
     return float((v.max(axis=-1) - v.min(axis=-1)).max())
-
-
-def best_of(fn, repeat):
-    best = float("inf")
-    out = None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def main(argv=None):

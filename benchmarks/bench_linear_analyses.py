@@ -31,7 +31,6 @@ Run::
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import tempfile
 import time
@@ -39,27 +38,18 @@ import warnings
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _measure import peak_rss_mb  # noqa: E402
+from _measure import best_of, peak_rss_mb  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 from orchestrator.analysis._threads import one_blas_thread  # noqa: E402
+from orchestrator.analysis.fastparts import _doubling  # noqa: E402
 from orchestrator.analysis.steady import balance  # noqa: E402
 from orchestrator.analysis.uncertainty import draw  # noqa: E402
 from orchestrator.campaign import (LinearRunner, MasterRunner, load_campaign,  # noqa: E402
                                    run_uncertainty, run_wheel_sweeps)
 from orchestrator.campaign import montecarlo as mcm  # noqa: E402
 from orchestrator.experiments import eos  # noqa: E402
-
-
-def _best(fn, repeat: int = 5) -> float:
-    """Shortest of ``repeat`` timed calls of ``fn`` (s)."""
-    best = math.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def _products(camp, runner) -> tuple:
@@ -104,10 +94,9 @@ def _products(camp, runner) -> tuple:
             lives.append(t.live.size)
             n_u = max(1, round(per_period * n_periods))
             if L > 1:   # the Krylov products by doubling, as the engine does them
-                for j in range((L - 1).bit_length()):
-                    n_q = min(2 << j, L) - (1 << j)          # rows q in [2^j, 2^(j+1))
-                    gemms += [(1, n_q * t.live.size, s, s),  # row Krylov C M^q
-                              (1, s, s, n_q * k)]            # column Krylov M^q N
+                for lo, hi in _doubling(L):                  # rows q in [lo, hi)
+                    gemms += [(1, (hi - lo) * t.live.size, s, s),   # row Krylov C M^q
+                              (1, s, s, (hi - lo) * k)]             # column Krylov M^q N
                 gemms.append((L.bit_length() + bin(L).count("1") - 2, s, s, s))   # M^L
             gemms.append((1, E * n_u, s, L * n_los))      # free responses
         eigs.append(balance(fr.period_map())[0])
@@ -140,13 +129,13 @@ def exact_floor(camp, runner) -> tuple:
             + sum(10.0 * P.shape[0]**3 for P in eigs))
     n = max(P.shape[0] for P in eigs)
     A, B = rng.standard_normal((n, n)), rng.standard_normal((n, n))
-    rate = 2.0 * n**3 * 20 / _best(lambda: [A @ B for _ in range(20)]) / 1e9
+    rate = 2.0 * n**3 * 20 / best_of(lambda: [A @ B for _ in range(20)], 5)[0] / 1e9
     t_shapes = 0.0
     for c, m, k, nn in gemms:
         X, Y = rng.standard_normal((m, k)), rng.standard_normal((k, nn))
-        t_shapes += c * _best(lambda: X @ Y)
+        t_shapes += c * best_of(lambda: X @ Y, 5)[0]
     for P in eigs:   # the nominal loop's own map: its eigenvalues converge as a sample's
-        t_shapes += _best(lambda: np.linalg.eigvals(P), 3)
+        t_shapes += best_of(lambda: np.linalg.eigvals(P), 3)[0]
     return flop / 1e9, rate, flop / 1e9 / rate, t_shapes, rows
 
 

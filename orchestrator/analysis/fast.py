@@ -42,7 +42,8 @@ import numpy as np
 import scipy.fft as sfft
 
 from .blocks import AnalysisError
-from .fastparts import Record, _causal_conv, _fft_length, _power, _powers, _relevant
+from .fastparts import (Record, _causal_conv, _doubling, _fft_length, _power, _powers,
+                        _relevant)
 from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
@@ -204,9 +205,7 @@ class FastResponse(SteadyState):
         # q in [2^j, 2^(j+1)) are those of [0, 2^j) times M^(2^j), one product each
         O = np.empty((L, live.size, s))
         O[0] = C[live]
-        for j, P in enumerate(powers):
-            lo = 1 << j
-            hi = min(2 * lo, L)
+        for P, (lo, hi) in zip(powers, _doubling(L)):
             O[lo:hi] = (O[:hi - lo].reshape(-1, s) @ P).reshape(hi - lo, live.size, s)
         t = _RunType(L, _power(M, L, powers), O.reshape(L * live.size, s), live, M, N,
                      np.ascontiguousarray(D[live]), {}, powers)
@@ -223,9 +222,7 @@ class FastResponse(SteadyState):
             # column Krylov M^q N, q = 0 .. L-1, by doubling (as the rows in _type)
             K = np.empty((s, L, c))
             K[:, 0] = t.N[:, miss]
-            for j, P in enumerate(t.powers):
-                lo = 1 << j
-                hi = min(2 * lo, L)
+            for P, (lo, hi) in zip(t.powers, _doubling(L)):
                 K[:, lo:hi] = (P @ K[:, :hi - lo].reshape(s, -1)).reshape(s, hi - lo, c)
             h = np.empty((L, t.live.size, c))
             h[0] = t.D[:, miss]

@@ -119,6 +119,13 @@ def _powers(M: np.ndarray, L: int) -> tuple:
     return tuple(out)
 
 
+def _doubling(L: int) -> list:
+    """``(lo, hi)`` of each doubling step of a run of ``L`` ticks: step ``j`` gives the
+    Krylov products ``q`` in ``[lo, hi) = [2^j, min(2^(j+1), L))`` from those in
+    ``[0, hi - lo)`` and ``M^(2^j)``."""
+    return [(1 << j, min(2 << j, L)) for j in range((L - 1).bit_length())]
+
+
 def _power(M: np.ndarray, L: int, powers: tuple) -> np.ndarray:
     """``M^L`` from ``powers = _powers(M, L)``, by the binary digits of ``L`` (a power of
     two needs one squaring more)."""

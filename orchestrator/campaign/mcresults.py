@@ -86,21 +86,32 @@ def _lines(campaign, ctx, draws, values, status) -> tuple:
     return lines, summary
 
 
+def _needs(lines, unknown=math.inf) -> dict:
+    """Per confidence level, the sample count that would narrow every finite, unconverged
+    value to 2 %, a value whose count cannot be estimated counting as ``unknown`` (left
+    out when None); a level with none is left out.  An infinite value (more samples
+    outside the model than ``1 - P_c``) has no width: it is left out."""
+    need = {}
+    for line in lines:
+        for pc, q in line.get("quantiles", {}).items():
+            if math.isfinite(q["value"]) and not q["converged"]:
+                k = q["samples_for_2pct"]
+                if k is None:
+                    if unknown is None:
+                        continue
+                    k = unknown
+                need[pc] = max(need.get(pc, 0), k)
+    return need
+
+
 def _convergence(lines) -> tuple:
     """``(widest, need)``: the widest relative bootstrap interval of a finite value over
     every line and level (None without one), and the sample count that would narrow
-    every one to 2 % (None when all are below it).  An infinite value (more samples
-    outside the model than ``1 - P_c``) has no width: it is left out."""
-    widest, need = None, None
-    for line in lines:
-        for q in line.get("quantiles", {}).values():
-            if not math.isfinite(q["value"]):
-                continue
-            widest = max(widest or 0.0, q["rel_width"])
-            if not q["converged"]:
-                k = q["samples_for_2pct"]
-                need = max(need or 0, k if k is not None else math.inf)
-    return widest, need
+    every one to 2 % (None when all are below it)."""
+    widths = [q["rel_width"] for line in lines for q in line.get("quantiles", {}).values()
+              if math.isfinite(q["value"])]
+    need = _needs(lines)
+    return (max(widths) if widths else None), (max(need.values()) if need else None)
 
 
 def convergence_hint(report: dict) -> str | None:
@@ -120,14 +131,8 @@ def convergence_hint(report: dict) -> str | None:
     -------
     str or None
     """
-    need = {}
-    for line in report["lines"]:
-        for pc, q in line.get("quantiles", {}).items():
-            k = q.get("samples_for_2pct")
-            if math.isfinite(q["value"]) and not q["converged"] and k:
-                need[pc] = max(need.get(pc, 0), int(k))
     n = report["samples"]
-    need = {pc: k for pc, k in need.items() if k > n}
+    need = {pc: int(k) for pc, k in _needs(report["lines"], unknown=None).items() if k > n}
     if not need:
         return None
     computed = n - (report.get("resumed") or 0)

@@ -35,7 +35,7 @@ INTERPRETATION = ("ensemble: each sample is the worst window of its record (it m
 
 DISTRIBUTIONS = ("uniform", "normal", "lognormal")
 _BIG = np.finfo(float).max / 4   # the stand-in of an infinite sample
-KINDS = ("modal_frequency", "modal_damping", "amplitude", "phase", "gain")
+KINDS = ("modal_frequency", "modal_damping", "amplitude", "phase", "frequency", "gain")
 
 
 class UncertaintyError(ValueError):
@@ -113,13 +113,14 @@ class Uncertain:
     kind : str
         ``modal_frequency`` (factor on the modal frequencies), ``modal_damping`` (factor
         on the modal damping ratios), ``amplitude`` (factor on a source's wrench),
-        ``phase`` (random phases of a source: its ``seed``), ``gain`` (factor on a
-        controller's gain).
+        ``phase`` (random phases of a source: its ``seed``), ``frequency`` (factor on a
+        source's line and repetition frequencies: its ``frequency_scale``,
+        :func:`distfmu.presets.retimed`), ``gain`` (factor on a controller's gain).
     distribution : Distribution or None
         None for ``phase``.
     instances : tuple of str
-        Sources (``amplitude``, ``phase``) or controllers (``gain``); empty for the
-        modal kinds.
+        Sources (``amplitude``, ``phase``, ``frequency``) or controllers (``gain``);
+        empty for the modal kinds.
     per_mode : bool
         Modal kinds: an independent draw per mode (else one factor for all).
     band : tuple of float
@@ -194,7 +195,7 @@ def draw(items, n: int, seed: int, frequencies_hz=None) -> Draws:
                                        f"{list(it.band)} Hz")
             modes[it.name] = idx
             k = idx.size if it.per_mode else 1
-        else:   # amplitude, gain, phase: one independent value per instance
+        else:   # amplitude, phase, frequency, gain: one independent value per instance
             k = len(it.instances)
         values[it.name] = np.empty((n, k), np.int64 if it.kind == "phase" else float)
     for s in range(n):

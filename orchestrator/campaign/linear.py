@@ -29,7 +29,7 @@ import numpy as np
 from ..analysis import AnalysisError, linearize
 from ..analysis.blocks import _instance_block
 from ..analysis.fast import FastResponse
-from ..cosim import UnconnectedInputWarning
+from ..cosim import UnconnectedInputWarning, prepare
 from ..results import RunResult, package_versions, write_metadata, write_table
 from .runner import MasterRunner
 from .store import RESULTS_FILE, write_json
@@ -164,7 +164,41 @@ class LinearRunner:
                 self._source_blocks[key] = b
         return b
 
-    def inputs(self, fr: FastResponse, scenario: dict, seeds=None) -> np.ndarray:
+    @_locked
+    def source_problem(self, scenario: dict, name: str, parameters: dict) -> str | None:
+        """Why the source instance ``name`` of a case refuses ``parameters`` (its FMU's own
+        check, e.g. a ``frequency_scale`` on a source that does not repeat); None if it
+        takes them.  No loop is compiled: this serves co-simulated samples too.
+
+        Parameters
+        ----------
+        scenario : dict
+            A case's scenario data.
+        name : str
+            A source instance of it.
+        parameters : dict
+            Parameters replacing the instance's own.
+
+        Returns
+        -------
+        str or None
+            One sentence, or None.
+        """
+        sc = self._master._scenario(scenario).with_experiment(fmu_kind="python")
+        inst = next(i for i in sc.instances if i.name == name)
+        inst = dataclasses.replace(inst, parameters={**inst.parameters, **parameters})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            plan = prepare(sc, self.fmu_dir)
+        if self._tmp is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="jitterfmu-linear-")
+        try:
+            _instance_block(plan, inst, Path(self._tmp.name), self._extracted)
+        except ValueError as exc:   # the source's own sentence (distfmu.sources.SourceError)
+            return str(exc)
+        return None
+
+    def inputs(self, fr: FastResponse, scenario: dict, parameters=None) -> np.ndarray:
         """The source matrix ``W`` of a case on the compiled loop ``fr``.
 
         Parameters
@@ -173,9 +207,9 @@ class LinearRunner:
             :meth:`compiled` of the case.
         scenario : dict
             The case's scenario data (the sources' parameters are read from it).
-        seeds : dict of str to int, optional
-            Phase seeds replacing some sources' ``seed`` (one Monte Carlo sample); those
-            source blocks are not kept.
+        parameters : dict of str to dict, optional
+            Per source, parameters replacing its own (one Monte Carlo sample's phase
+            ``seed`` and ``frequency_scale``); those source blocks are not kept.
 
         Returns
         -------
@@ -186,17 +220,17 @@ class LinearRunner:
         AnalysisError
             For a source without an open-loop series (an input-driven wheel).
         """
-        seeds = seeds or {}
+        parameters = parameters or {}
         sc = self._master._scenario(scenario)
         n_ticks = fr.lin.plan.timebase.n_ticks
         insts = {i.name: i for i in sc.instances}
         series = {}
         for name in fr.lin.sources:
             inst = insts[name]
-            if name in seeds:
+            if name in parameters:
                 inst = dataclasses.replace(inst, parameters={**inst.parameters,
-                                                             "seed": int(seeds[name])})
-            series[name] = self._series(fr, inst, n_ticks, cache=name not in seeds)
+                                                             **parameters[name]})
+            series[name] = self._series(fr, inst, n_ticks, cache=name not in parameters)
         return fr.input_matrix(series, n_ticks)
 
     @_locked

@@ -278,6 +278,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     rounds = []
     while True:
         draws = draw(items, n, unc["seed"], freqs)
+        _check_sources(campaign, runner, draws)
         values, status, resumed = _samples(campaign, out_dir, runner, ctx, draws, folder,
                                            workers, scheduler, progress,
                                            f" (round {len(rounds) + 1})" if top > n or
@@ -401,9 +402,9 @@ def _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler, runner, bar):
     """The samples as co-simulated cases (``[uncertainty] engine = "cosim"``).
 
     Every sample, configuration and event is a case of the base campaign with the draws
-    as parameter overrides: a source's ``scale`` (amplitude) and ``seed`` (phases), a
-    controller's ``gain``; they run as any campaign's cases (resumable, pool or Dask)
-    under ``out_dir/uncertainty_cases``.
+    as parameter overrides: a source's ``scale`` (amplitude), ``seed`` (phases) and
+    ``frequency_scale``, a controller's ``gain``; they run as any campaign's cases
+    (resumable, pool or Dask) under ``out_dir/uncertainty_cases``.
     """
     from .cases import Case, keyed
     from .runner import MasterRunner
@@ -429,6 +430,9 @@ def _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler, runner, bar):
                             p["scale"] = float(p.get("scale", 1.0)) * float(v)
                         elif it.kind == "phase":
                             p["seed"] = int(v)
+                        elif it.kind == "frequency":
+                            p["frequency_scale"] = (float(p.get("frequency_scale", 1.0))
+                                                    * float(v))
                         else:
                             p["gain"] = float(p.get("gain", 1.0)) * float(v)
                 key = hashlib.sha256(json.dumps(sc, sort_keys=True).encode()).hexdigest()
@@ -461,16 +465,56 @@ def _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler, runner, bar):
     return values, status
 
 
-def _sample_input(runner, fr, scenario, W, draws, items, s):
-    """``(W, scale)`` of sample ``s``: ``W`` with its new phases, and the amplitude
-    factor of each source channel (``FastResponse.run_many``'s ``scales``)."""
-    seeds = {}
-    for it in items:
-        if it.kind == "phase":
+def _check_sources(campaign, runner, draws) -> None:
+    """Refuse, before any sample runs, a draw that a source cannot take: a frequency
+    factor on a source that does not repeat, or one that breaks its timing (a scan's
+    turnaround longer than its sweep), in one sentence.  The checks are monotone in the
+    factor, so each source is tried at its smallest and largest draw."""
+    from .spec_base import CampaignError
+
+    items = [it for it in campaign.uncertainty["parameters"] if it.kind == "frequency"]
+    seen = set()
+    for case in (c for c in campaign.cases if not c.sweep):
+        for it in items:
             for j, inst in enumerate(it.instances):
-                seeds[inst] = draws.values[it.name][s, j]
-    if seeds:
-        W = runner.inputs(fr, scenario, seeds)
+                own = case.scenario["fmus"][inst].get("parameters", {})
+                col = draws.values[it.name][:, j]
+                for v in sorted({float(col.min()), float(col.max())}):
+                    f = float(own.get("frequency_scale", 1.0)) * v
+                    key = (inst, json.dumps(own, sort_keys=True, default=str), f)
+                    if key in seen:
+                        continue
+                    seen.add(key)
+                    why = runner.source_problem(case.scenario, inst, {"frequency_scale": f})
+                    if why:
+                        raise CampaignError(f"uncertain {it.name!r} draws frequency_scale "
+                                            f"{f:.6g} for {inst} in event {case.event!r}, "
+                                            f"which it refuses: {why}")
+
+
+def _source_parameters(scenario, draws, items, s) -> dict:
+    """Sample ``s``'s parameters of the sources whose series it changes: a phase
+    ``seed``, a ``frequency_scale`` (times the scenario's own)."""
+    out = {}
+    for it in items:
+        if it.kind in ("phase", "frequency"):
+            for j, inst in enumerate(it.instances):
+                v = draws.values[it.name][s, j]
+                p = out.setdefault(inst, {})
+                if it.kind == "phase":
+                    p["seed"] = int(v)
+                else:
+                    own = scenario["fmus"][inst].get("parameters", {})
+                    p["frequency_scale"] = float(own.get("frequency_scale", 1.0)) * float(v)
+    return out
+
+
+def _sample_input(runner, fr, scenario, W, draws, items, s):
+    """``(W, scale)`` of sample ``s``: ``W`` with its new phases and frequencies, and the
+    amplitude factor of each source channel (``FastResponse.run_many``'s ``scales``)."""
+    params = _source_parameters(scenario, draws, items, s)
+    if params:
+        W = runner.inputs(fr, scenario, params)
     factors = {}
     for it in items:
         if it.kind == "amplitude":

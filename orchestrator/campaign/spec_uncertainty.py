@@ -71,7 +71,7 @@ def parse_uncertainty(table, fmus: dict):
             raise CampaignError(f"{what} has kind {kind!r}; expected one of {list(KINDS)}")
         name = str(p.get("name", kind))
         insts = p.get("instances", [])
-        if kind in ("amplitude", "phase", "gain"):
+        if kind in ("amplitude", "phase", "frequency", "gain"):
             if insts == "all":
                 prefix = {"gain": "ctrl"}.get(kind, "dist")
                 insts = sorted(k for k in fmus if k.startswith(prefix))
@@ -95,6 +95,10 @@ def parse_uncertainty(table, fmus: dict):
                 raise CampaignError(f"{what} ({kind}) is a factor on the modes and can reach "
                                     f"{dist.low}; give it bounds low >= 0 (negative damping "
                                     "or frequency is not a structure)")
+            if not dist.low > 0 and kind == "frequency":
+                raise CampaignError(f"{what} (frequency) is a factor on the sources' "
+                                    f"frequencies and can reach {dist.low}; give it bounds "
+                                    "low > 0 (a line needs a positive frequency)")
         band = p.get("band", [0.0, math.inf])
         if not (isinstance(band, list) and len(band) == 2 and band[0] < band[1]):
             raise CampaignError(f"{what} band is {band!r}; expected [low, high] in Hz")

@@ -30,6 +30,8 @@ from distfmu.sources import (
     ScanMirror,
     Slew,
     Source,
+    SourceError,
+    SpeedProfile,
     Stepper,
     Sum,
     WheelImbalance,
@@ -282,3 +284,60 @@ def randomized(source: Source, seed: int) -> Source:
     if isinstance(source, BandLimitedRandom):
         return dataclasses.replace(source, seed=seed)
     return source
+
+
+def retimed(source: Source, factor: float) -> Source:
+    """Copy of a source with its line and repetition frequencies times ``factor``.
+
+    What a disturbance's frequency uncertainty means for each source that repeats:
+    a harmonic's and a chopper's fundamental, a wheel's speed (constant or every
+    point of its profile: the Masterson forces follow the speed squared), a
+    stepper's step rate, a scan mirror's scan (period divided by ``factor``: the
+    same angle faster, so larger turnaround pulses) and a repeating slew's interval
+    (divided).  The shapes in time (edges, pulses, turnarounds, a slew's profile) are
+    kept.  No disturbance (``Zero``) stays none.  A source that does not repeat (a
+    single slew, a table, band-limited random) has no frequency to scale and is
+    refused unless ``factor`` is 1.
+
+    Parameters
+    ----------
+    source : Source
+        A preset or custom source.
+    factor : float
+        Positive, finite; 1 returns ``source`` itself.
+
+    Returns
+    -------
+    Source
+
+    Raises
+    ------
+    SourceError
+        A factor that is not positive and finite, or a source without a frequency.
+    """
+    factor = float(factor)
+    if not (math.isfinite(factor) and factor > 0):
+        raise SourceError(f"disturbance frequency_scale must be a positive finite number, "
+                          f"got {factor!r}")
+    if factor == 1.0 or isinstance(source, Zero):
+        return source
+    if isinstance(source, Sum):
+        return Sum(tuple(retimed(s, factor) for s in source.sources))
+    if isinstance(source, (Harmonic, Chopper)):
+        return dataclasses.replace(source, frequency=source.frequency * factor)
+    if isinstance(source, WheelImbalance):
+        speed = source.speed
+        if isinstance(speed, SpeedProfile):
+            speed = dataclasses.replace(speed, speeds=tuple(v * factor for v in speed.speeds))
+        else:
+            speed = speed * factor
+        return dataclasses.replace(source, speed=speed)
+    if isinstance(source, Stepper):
+        return dataclasses.replace(source, step_rate=source.step_rate * factor)
+    if isinstance(source, ScanMirror):
+        return dataclasses.replace(source, period=source.period / factor)
+    if isinstance(source, Slew) and source.repeat is not None:
+        return dataclasses.replace(source, repeat=source.repeat / factor)
+    raise SourceError(f"a {type(source).__name__} source does not repeat, so it has no "
+                      "frequency for frequency_scale to scale; leave frequency_scale at 1 "
+                      "for this disturbance")

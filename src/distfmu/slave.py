@@ -8,6 +8,9 @@ parameters
     source stored in ``resources/source.json`` by :func:`distfmu.fmuspec.spec_with_source`;
     ``seed`` (Integer, fixed): 0 keeps the preset's phases, otherwise phases are drawn
     from it (:func:`distfmu.presets.randomized`);
+    ``frequency_scale`` (1, fixed): factor on the source's line and repetition
+    frequencies (:func:`distfmu.presets.retimed`; a source that does not repeat, or a
+    wheel driven from ``wheel_speed``, takes 1 only);
     ``use_speed_input`` (Boolean, fixed): drive the ``rwa`` preset from ``wheel_speed``;
     ``scale`` (1), ``start_time`` and ``stop_time`` (s) (tunable): amplitude factor and
     active window ``[start_time, stop_time)``, ``stop_time <= start_time`` for no end.
@@ -30,8 +33,8 @@ from typing import ClassVar
 import numpy as np
 
 from distfmu.custom import CUSTOM_PRESET, SOURCE_FILE, CustomSourceError, source_from_json
-from distfmu.presets import get_preset, randomized
-from distfmu.sources import WRENCH_NAMES
+from distfmu.presets import get_preset, randomized, retimed
+from distfmu.sources import WRENCH_NAMES, SourceError
 from distfmu.step import (DisturbanceConfig, DisturbanceState, disturbance_output,
                           disturbance_series, disturbance_step)
 from fmukit.slave import FmuSlave
@@ -72,6 +75,9 @@ class DisturbanceSlave(FmuSlave):
         self.add_real_block("wrench", names=list(WRENCH_NAMES), causality="output",
                             unit=["N", "N", "N", "N.m", "N.m", "N.m"], depends_on=[],
                             description="force and torque on the spacecraft at the mount")
+        # last, so that the variables before it keep their value references
+        p("frequency_scale", 1.0, unit="1",
+          description="factor on the source's line and repetition frequencies")
         self.x = np.zeros(3)
         self._source = None
         self._t0 = 0.0
@@ -92,7 +98,13 @@ class DisturbanceSlave(FmuSlave):
 
     def _config(self) -> DisturbanceConfig:
         if self._source is None:
-            self._source = randomized(self._preset_source(), int(self.seed))
+            factor = float(self.frequency_scale)
+            if factor != 1.0 and self.use_speed_input:
+                raise SourceError("disturbance frequency_scale cannot scale a wheel driven "
+                                  "from the wheel_speed input (its speed is the input's); "
+                                  "leave frequency_scale at 1")
+            self._source = randomized(retimed(self._preset_source(), factor),
+                                      int(self.seed))
         stop = self.stop_time if self.stop_time > self.start_time else math.inf
         return DisturbanceConfig(self._source, scale=float(self.scale),
                                  start=float(self.start_time), stop=float(stop),

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from distfmu.fmuspec import specs
-from distfmu.presets import PRESETS, get_preset, randomized
+from distfmu.presets import PRESETS, get_preset, randomized, retimed
 from distfmu.slave import DisturbanceSlave
-from distfmu.sources import WRENCH_NAMES
+from distfmu.sources import (WRENCH_NAMES, Chopper, Harmonic, ScanMirror, Slew,
+                             SourceError, SpeedProfile, Stepper, Table, WheelImbalance)
 from fmutools.build import FmuSpec, build_fmu
 from fmukit.modeldesc import check_model_description
 
@@ -95,6 +96,82 @@ def test_state_round_trip():
 def test_unknown_preset_is_a_clear_error():
     with pytest.raises(KeyError, match="'bogus' is unknown"):
         _slave("bogus")
+
+
+# ---------------------------------------------------------------- frequency_scale
+K = 1.05
+T_GRID = np.linspace(0.0, 7.0, 3001)
+
+
+def test_retimed_harmonic_is_the_source_on_a_faster_clock():
+    """sin(2 pi h (k f) t + phi) is the original at time k t, to round-off."""
+    src = randomized(get_preset("swir_cryocooler").source, 3)
+    np.testing.assert_allclose(retimed(src, K).wrench(T_GRID), src.wrench(K * T_GRID),
+                               rtol=0, atol=1e-12 * np.abs(src.wrench(T_GRID)).max())
+
+
+def test_retimed_wheel_turns_faster_and_its_forces_follow_the_speed_squared():
+    """Masterson: every force and torque is C Omega^2 sin(h Omega t + phi), so the wheel
+    at k Omega is k^2 times the original at time k t (constant speed and a profile)."""
+    src = randomized(get_preset("rwa").source, 3)
+    w = src.wrench(T_GRID)
+    np.testing.assert_allclose(retimed(src, K).wrench(T_GRID), K**2 * src.wrench(K * T_GRID),
+                               rtol=0, atol=1e-11 * np.abs(w).max())
+    prof = SpeedProfile(times=(0.0, 7.0), speeds=(50.0, 150.0))
+    wheel = WheelImbalance(harmonics=(1.0,), force_coeffs=(1e-6,), torque_coeffs=(1e-5,),
+                           speed=prof)
+    fast = retimed(wheel, K)
+    assert fast.speed.speeds == (50.0 * K, 150.0 * K) and fast.speed.times == prof.times
+
+
+def test_retimed_keeps_the_shapes_in_time_and_scales_the_repetition():
+    chop = Chopper(frequency=7.0, amplitude=0.02, rise_time=0.005)
+    scan = ScanMirror(inertia=0.02, period=12.0, amplitude=0.45, turnaround=0.1)
+    step = Stepper(step_rate=0.5, peak_torque=0.5, pulse_width=0.5)
+    slew = Slew(angle=0.1, max_rate=0.1, max_accel=0.2, inertia=0.03, repeat=30.0)
+    assert retimed(chop, K) == Chopper(frequency=7.0 * K, amplitude=0.02, rise_time=0.005)
+    assert retimed(scan, K).period == 12.0 / K and retimed(scan, K).turnaround == 0.1
+    assert retimed(step, K).step_rate == 0.5 * K and retimed(step, K).pulse_width == 0.5
+    assert retimed(slew, K).repeat == 30.0 / K and retimed(slew, K).max_accel == 0.2
+    assert retimed(chop, 1.0) is chop
+    none = get_preset("none").source
+    assert retimed(none, K) is none   # no disturbance stays none (it is in most events)
+
+
+@pytest.mark.parametrize("source,match", [
+    (Slew(angle=0.1, max_rate=0.1, max_accel=0.2, inertia=0.03), "a Slew source does not"),
+    (Table(np.array([0.0, 1.0]), np.zeros((2, 6))), "a Table source does not repeat"),
+])
+def test_a_source_that_does_not_repeat_refuses_a_frequency_scale(source, match):
+    with pytest.raises(SourceError, match=match):
+        retimed(source, K)
+    assert retimed(source, 1.0) is source
+
+
+@pytest.mark.parametrize("factor", [0.0, -1.0, float("nan"), float("inf")])
+def test_frequency_scale_must_be_positive_and_finite(factor):
+    with pytest.raises(SourceError, match="positive finite number"):
+        retimed(Harmonic(frequency=22.0, amplitudes=(1.0,)), factor)
+
+
+def test_slave_frequency_scale_gives_the_retimed_randomised_source():
+    s = _slave("tir_cryocooler", seed=5, frequency_scale=K)
+    src = randomized(retimed(get_preset("tir_cryocooler").source, K), 5)
+    ref = _slave("tir_cryocooler", seed=5)
+    # the slave's time is on a picosecond grid (fmukit.timing), (k + 1) H may be an ulp
+    # away: 2 pi 78 Hz x 0.2 s x eps ~ 2e-14 rad on amplitudes below 0.5 N
+    for k in range(N):
+        s.do_step(k * H, H)
+        ref.do_step(k * H, H)
+        np.testing.assert_allclose(s.wrench, src.wrench((k + 1) * H), rtol=0, atol=1e-14)
+    assert np.abs(s.wrench - ref.wrench).max() > 1e-3   # the factor is not ignored
+
+
+def test_slave_refuses_a_frequency_scale_it_cannot_apply():
+    with pytest.raises(SourceError, match="wheel_speed input"):
+        _slave("rwa", use_speed_input=True, frequency_scale=K)
+    with pytest.raises(SourceError, match="positive finite number"):
+        _slave("none", frequency_scale=-1.0)
 
 
 # ---------------------------------------------------------------- built FMUs

@@ -284,6 +284,76 @@ def test_disturbance_equals_python_for_every_preset(fmus, preset, seed):
     assert np.all(python[-100:] == 0) and np.all(python[:61] == 0)  # t < 0.5 s, t >= 11 s
 
 
+@pytest.mark.parametrize("preset", ["ceres_scan", "misr_calibration", "mopitt_scan", "tir_chopper",
+                                    "swir_cryocooler", "rwa", "sad"])
+def test_disturbance_frequency_scale_equals_python(fmus, preset):
+    """A factor on the line and repetition frequencies (distfmu.presets.retimed), every
+    kind of source that repeats (a sum, a repeated slew, a scan, a chopper, a harmonic, a
+    wheel, a stepper), with drawn phases: C against the Python twin, and not ignored."""
+    kw = dict(outputs=WRENCH, step_size=0.02, n_steps=4000)   # 80 s: repeats of 30 s slews
+    params = {"preset": preset, "seed": 7, "frequency_scale": 1.07}
+    native, python = _pair(fmus, "disturbance", parameters=params, **kw)
+    assert_close(native, python)
+    plain = run(fmus["native"] / "disturbance.fmu", parameters={**params, "frequency_scale": 1.0},
+                **kw)
+    assert np.max(np.abs(native - plain)) > 1e-3 * np.max(np.abs(plain))
+
+
+@pytest.mark.parametrize("params,message", [
+    ({"preset": "none", "frequency_scale": -1.0}, "positive finite number"),
+    ({"preset": "swir_cryocooler", "frequency_scale": 0.0}, "positive finite number"),
+    ({"preset": "rwa", "use_speed_input": True, "frequency_scale": 1.05}, "wheel_speed input"),
+    ({"preset": "mopitt_scan", "frequency_scale": 100.0}, "turnaround must be shorter"),
+    ({"preset": "misr_calibration", "frequency_scale": 100.0}, "repeat must be at least"),
+])
+def test_disturbance_frequency_scale_it_cannot_apply_fails_like_python(fmus, params, message):
+    """The native FMU refuses what the Python slave refuses, with the same sentence."""
+    assert any(message in line for line in _initialisation_messages(
+        fmus["native"] / "disturbance.fmu", params)), message
+
+
+_CALLBACKS: list = []   # FMI callback structs stay alive: fmpy's logger proxy keeps them
+
+
+def _initialisation_messages(fmu, parameters) -> list:
+    """The FMU's log messages of an initialisation that must fail (through the
+    process's one logger callback, as the master logs)."""
+    import ctypes
+    import fmpy.fmi2 as f2
+    from fmpy import extract, read_model_description
+    from fmpy.fmi1 import FMICallException
+    from fmpy.logging import addLoggerProxy
+
+    from orchestrator.cosim import instance as ci
+
+    md = read_model_description(str(fmu))
+    var = {v.name: v for v in md.modelVariables}
+    slave = f2.FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)),
+                         modelIdentifier=md.coSimulation.modelIdentifier, instanceName="t")
+    key, messages = next(ci._LOG_KEYS), []
+    ci._LOG_SINKS[key] = messages
+    cb = f2.fmi2CallbackFunctions()
+    cb.logger = ci._shared_logger(f2.fmi2CallbackLoggerTYPE)
+    cb.allocateMemory, cb.freeMemory = (f2.defaultCallbacks.allocateMemory,
+                                        f2.defaultCallbacks.freeMemory)
+    cb.componentEnvironment = ctypes.c_void_p(key)
+    addLoggerProxy(ctypes.byref(cb))
+    _CALLBACKS.append(cb)
+    slave.instantiate(callbacks=cb, loggingOn=True)
+    try:
+        slave.setupExperiment(startTime=0.0)
+        for name, value in parameters.items():
+            setter = {"Real": slave.setReal, "Boolean": slave.setBoolean,
+                      "String": slave.setString}[var[name].type]
+            setter([var[name].valueReference], [value])
+        slave.enterInitializationMode()
+        with pytest.raises(FMICallException):
+            slave.exitInitializationMode()
+    finally:
+        slave.freeInstance()
+    return [text for _, text in messages]
+
+
 def test_disturbance_seed_changes_the_phases_the_same_way(fmus):
     kw = dict(outputs=WRENCH, step_size=1e-3, n_steps=300)
     a = run(fmus["native"] / "disturbance.fmu", parameters={"preset": "tir_cryocooler",

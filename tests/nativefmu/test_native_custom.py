@@ -70,3 +70,23 @@ def test_seed_draws_another_record_and_presets_stay_reachable(custom_fmus):
 def test_native_refuses_a_record_length_that_is_not_a_power_of_two():
     with pytest.raises(NativeUnsupportedError, match="n_samples 3000 is not a power of two"):
         _term(BandLimitedRandom((0.0, 10.0), (1.0, 1.0), sample_rate=100.0, n_samples=3000))
+
+
+@pytest.mark.parametrize("name,kind", [("table_zero", "Table"), ("random", "BandLimitedRandom"),
+                                       ("mixed", "Table")])
+def test_a_source_that_does_not_repeat_refuses_a_frequency_scale_in_c_and_python(
+        custom_fmus, name, kind):
+    """A table or a random record has no line frequency: both builds refuse a factor
+    (the same sentence), and take 1."""
+    from distfmu.presets import retimed
+    from distfmu.sources import SourceError
+    from tests.nativefmu.test_native import _initialisation_messages
+
+    native_fmu, _ = custom_fmus[name]
+    words = f"a {kind} source does not repeat"
+    assert any(words in m for m in _initialisation_messages(
+        native_fmu, {"preset": "custom", "frequency_scale": 1.05}))
+    with pytest.raises(SourceError, match=words):
+        retimed(SOURCES[name], 1.05)
+    run(native_fmu, outputs=WRENCH, step_size=7e-3, n_steps=2,
+        parameters={"frequency_scale": 1.0})

@@ -17,6 +17,7 @@ import pytest
 
 from orchestrator.analysis.uncertainty import (Distribution, UncertaintyError, draw,
                                                rank_correlation, statistics)
+from orchestrator.campaign.spec import RSS_EVENT
 from orchestrator.campaign import (CampaignError, LinearRunner, campaign_from_dict,
                                    run_campaign, run_uncertainty)
 
@@ -173,6 +174,8 @@ def test_sensitivity_names_the_only_input_that_matters(tmp_path, truss_fmus):
                       "high": 2}]}, "has distribution 'beta'; expected one of"),
     ({"parameters": [{"kind": "modal_damping", "distribution": "uniform", "low": -0.5,
                       "high": 2}]}, "give it bounds low >= 0"),
+    ({"parameters": [{"kind": "frequency", "instances": ["a"], "distribution": "normal",
+                      "mean": 1.0, "std": 0.02}]}, "can reach -inf; give it bounds low > 0"),
     ({"parameters": [{"kind": "amplitude", "instances": ["nope"], "distribution": "uniform",
                       "low": 0.5, "high": 2}]}, "instances is \\['nope'\\]"),
     ({"parameters": [{"kind": "stiffness", "distribution": "uniform", "low": 0.5,
@@ -562,7 +565,8 @@ def test_the_documented_and_shipped_uncertainty_tables_parse_against_the_eos_bud
     path.write_text(_docs_uncertainty_block(), encoding="utf-8")
     camp = load_campaign(root / "eos_budget.toml", path)
     kinds = {p.kind for p in camp.uncertainty["parameters"]}
-    assert kinds == {"modal_frequency", "modal_damping", "amplitude", "phase", "gain"}
+    assert kinds == {"modal_frequency", "modal_damping", "amplitude", "phase", "frequency",
+                     "gain"}
     assert camp.uncertainty["samples"] == 200
     shipped = load_campaign(root / "eos_budget.toml", root / "eos_uncertainty.toml")
     u = shipped.uncertainty
@@ -650,3 +654,86 @@ def test_convergence_hint_names_per_level_the_count_and_the_time_at_the_runs_rat
     # a run that computed nothing (all resumed) gives the counts without a time
     text = convergence_hint({**rep, "resumed": 1000})
     assert "P95 about 4,000 samples" in text and "more" not in text.split(";")[0]
+
+
+
+
+def _eos_short(events, stop, uncertainty):
+    """The EOS budget's cases of ``events``, isolation off, ``stop`` s long, with an
+    ``[uncertainty]`` (parsed items)."""
+    import dataclasses
+    from orchestrator.campaign import load_campaign
+    from orchestrator.experiments import eos
+
+    camp = load_campaign(eos.CAMPAIGN)
+    cases = []
+    for c in camp.cases:
+        if c.event in events and c.configuration == "isolation off":
+            sc = json.loads(json.dumps(c.scenario))
+            sc["experiment"]["stop"] = stop
+            cases.append(dataclasses.replace(c, scenario=sc, key=c.key + "-short"))
+    return dataclasses.replace(camp, cases=tuple(cases), engine="linear", verify=0,
+                               uncertainty={"max_samples": None, **uncertainty})
+
+
+@pytest.fixture(scope="module")
+def eos_fmu_dir(suite_fmu_dir):
+    from orchestrator.experiments import eos
+    return eos.ensure_fmus(suite_fmu_dir)
+
+
+@pytest.mark.slow
+def test_frequency_draws_co_simulated_equal_the_linear_ones_and_move_the_lines(
+        tmp_path, eos_fmu_dir):
+    """kind = "frequency": a factor on the SWIR cryocooler's lines and on the MOPITT scan
+    (its period), drawn per source.  The co-simulation of every sample (the FMUs with
+    frequency_scale set, through the master) equals the linear engine's samples, and
+    the draws change the budget (the factor is not lost on the way)."""
+    import pyarrow.parquet as pq
+    from orchestrator.analysis.uncertainty import Uncertain
+
+    items = (Uncertain("f", "frequency", Distribution("uniform", 0.9, 1.1),
+                       instances=("dist_swir", "dist_mopitt")),)
+    got = {}
+    for engine in ("linear", "cosim"):
+        camp = _eos_short(("SWIR cryocooler", "MOPITT scan"), 3.0, {
+            "samples": 3, "seed": 2, "confidence": (0.5,), "parameters": items,
+            "engine": engine})
+        runner = LinearRunner(camp.scenario_dir, fmu_dir=eos_fmu_dir)
+        run_campaign(camp, tmp_path / engine, runner, progress=False)
+        run_uncertainty(camp, tmp_path / engine, runner, progress=False)
+        got[engine] = pq.read_table(tmp_path / engine / "uncertainty_samples.parquet"
+                                    ).to_pylist()
+    np.testing.assert_allclose([r["value"] for r in got["cosim"]],
+                               [r["value"] for r in got["linear"]], rtol=1e-9)
+
+    def swir_yaw(r):
+        return (r["instrument"], r["axis"], r["metric"], r["window"]) == (
+            "SWIR", "yaw", "peak_to_peak", 1.8)
+
+    swir = np.array([r["value"] for r in got["linear"] if swir_yaw(r)])
+    nominal = [r["value"] for r in pq.read_table(tmp_path / "linear" / "summary.parquet"
+                                                 ).to_pylist()
+               if swir_yaw(r) and r["event"] == RSS_EVENT]
+    # three draws of the line frequencies, three different budgets, none the nominal
+    assert swir.size == 3 and np.unique(np.round(swir, 12)).size == 3
+    assert len(nominal) == 1 and not np.isclose(swir, nominal[0], rtol=1e-4).any()
+
+
+@pytest.mark.slow
+def test_a_frequency_draw_a_source_refuses_is_one_sentence_before_any_sample(
+        tmp_path, eos_fmu_dir):
+    """The MOPITT scan at up to 100 times its rate would turn around longer than it
+    sweeps: refused, naming the draw, source and event, and no sample is run."""
+    from orchestrator.analysis.uncertainty import Uncertain
+
+    items = (Uncertain("f", "frequency", Distribution("uniform", 1.0, 100.0),
+                       instances=("dist_mopitt",)),)
+    camp = _eos_short(("MOPITT scan",), 1.0, {"samples": 4, "seed": 1, "confidence": (0.5,),
+                                              "parameters": items, "engine": "linear"})
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=eos_fmu_dir)
+    with pytest.raises(CampaignError, match=r"uncertain 'f' draws frequency_scale [0-9.]+ "
+                       r"for dist_mopitt in event 'MOPITT scan', which it refuses: scan "
+                       r"mirror source: turnaround must be shorter"):
+        run_uncertainty(camp, tmp_path, runner, progress=False)
+    assert not list(tmp_path.rglob("part-*.npz"))

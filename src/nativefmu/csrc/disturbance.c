@@ -45,7 +45,7 @@ typedef struct {
     Term active[MAX_TERMS]; /* chosen preset's terms, phases randomised */
     size_t n_active;
     int input_driven;
-    long preset, seed, use_speed, scale, start_time, stop_time, wheel_speed, out[6];
+    long preset, seed, use_speed, scale, start_time, stop_time, wheel_speed, out[6], freq;
 } Dist;
 
 #define DS ((Dist *)inst->model)
@@ -216,6 +216,7 @@ int model_instantiate(JfInstance *inst) {
     bad |= (m->start_time = jf_vr(inst, "start_time", JF_REAL)) < 0;
     bad |= (m->stop_time = jf_vr(inst, "stop_time", JF_REAL)) < 0;
     bad |= (m->wheel_speed = jf_vr(inst, "wheel_speed", JF_REAL)) < 0;
+    bad |= (m->freq = jf_vr(inst, "frequency_scale", JF_REAL)) < 0;
     for (i = 0; i < 6; i++) bad |= (m->out[i] = jf_vr(inst, wrench[i], JF_REAL)) < 0;
     if (bad || read_presets(inst, m) != JF_OK) return JF_ERROR;
     inst->n_state = 3;
@@ -368,11 +369,63 @@ static int random_record(JfInstance *inst, Term *t) {
     return ok ? JF_OK : JF_ERROR;
 }
 
+static const char *TERM_NAMES[] = {"", "Harmonic", "Chopper", "ScanMirror", "Slew", "Stepper",
+                                   "WheelImbalance", "Table", "BandLimitedRandom"};
+
+/* distfmu.presets.retimed on one term: its line and repetition frequencies times k (a scan
+ * period and a slew interval divided), with the checks the Python source makes. */
+static int retime_term(JfInstance *inst, Term *t, double k) {
+    double *p = t->p;
+    int type = (int)p[0];
+    switch (type) {
+    case HARMONIC: /* [1, f, ...] */
+    case CHOPPER:  /* [2, f, ...] */
+    case STEPPER:  /* [5, step_rate, ...] */
+        p[1] = p[1] * k;
+        return JF_OK;
+    case WHEEL: /* [..., speed] */
+        p[t->len - 1] = p[t->len - 1] * k;
+        return JF_OK;
+    case SCAN: { /* [3, inertia, period, amp, retrace, turnaround, ...] */
+        double r = p[4], shortest;
+        p[2] = p[2] / k;
+        shortest = (r < 1 - r ? r : 1 - r) * p[2];
+        if (!(p[5] < shortest)) {
+            jf_log(inst, 3, "scan mirror source: turnaround must be shorter than the retrace "
+                            "and the sweep (%g s), got %.17g s", shortest, p[5]);
+            return JF_ERROR;
+        }
+        return JF_OK;
+    }
+    case SLEW: /* [4, angle, rate, accel, inertia, start, axis(3), has_repeat, repeat, alt] */
+        if (p[9] != 0.0) {
+            double r1 = p[2] / p[3], r2 = sqrt(fabs(p[1]) / p[3]);
+            double ta = r1 < r2 ? r1 : r2, peak = p[3] * ta, rest = fabs(p[1]) - peak * ta;
+            double duration = 2 * ta + (rest > 0.0 ? rest : 0.0) / peak;
+            p[10] = p[10] / k;
+            if (!(p[10] >= duration)) {
+                jf_log(inst, 3, "slew source: repeat must be at least the slew duration %g s, "
+                                "got %.17g", duration, p[10]);
+                return JF_ERROR;
+            }
+            return JF_OK;
+        }
+        break; /* a single slew does not repeat */
+    default:
+        break;
+    }
+    jf_log(inst, 3, "a %s source does not repeat, so it has no frequency for frequency_scale "
+                    "to scale; leave frequency_scale at 1 for this disturbance",
+           type >= 1 && type <= 8 ? TERM_NAMES[type] : "?");
+    return JF_ERROR;
+}
+
 /* The chosen preset with distfmu.presets.randomized(source, seed) applied. */
 static int choose(JfInstance *inst) {
     Dist *m = DS;
     const char *name = inst->sv[m->preset];
     int seed = inst->iv[m->seed];
+    double factor = inst->r[m->freq];
     size_t i, j;
     free_active(m);
     m->chosen = NULL;
@@ -414,6 +467,22 @@ static int choose(JfInstance *inst) {
             return JF_ERROR;
     m->input_driven = inst->bv[m->use_speed] && m->n_active == 1 && !m->chosen->is_sum &&
                       (int)m->active[0].p[0] == WHEEL;
+    if (factor != 1.0) {
+        if (!(isfinite(factor) && factor > 0.0)) {
+            jf_log(inst, 3, "disturbance frequency_scale must be a positive finite number, "
+                            "got %.17g", factor);
+            return JF_ERROR;
+        }
+        if (inst->bv[m->use_speed]) {
+            jf_log(inst, 3, "disturbance frequency_scale cannot scale a wheel driven from the "
+                            "wheel_speed input (its speed is the input's); leave "
+                            "frequency_scale at 1");
+            return JF_ERROR;
+        }
+        /* no terms (no disturbance): nothing to scale */
+        for (j = 0; j < m->n_active; j++)
+            if (retime_term(inst, &m->active[j], factor) != JF_OK) return JF_ERROR;
+    }
     return JF_OK;
 }
 

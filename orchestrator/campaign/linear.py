@@ -29,7 +29,7 @@ import numpy as np
 from ..analysis import AnalysisError, linearize
 from ..analysis.blocks import _instance_block
 from ..analysis.fast import FastResponse
-from ..cosim import UnconnectedInputWarning, prepare
+from ..cosim import UnconnectedInputWarning, find_fmu, prepare, read_fmu_info
 from ..results import RunResult, package_versions, write_metadata, write_table
 from .runner import MasterRunner
 from .store import RESULTS_FILE, write_json
@@ -163,6 +163,25 @@ class LinearRunner:
             if cache:
                 self._source_blocks[key] = b
         return b
+
+    def parameter_names(self, scenario: dict, name: str) -> tuple:
+        """The parameters the FMU of instance ``name`` of a case declares.
+
+        Parameters
+        ----------
+        scenario : dict
+            A case's scenario data.
+        name : str
+            An instance of it.
+
+        Returns
+        -------
+        tuple of str
+        """
+        sc = self._master._scenario(scenario)
+        inst = next(i for i in sc.instances if i.name == name)
+        info = read_fmu_info(find_fmu(inst.fmu, sc, self.fmu_dir))
+        return tuple(k for k, v in info.variables.items() if v.causality == "parameter")
 
     @_locked
     def source_problem(self, scenario: dict, name: str, parameters: dict) -> str | None:

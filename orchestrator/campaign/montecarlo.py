@@ -276,6 +276,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                                                                        ctx)[:24]
     n, top = unc["samples"], unc.get("max_samples") or unc["samples"]
     rounds = []
+    _check_parameters(campaign, runner)
     while True:
         draws = draw(items, n, unc["seed"], freqs)
         _check_sources(campaign, runner, draws)
@@ -463,6 +464,40 @@ def _cosimulate(campaign, out_dir, ctx, draws, workers, scheduler, runner, bar):
     for _ in range(draws.n):
         bar.update("ok")
     return values, status
+
+
+# the FMU parameter each kind of draw sets; the linear engine applies an amplitude or a
+# gain to the loop itself, so only a co-simulated sample needs those two
+_SETS = {"phase": "seed", "frequency": "frequency_scale", "amplitude": "scale",
+         "gain": "gain"}
+
+
+def _check_parameters(campaign, runner) -> None:
+    """Refuse, before any sample runs, an uncertain input whose instance has no FMU
+    parameter for it (a phase or frequency draw on a source that is not a disturbance
+    FMU would otherwise change nothing), in one sentence."""
+    from .spec_base import CampaignError
+
+    cosim = campaign.uncertainty.get("engine") == "cosim"
+    seen = {}
+    for it in campaign.uncertainty["parameters"]:
+        if it.kind not in _SETS or (it.kind in ("amplitude", "gain") and not cosim):
+            continue
+        for inst in it.instances:
+            case = next((c for c in campaign.cases if not c.sweep
+                         and inst in c.scenario["fmus"]), None)
+            if case is None:
+                continue
+            if inst not in seen:
+                seen[inst] = runner.parameter_names(case.scenario, inst)
+            if _SETS[it.kind] not in seen[inst]:
+                fmu = case.scenario["fmus"][inst]["fmu"]
+                whose = "controllers" if it.kind == "gain" else "disturbance FMUs"
+                raise CampaignError(
+                    f"uncertain {it.name!r} ({it.kind}) sets {_SETS[it.kind]} of {inst}, "
+                    f"whose FMU {fmu!r} has no such parameter (it has "
+                    f"{', '.join(seen[inst]) or 'none'}); name instances of {whose} for "
+                    "this kind")
 
 
 def _check_sources(campaign, runner, draws) -> None:

@@ -737,3 +737,26 @@ def test_a_frequency_draw_a_source_refuses_is_one_sentence_before_any_sample(
                        r"mirror source: turnaround must be shorter"):
         run_uncertainty(camp, tmp_path, runner, progress=False)
     assert not list(tmp_path.rglob("part-*.npz"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind, engine, sets", [("phase", "linear", "seed"),
+                                               ("frequency", "linear", "frequency_scale"),
+                                               ("amplitude", "cosim", "scale")])
+def test_a_draw_on_an_instance_without_its_parameter_is_one_sentence(
+        tmp_path, truss_fmus, kind, engine, sets):
+    """The truss's excitation FMU has no seed, frequency_scale or scale: a phase or
+    frequency draw on it would change nothing (the linear engine reads those from the
+    source's parameters), a co-simulated amplitude would fail case by case.  Refused
+    before any sample, naming the parameter and what the FMU has."""
+    dist = {} if kind == "phase" else {"distribution": "uniform", "low": 0.9, "high": 1.1}
+    unc = {"samples": 2, "seed": 1, "confidence": [0.5], "engine": engine,
+           "parameters": [{"name": "u", "kind": kind, "instances": ["excitation"], **dist}]}
+    camp = campaign_from_dict(_campaign(unc))
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=truss_fmus)
+    with pytest.raises(CampaignError, match=rf"uncertain 'u' \({kind}\) sets {sets} of "
+                       r"excitation, whose FMU 'excitation' has no such parameter \(it has "
+                       r"amp1, freq1, .*\); name instances of disturbance FMUs"):
+        run_uncertainty(camp, tmp_path, runner, progress=False)
+    assert not list(tmp_path.rglob("part-*.npz"))
+    assert not (tmp_path / "uncertainty_cases").exists()

@@ -55,7 +55,8 @@ from .report_verdict import axes_by_event, dominant_by_axis, metric_words, verdi
 from .report_verdict import same_window as _same_window
 
 UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
-            "bootstrap 95 %", "converged", "requirement", "P(meet)"]
+            "bootstrap 95 %", "converged", "upper bound (assurance)", "requirement",
+            "P(meet)", "P(meet) lower bound"]
 
 __all__ = ["BudgetGrid", "ReportError", "budget_grid", "write_report"]
 

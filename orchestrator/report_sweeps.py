@@ -340,7 +340,7 @@ def uncertainty_sections(out_dir, instruments, unit):
     figures : list of (str, Figure)
     rows : list of list of str
         ``configuration, instrument, axis, metric, P_c, value, bootstrap interval,
-        converged, requirement, P(meet)``.
+        converged, upper bound, requirement, P(meet), its lower bound``.
     text : str
         The interpretation and sample count, or "" without an uncertainty run.
     """
@@ -390,8 +390,12 @@ def uncertainty_sections(out_dir, instruments, unit):
                                  "yes" if q["converged"] else "no" + (
                                      f" (about {q['samples_for_2pct']} samples)"
                                      if q.get("samples_for_2pct") else ""),
+                                 _bound_cell(q, ln.get("assurance")),
                                  _fmt(ln.get("requirement")),
-                                 _fmt(ln.get("p_meet"), 3)])
+                                 _fmt(ln.get("p_meet"), 3), _fmt(ln.get("p_meet_low"), 3)])
+                    if q.get("upper_rank") is not None and math.isfinite(q["upper_bound"]):
+                        axs[i][0].plot([q["upper_bound"]], [float(pc)], ">", ms=5,
+                                       mfc="none", color=line.get_color())
                 req = ln.get("requirement")
                 if req is not None and not math.isnan(req):
                     axs[i][0].axvline(req, color="crimson", ls="--", lw=1.0)
@@ -406,13 +410,16 @@ def uncertainty_sections(out_dir, instruments, unit):
             axs[i][0].set_ylabel(f"{axis}: P(X <= x)")
             axs[i][0].grid(alpha=0.3)
         axs[0][0].legend(fontsize=7, loc="lower right")
-        axs[-1][0].set_xlabel(f"RSS over the events ({unit}); dashed: requirement")
+        axs[-1][0].set_xlabel(f"RSS over the events ({unit})\ndashed: requirement; dot: "
+                              "value at P_c; triangle: its upper bound", fontsize=8)
         fig.suptitle(f"{inst}: budget distribution over {rep['samples']} samples", fontsize=11)
         fig.tight_layout()
         figures.append((f"{inst}: budget distribution", fig))
     text = (f"{rep['samples']} samples (seed {rep['seed']}), linear engine; "
             f"interpretation: {rep['interpretation']}; converged: the 95 % bootstrap "
-            "interval of the value is narrower than 2 % of it.")
+            "interval of the value is narrower than 2 % of it" + (
+                f"; {rep['bounds']} (assurance {rep['assurance']:g})"
+                if rep.get("bounds") else "") + ".")
     drivers = rep.get("drivers") or {}
 
     def most(key, cf):   # the input most related to a status, in words
@@ -433,6 +440,16 @@ def uncertainty_sections(out_dir, instruments, unit):
                      "exceeding every requirement (the CDF stops below 1).")
     text += _leaders(rep.get("lines", []))
     return figures, rows, text
+
+
+def _bound_cell(q: dict, assurance) -> str:
+    """A level's upper bound for the table: the value and its assurance, or the sample
+    count a bound needs; "" for a file written before bounds."""
+    if assurance is None or "upper_bound" not in q:
+        return ""
+    if q.get("upper_rank") is None:
+        return f"needs {q['samples_for_bound']} samples"
+    return f"{_fmt(q['upper_bound'])} ({100 * assurance:g} %)"
 
 
 def _leaders(lines) -> str:

@@ -26,12 +26,19 @@ import numpy as np
 from ..metrics import check_requirement
 
 __all__ = ["Distribution", "Uncertain", "draw", "statistics", "rank_correlation",
-           "first_order_index",
-           "INTERPRETATION", "UncertaintyError"]
+           "first_order_index", "quantile_upper_bound", "proportion_lower_bound",
+           "samples_for_bound", "INTERPRETATION", "ASSURANCE", "UncertaintyError"]
 
 INTERPRETATION = ("ensemble: each sample is the worst window of its record (it meets the "
                   "requirement only if it does at all times), the probability is over the "
                   "samples")
+
+#: What ``upper_bound`` and ``p_meet_low`` of :func:`statistics` state.
+ASSURANCE = ("upper_bound: an order statistic of the samples that lies above the true "
+             "P_c value with probability >= assurance, whatever the distribution of the "
+             "budget (binomial, exact for a continuous budget, conservative otherwise); "
+             "meets_assured: that bound is below the requirement, equivalently the "
+             "one-sided Clopper-Pearson bound p_meet_low of prob(X < X_max) is >= P_c")
 
 DISTRIBUTIONS = ("uniform", "normal", "lognormal")
 _BIG = np.finfo(float).max / 4   # the stand-in of an infinite sample
@@ -288,8 +295,105 @@ def _first_order(rx: np.ndarray, ry: np.ndarray, bins: int | None = None) -> flo
     return (eta2 - bias) / (1.0 - bias)
 
 
+def samples_for_bound(p: float, assurance: float) -> int:
+    """The fewest samples whose largest lies above the ``p``-quantile with probability
+    ``>= assurance``: the smallest ``n`` with ``1 - p^n >= assurance`` (59 for 95 % at
+    95 %, Wilks' count).
+
+    Parameters
+    ----------
+    p : float
+        The level of the quantile, in (0, 1).
+    assurance : float
+        The probability that the bound lies above the quantile, in (0, 1).
+
+    Returns
+    -------
+    int
+    """
+    _check_levels(p, assurance)
+    n = max(1, math.ceil(math.log1p(-assurance) / math.log(p)))
+    while n > 1 and -math.expm1((n - 1) * math.log(p)) >= assurance:   # rounding
+        n -= 1
+    while -math.expm1(n * math.log(p)) < assurance:
+        n += 1
+    return n
+
+
+def _check_levels(p: float, assurance: float) -> None:
+    if not (0 < p < 1 and 0 < assurance < 1):
+        raise UncertaintyError(f"a confidence bound needs a level and an assurance in "
+                               f"(0, 1); got {p!r} and {assurance!r}")
+
+
+def quantile_upper_bound(samples, p: float, assurance: float = 0.95) -> tuple:
+    """Distribution-free upper confidence bound of the ``p``-quantile of the samples.
+
+    The ``k``-th smallest of ``n`` independent samples lies above the true
+    ``p``-quantile ``q_p`` when fewer than ``k`` samples fall below ``q_p``, which has
+    the probability ``P(Binomial(n, p) <= k - 1)`` whatever the distribution (for a
+    continuous one; at least that otherwise).  The bound is the order statistic of the
+    smallest ``k`` that makes this ``>= assurance``: what a "95/95" statement of a
+    Monte Carlo budget quotes.
+
+    Parameters
+    ----------
+    samples : array_like, shape (n,)
+        Independent samples; ``inf`` stands for a sample outside the model (above every
+        bound).
+    p : float
+        The level of the quantile (the requirement's ``P_c``), in (0, 1).
+    assurance : float
+        The probability that the bound lies above ``q_p``, in (0, 1).
+
+    Returns
+    -------
+    (bound, k, need)
+        The bound (``inf`` when the samples are too few for one, or when the ``k``-th
+        sample is outside the model), its rank ``k`` (1-based; None when there is no
+        bound) and :func:`samples_for_bound`, the fewest samples that give one.
+    """
+    from scipy.special import bdtr
+
+    _check_levels(p, assurance)
+    x = np.sort(np.asarray(samples, float))
+    n, need = x.size, samples_for_bound(p, assurance)
+    if n < need:
+        return math.inf, None, need
+    cdf = bdtr(np.arange(n), n, p)              # P(Binomial(n, p) <= j), j = 0 .. n - 1
+    j = min(int(np.searchsorted(cdf, assurance)), n - 1)
+    return float(x[j]), j + 1, need
+
+
+def proportion_lower_bound(successes: int, n: int, assurance: float = 0.95) -> float:
+    """One-sided Clopper-Pearson lower confidence bound of a probability from
+    ``successes`` of ``n`` independent trials: the ``p`` at which ``P(Binomial(n, p) >=
+    successes) = 1 - assurance`` (0 without a success).
+
+    Parameters
+    ----------
+    successes, n : int
+        Counts, ``0 <= successes <= n``, ``n >= 1``.
+    assurance : float
+        The probability that the bound lies below the true probability, in (0, 1).
+
+    Returns
+    -------
+    float
+    """
+    from scipy.special import betaincinv
+
+    _check_levels(0.5, assurance)
+    if not 0 <= successes <= n or n < 1:
+        raise UncertaintyError(f"{successes} successes of {n} trials is not a count")
+    if successes == 0:
+        return 0.0
+    return float(betaincinv(successes, n - successes + 1, 1.0 - assurance))
+
+
 def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *,
-               inputs: dict | None = None, n_boot: int = 400, seed: int = 0) -> dict:
+               inputs: dict | None = None, n_boot: int = 400, seed: int = 0,
+               assurance: float = 0.95) -> dict:
     """ECSS statistics of the samples of one budget value.
 
     Parameters
@@ -306,6 +410,9 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         Bootstrap resamples of the quantile interval.
     seed : int
         Seed of the bootstrap.
+    assurance : float
+        The probability with which ``upper_bound`` lies above the true value at each
+        level (:func:`quantile_upper_bound`), in (0, 1).
 
     Returns
     -------
@@ -314,9 +421,14 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         sample outside the model, which fails every bound), ``quantiles`` (``P_c -> {value, low, high, rel_width,
         converged}``, the 95 % bootstrap interval and ``converged`` when its width is
         below 2 % of the value, ``samples_for_2pct`` the sample count at which it would be
-        (the interval narrowing as ``1/sqrt(n)``; None when the value is infinite), and
-        ``meets``: ``prob(X < X_max) >= P_c``), ``p_meet``
-        (fraction of samples ``< X_max``, with its binomial standard error ``p_meet_se``), ``sensitivity`` (input -> rank
+        (the interval narrowing as ``1/sqrt(n)``; None when the value is infinite),
+        ``upper_bound`` with its rank ``upper_rank`` and ``samples_for_bound``
+        (:func:`quantile_upper_bound`: above the true value with probability
+        ``>= assurance``, whatever the distribution), ``meets``: ``prob(X < X_max) >=
+        P_c`` on the samples, and ``meets_assured``: ``upper_bound < X_max``), ``p_meet``
+        (fraction of samples ``< X_max``, with its binomial standard error ``p_meet_se``
+        and its Clopper-Pearson lower bound ``p_meet_low`` at ``assurance``),
+        ``assurance``, ``sensitivity`` (input -> rank
         correlation, largest magnitude first), ``first_order`` (input ->
         :func:`first_order_index`, largest first: what drives the budget whether or not
         monotonically) and ``interpretation``.
@@ -330,7 +442,7 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
     out = {"n": int(x.size), "n_infinite": int(x.size - fin.size),
            "mean": float(fin.mean()) if fin.size else math.inf,
            "std": float(fin.std(ddof=1)) if fin.size > 1 else 0.0, "quantiles": {},
-           "interpretation": INTERPRETATION}
+           "interpretation": INTERPRETATION, "assurance": float(assurance)}
     top = float(fin.max()) if fin.size else -math.inf
 
     def cap(q):   # interpolated towards an infinite sample: infinite
@@ -347,16 +459,23 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         # the interval narrows as 1/sqrt(n): the samples it would take to reach 2 %
         need = (x.size if width < 0.02 else math.ceil(x.size * (width / 0.02) ** 2)
                 if 0 < width < math.inf else None)
+        ub, rank, least = quantile_upper_bound(x, pc, assurance)
         out["quantiles"][float(pc)] = {"value": v, "low": lo, "high": hi,
                                        "rel_width": width, "converged": bool(width < 0.02),
-                                       "samples_for_2pct": need}
+                                       "samples_for_2pct": need,
+                                       "upper_bound": cap(ub), "upper_rank": rank,
+                                       "samples_for_bound": least}
     if not math.isnan(requirement):
         for pc in confidence:
             chk = check_requirement(x[:, None], requirement, pc, "ensemble")
-            out["quantiles"][float(pc)]["meets"] = bool(chk.passed)
+            q = out["quantiles"][float(pc)]
+            q["meets"] = bool(chk.passed)
+            q["meets_assured"] = bool(q["upper_bound"] < requirement)
         p = check_requirement(x[:, None], requirement, 1.0, "ensemble").probability
         out["p_meet"] = p
         out["p_meet_se"] = math.sqrt(max(p * (1 - p), 0.0) / x.size)
+        out["p_meet_low"] = proportion_lower_bound(int(np.sum(x < requirement)), x.size,
+                                                   assurance)
     ry = _ranks(x)   # each sample's ranks once for both measures
     ranked = {name: _ranks(np.asarray(v, float)) for name, v in (inputs or {}).items()}
     sens = {name: _rank_corr(rv, ry) for name, rv in ranked.items()}

@@ -64,7 +64,8 @@ def _lines(campaign, ctx, draws, values, status) -> tuple:
         req = campaign.requirement(inst, axis, kind, window)
         st = statistics(x[ok], unc["confidence"], req,
                         inputs={nm: v[ok] for nm, v in scalar.items()},
-                        seed=unc["seed"]) if ok.any() else {}
+                        seed=unc["seed"], assurance=unc.get("assurance", 0.95)
+                        ) if ok.any() else {}
         # the ten inputs of either ranking that lead it, with both measures
         keep = set(list(st.get("sensitivity", {}))[:10]) | set(list(st.get("first_order", {}))[:10])
         for key in ("sensitivity", "first_order"):
@@ -81,8 +82,13 @@ def _lines(campaign, ctx, draws, values, status) -> tuple:
                             "boot_low": q["low"], "boot_high": q["high"],
                             "converged": q["converged"],
                             "samples_for_2pct": q["samples_for_2pct"],
+                            "assurance": st["assurance"],
+                            "upper_bound": q["upper_bound"],
+                            "samples_for_bound": q["samples_for_bound"],
                             "requirement": req,
-                            "p_meet": st.get("p_meet", math.nan)})
+                            "meets_assured": q.get("meets_assured"),
+                            "p_meet": st.get("p_meet", math.nan),
+                            "p_meet_low": st.get("p_meet_low", math.nan)})
     return lines, summary
 
 
@@ -158,11 +164,12 @@ def _duration(seconds: float) -> str:
 
 def _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall) -> dict:
     """The content of ``uncertainty.json``."""
-    from ..analysis.uncertainty import INTERPRETATION
+    from ..analysis.uncertainty import ASSURANCE, INTERPRETATION
 
     unc = campaign.uncertainty
     configs = ctx["configs"]
     return {"samples": draws.n, "seed": unc["seed"], "confidence": list(unc["confidence"]),
+            "assurance": unc.get("assurance", 0.95), "bounds": ASSURANCE,
             "interpretation": INTERPRETATION, "engine": unc.get("engine", "linear"),
             "max_samples": unc.get("max_samples"), "rounds": rounds,
             "parameters": [{"name": it.name, "kind": it.kind, "instances":

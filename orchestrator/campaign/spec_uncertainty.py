@@ -1,5 +1,5 @@
-"""The ``[uncertainty]`` table of a campaign file: sample counts, seed, confidence levels
-and the uncertain inputs, each checked and refused in one sentence before any case runs."""
+"""The ``[uncertainty]`` table of a campaign file: sample counts, seed, confidence levels,
+the assurance of their bounds and the uncertain inputs, each checked and refused in one sentence before any case runs."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ from .spec_base import ENGINES, CampaignError, check_table_keys
 
 __all__ = ["parse_uncertainty"]
 
-_UNCERTAINTY_KEYS = ("samples", "max_samples", "seed", "confidence", "parameters", "engine")
+_UNCERTAINTY_KEYS = ("samples", "max_samples", "seed", "confidence", "assurance",
+                     "parameters", "engine")
 _PARAMETER_KEYS = ("name", "kind", "distribution", "low", "high", "mean", "std", "median",
                    "sigma", "instances", "per_mode", "band")
 
@@ -53,6 +54,12 @@ def parse_uncertainty(table, fmus: dict):
             for c in conf)):
         raise CampaignError(f"[uncertainty] confidence is {conf!r}; expected a list of "
                             "levels in (0, 1), e.g. [0.95, 0.9973]")
+    assurance = table.get("assurance", 0.95)
+    if isinstance(assurance, bool) or not isinstance(assurance, (int, float)) or not (
+            0 < assurance < 1):
+        raise CampaignError(f"[uncertainty] assurance is {assurance!r}; expected the "
+                            "probability in (0, 1) with which each level's upper bound lies "
+                            "above its true value, e.g. 0.95 (a 95/95 statement at P_c = 0.95)")
     engine = table.get("engine", "linear")
     if engine not in ENGINES:
         raise CampaignError(f"[uncertainty] engine is {engine!r}; expected one of "
@@ -114,5 +121,6 @@ def parse_uncertainty(table, fmus: dict):
                                 "co-simulation would need a structure FMU per sample for; "
                                 "run it on the linear engine (engine = \"linear\")")
     return {"samples": n, "max_samples": top, "seed": seed,
-            "confidence": tuple(float(c) for c in conf), "parameters": tuple(out),
+            "confidence": tuple(float(c) for c in conf), "assurance": float(assurance),
+            "parameters": tuple(out),
             "engine": engine}

@@ -189,8 +189,11 @@ def run(args) -> int:
                            + ("" if q["converged"] else " (not converged" + (
                                f"; about {q['samples_for_2pct']} samples would be)"
                                if q.get("samples_for_2pct") else ")"))
+                           + _bound_words(q, line.get("assurance"))
                            for pc, q in line.get("quantiles", {}).items())
             meet = (f", meets {line['requirement']:g} with p = {line['p_meet']:.3f}"
+                    + (f" (>= {line['p_meet_low']:.3f} at {100 * line['assurance']:g} % "
+                       "assurance)" if "p_meet_low" in line else "")
                     if "p_meet" in line else "")
             print(f"  {line['configuration']:<16} {line['instrument']:>6}/{line['axis']:<6}"
                   f" {qs} {line['unit']}{meet}")
@@ -246,3 +249,13 @@ def budget_lines(summary_path, limit: int = 20) -> list:
     if len(lines) > limit:
         out.append(f"  ... {len(lines) - limit} more lines in budget.csv")
     return out
+
+
+def _bound_words(q: dict, assurance) -> str:
+    """A level's distribution-free upper bound in words ("" for a file without one)."""
+    if assurance is None or "upper_bound" not in q:
+        return ""
+    at = f"{100 * assurance:g} % assurance"
+    if q.get("upper_rank") is None:
+        return f" (no bound at {at} below {q['samples_for_bound']} samples)"
+    return f" <= {q['upper_bound']:.4g} at {at}"

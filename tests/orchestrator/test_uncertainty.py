@@ -16,7 +16,9 @@ import numpy as np
 import pytest
 
 from orchestrator.analysis.uncertainty import (Distribution, UncertaintyError, draw,
-                                               rank_correlation, statistics)
+                                               proportion_lower_bound, quantile_upper_bound,
+                                               rank_correlation, samples_for_bound,
+                                               statistics)
 from orchestrator.campaign.spec import RSS_EVENT
 from orchestrator.campaign import (CampaignError, LinearRunner, campaign_from_dict,
                                    run_campaign, run_uncertainty)
@@ -100,6 +102,69 @@ def test_a_quantile_that_reaches_the_infinite_samples_is_infinite():
     assert st["quantiles"][0.95]["samples_for_2pct"] is None
 
 
+def test_the_fewest_samples_for_a_bound_are_wilks_counts():
+    """The largest of n samples lies above the p-quantile with probability 1 - p^n:
+    59 samples for 95 % at 95 % (Wilks), 459 for 99 % at 99 %, 1109 for 99.73 % at 95 %."""
+    assert samples_for_bound(0.95, 0.95) == 59 and 1 - 0.95**58 < 0.95 <= 1 - 0.95**59
+    assert samples_for_bound(0.99, 0.99) == 459
+    assert samples_for_bound(0.9973, 0.95) == 1109
+    x = np.arange(1.0, 59.0)                  # 58 samples: no bound yet
+    assert quantile_upper_bound(x, 0.95, 0.95) == (math.inf, None, 59)
+    assert quantile_upper_bound(np.arange(1.0, 60.0), 0.95, 0.95) == (59.0, 59, 59)
+
+
+def test_the_upper_bound_covers_the_true_quantile_as_often_as_it_says():
+    """Coverage against the closed form: for 200 uniform samples the bound is the k-th
+    order statistic with P(Binomial(200, 0.9) <= k - 1) >= 0.9 (the smallest such k),
+    and over 4000 independent runs it lies above the true 0.9-quantile (0.9) in that
+    fraction of them, within four binomial standard errors; the sample quantile itself
+    lies above it only about half the time."""
+    from math import comb
+    n, p, a = 200, 0.9, 0.9
+    cdf = np.cumsum([comb(n, j) * p**j * (1 - p)**(n - j) for j in range(n + 1)])
+    k = int(np.argmax(cdf >= a)) + 1
+    rng = np.random.default_rng(3)
+    runs = rng.uniform(size=(4000, n))
+    hits, plain = 0, 0
+    for x in runs:
+        b, rank, _ = quantile_upper_bound(x, p, a)
+        assert rank == k and b == np.sort(x)[k - 1]
+        hits += b >= p
+        plain += np.quantile(x, p) >= p
+    cover = cdf[k - 1]
+    assert abs(hits / 4000 - cover) < 4 * math.sqrt(cover * (1 - cover) / 4000)
+    assert cover >= a and plain / 4000 < 0.6
+
+
+def test_meets_assured_is_the_clopper_pearson_bound_of_p_meet():
+    """The order statistic below the requirement and the one-sided Clopper-Pearson
+    bound of prob(X < X_max) at or above P_c are one statement (for every requirement
+    between the samples); the lower bound is exact at its definition."""
+    from scipy.special import bdtr
+    x = np.random.default_rng(8).lognormal(0.0, 0.3, 500)
+    for req in np.quantile(x, np.linspace(0.85, 0.995, 40)) * 1.0000001:
+        st = statistics(x, [0.9, 0.95], req, seed=1)
+        for pc, q in st["quantiles"].items():
+            assert q["meets_assured"] == (st["p_meet_low"] >= pc)
+            assert q["upper_bound"] >= q["value"]
+    m = 450
+    lo = proportion_lower_bound(m, 500, 0.95)
+    assert 1 - bdtr(m - 1, 500, lo) == pytest.approx(0.05, rel=1e-9)
+    assert proportion_lower_bound(0, 10) == 0.0
+    with pytest.raises(UncertaintyError, match="11 successes of 10 trials"):
+        proportion_lower_bound(11, 10)
+
+
+def test_an_upper_bound_on_a_sample_outside_the_model_is_infinite():
+    """Samples outside the model count as above every value: a bound whose rank falls on
+    one is infinite, and never meets a requirement."""
+    x = np.concatenate([np.linspace(1.0, 2.0, 960), np.full(40, np.inf)])
+    st = statistics(x, [0.95], 10.0, seed=1)
+    q = st["quantiles"][0.95]
+    assert q["upper_rank"] > 960 and q["upper_bound"] == math.inf
+    assert math.isfinite(q["value"]) and q["meets"] and not q["meets_assured"]
+
+
 @pytest.fixture(scope="module")
 def truss_fmus(suite_fmus, suite_fmu_dir):
     from tests.orchestrator.test_truss10_campaign import FMUS
@@ -136,6 +201,11 @@ def test_uniform_amplitude_gives_the_closed_form_budget(tmp_path, truss_fmus):
         np.testing.assert_allclose(x, nominal[key] * factors, rtol=1e-9)
         q = line["quantiles"]["0.95"]["value"]
         assert abs(q / nominal[key] - (0.8 + 0.4 * 0.95)) < 0.01
+        # the 95/95 bound is the nominal times the factors' own order statistic
+        b, rank, _ = quantile_upper_bound(factors, 0.95, 0.95)
+        assert line["quantiles"]["0.95"]["upper_bound"] == pytest.approx(nominal[key] * b,
+                                                                         rel=1e-9)
+        assert line["quantiles"]["0.95"]["upper_rank"] == rank and line["assurance"] == 0.95
         if line["metric"] == "peak_to_peak":
             want = min(max((2.0 / nominal[key] - 0.8) / 0.4, 0.0), 1.0)
             assert abs(line["p_meet"] - want) <= 3 * max(line["p_meet_se"], 1 / 400)
@@ -183,6 +253,8 @@ def test_sensitivity_names_the_only_input_that_matters(tmp_path, truss_fmus):
     ({"parameters": [{"kind": "gain", "instances": ["a"], "distribution": "normal",
                       "mean": 1.0, "std": 0.0}]}, "std > 0"),
     ({"parameters": []}, "needs 'parameters'"),
+    ({"assurance": 1.0, "parameters": [{"kind": "phase", "instances": ["a"]}]},
+     "assurance is 1.0; expected the probability in \\(0, 1\\)"),
     ({"samples": 100, "max_samples": 50, "parameters": [
         {"kind": "phase", "instances": ["a"]}]}, "max_samples is 50; expected a whole "
                                                  "number >= samples \\(100\\)"),

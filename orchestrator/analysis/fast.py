@@ -98,6 +98,12 @@ class FastResponse(SteadyState):
     strict : bool
         Refuse an instance holding something the linear model leaves out (default);
         False compiles its linear part (what a transfer needs).
+    like : FastResponse, optional
+        A compiled loop of the same scenario whose blocks have the same non-zero
+        patterns (a Monte Carlo sample's loop and its nominal one): its memory state is
+        taken rather than found again, and the tick maps are built on those columns
+        only.  A block whose pattern differs (a loop at gain 0 switched on) makes this
+        loop find its own.
 
     Raises
     ------
@@ -107,7 +113,7 @@ class FastResponse(SteadyState):
         scenario.
     """
 
-    def __init__(self, lin, refs, strict: bool = True):
+    def __init__(self, lin, refs, strict: bool = True, like=None):
         self.lin = lin
         self.refs = tuple(refs)
         reasons = [u for b in lin.blocks.values() for u in b.unmodelled
@@ -145,15 +151,19 @@ class FastResponse(SteadyState):
         first = {}
         for k, sig in enumerate(sigs):
             first.setdefault(sig, k)
-        maps = {sig: self._tick_map(k) for sig, k in first.items()}   # one per kind of tick
-        n = lin.n
-        read = np.zeros(n, bool)
-        for M, _ in maps.values():
-            read |= np.any(M != 0.0, axis=0)
-        S = np.flatnonzero(read & _relevant(maps, rows))
+        if like is not None and self._same_pattern(like):
+            S = like._S   # the tick maps on the memory state's columns alone
+            maps = {sig: self._tick_map(k, S) for sig, k in first.items()}
+        else:
+            maps = {sig: self._tick_map(k) for sig, k in first.items()}  # a kind of tick each
+            read = np.zeros(lin.n, bool)
+            for M, _ in maps.values():
+                read |= np.any(M != 0.0, axis=0)
+            S = np.flatnonzero(read & _relevant(maps, rows))
+            maps = {sig: (M[:, S], N) for sig, (M, N) in maps.items()}
+        self._S = S
         self.n_memory = S.size
-        self._maps = {sig: (M[np.ix_(S, S)], N[S], M[np.ix_(rows, S)], N[rows])
-                      for sig, (M, N) in maps.items()}
+        self._maps = {sig: (M[S], N[S], M[rows], N[rows]) for sig, (M, N) in maps.items()}
         # the super-period as runs of one signature
         self._runs = []
         k = 0
@@ -176,20 +186,43 @@ class FastResponse(SteadyState):
     def _signature(self, k: int) -> tuple:
         return tuple(k % b.period == 0 for b in self.lin.blocks.values())
 
-    def _tick_map(self, k: int):
-        """``(M, N)`` of tick ``k``: ``X+ = M X + N w`` on the whole lifted state."""
+    def _same_pattern(self, like) -> bool:
+        """Whether ``like`` compiled the same scenario and records with blocks of the
+        same non-zero patterns (so the same memory state)."""
+        a, b = self.lin, like.lin
+        if (like.refs != self.refs or a.n != b.n or list(a.order) != list(b.order)
+                or a.blocks.keys() != b.blocks.keys()):
+            return False
+        for name, x in a.blocks.items():
+            y = b.blocks[name]
+            if x is y:
+                continue
+            if (x.kind, x.period, x.n) != (y.kind, y.period, y.n) or not np.array_equal(
+                    x.feedthrough, y.feedthrough):
+                return False
+            for u, v in ((x.A, y.A), (x.B, y.B), (x.C, y.C), (x.D, y.D)):
+                if u.shape != v.shape or not np.array_equal(u != 0.0, v != 0.0):
+                    return False
+        return True
+
+    def _tick_map(self, k: int, cols=None):
+        """``(M, N)`` of tick ``k``: ``X+ = M X + N w`` on the whole lifted state, ``M``
+        of the state columns ``cols`` only when given (the rows are independent
+        combinations of the columns: the same numbers as those columns of the whole)."""
         lin, n, m = self.lin, self.lin.n, self.m
-        X = np.zeros((n, n + m))
-        X[:, :n] = np.eye(n)
+        cols = np.arange(n) if cols is None else np.asarray(cols, int)
+        c = cols.size
+        X = np.zeros((n, c + m))
+        X[cols, np.arange(c)] = 1.0
 
         def w_next(name):
-            rows = np.zeros((len(lin.blocks[name].outputs), n + m))
-            off = n + self._in_off[name]
+            rows = np.zeros((len(lin.blocks[name].outputs), c + m))
+            off = c + self._in_off[name]
             rows[:, off:off + rows.shape[0]] = np.eye(rows.shape[0])
             return rows
 
         X = lin._tick(X, k, w_next)   # k < the super-period, a multiple of every period
-        return X[:, :n], X[:, n:]
+        return X[:, :c], X[:, c:]
 
     def _type(self, sig, L: int) -> _RunType:
         key = (sig, L)

@@ -140,7 +140,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                     if it.kind == "gain":
                         for j, inst in enumerate(it.instances):
                             lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
-                fr = FastResponse(lin, ctx["refs"])
+                fr = FastResponse(lin, ctx["refs"], like=ctx["base"][cf][2])
                 bad = unstable_poles(fr)
                 if bad:   # reported; the record is what the co-simulation would give
                     growth = abs(bad[0]) ** (record_ticks / fr.P)

@@ -28,6 +28,17 @@ from structfmu.errors import DimensionError, ModelError
 from structfmu.sensors import SensorLowpass
 
 
+def _frozen(value) -> np.ndarray:
+    """A float array the model may keep: an array a model froze before (its own data,
+    not writeable: what ``dataclasses.replace`` passes on) is kept as it is, so that a
+    copy of a model with other modes shares its Ritz block (and the discretisation
+    kept for it); anything else is copied."""
+    if (isinstance(value, np.ndarray) and value.dtype == np.float64
+            and not value.flags.writeable and value.flags.owndata):
+        return value
+    return np.array(value, float)
+
+
 @dataclass(frozen=True)
 class ReducedModel:
     """Reduced structure: modal block + Ritz block, inputs and named outputs.
@@ -77,7 +88,7 @@ class ReducedModel:
     accel_lowpass: SensorLowpass | None = None
 
     def __post_init__(self):
-        arrays = {k: np.array(getattr(self, k), float) for k in
+        arrays = {k: _frozen(getattr(self, k)) for k in
                   ("omega", "modal_damping", "B_e", "C_e", "K_oo", "D_oo", "B_o", "C_o")}
         n_m = arrays["omega"].shape[0]
         n_in = len(self.input_names)

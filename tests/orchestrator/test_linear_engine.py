@@ -453,3 +453,42 @@ def test_the_growing_eos_pole_is_the_acs_taking_damping_from_one_flexible_mode(e
 
     assert growing(with_damping(0.5))[0][0] > poles[0][0]
     assert growing(with_damping(1.5)) == []
+
+
+def test_a_samples_loop_compiled_like_its_nominal_one_gives_the_same_records(eos_pair):
+    """A Monte Carlo sample's loop takes its nominal loop's memory state and builds its
+    tick maps on those columns alone (``FastResponse(..., like=nominal)``): the same
+    memory state and records, to the last bit here and to round-off of the products'
+    shapes anywhere, as the loop found on its own; the Ritz block's discretisation is
+    shared with the nominal model (the arrays kept), the modes' are the sample's own.
+    A loop whose pattern differs (the isolation loops switched on) finds its own."""
+    import dataclasses
+
+    from orchestrator.analysis.blocks import structure_block
+    from orchestrator.analysis.fast import FastResponse
+    from structfmu.discrete import discretize
+
+    runner = eos_pair[-1]
+    cases = {c.configuration: c for c in _eos_campaign().cases if c.event == "RWA"}
+    off = runner.compiled(cases["isolation off"].scenario)
+    on = runner.compiled(cases["isolation on"].scenario)
+    b = off.lin.blocks["structure"]
+    rng = np.random.default_rng(4)
+    moved = dataclasses.replace(
+        b.model, omega=b.model.omega * rng.uniform(0.95, 1.05, b.model.n_modes),
+        modal_damping=b.model.modal_damping * rng.uniform(0.5, 2.0, b.model.n_modes))
+    assert moved.K_oo is b.model.K_oo                   # the frozen Ritz block is kept
+    d0, d1 = discretize(b.model, 1e-3), discretize(moved, 1e-3)
+    assert d1.Phi_o is d0.Phi_o and not np.array_equal(d1.a11, d0.a11)
+    lin = off.lin.with_block(structure_block(moved, "structure", b.period,
+                                             b.period * off.lin.base, b.feedthrough,
+                                             blockwise=True))
+    alone, like = FastResponse(lin, off.refs), FastResponse(lin, off.refs, like=off)
+    assert np.array_equal(alone._S, like._S) and like._same_pattern(off)
+    W = rng.standard_normal((401, off.m))
+    got, want = like.run(W, check=False), alone.run(W, check=False)
+    peak = np.maximum(np.abs(want.values).max(axis=0), 1e-300)
+    assert np.max(np.abs(got.values - want.values) / peak) < 1e-12
+    # isolation on drives the controllers that isolation off leaves at gain 0
+    other = FastResponse(on.lin, on.refs, like=off)
+    assert not other._same_pattern(off) and other.n_memory == on.n_memory > off.n_memory

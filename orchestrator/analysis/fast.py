@@ -439,7 +439,7 @@ class FastResponse(SteadyState):
         return self.run_many([W], check)[0]
 
     def run_many(self, Ws, check: bool = True, bound_limits: bool = False,
-                 scales=None) -> list:
+                 scales=None, actives=None, start: int = 0) -> list:
         """The records driven by each ``W`` of ``Ws``, from rest, computed together.
 
         The events of one configuration share its loop: their state recursions are one
@@ -463,6 +463,13 @@ class FastResponse(SteadyState):
         scales : sequence of ndarray, shape (m,), optional
             Per record, a factor on each source channel: the record of ``W * scale``
             without that copy of ``W`` (a Monte Carlo sample's amplitudes).
+        actives : sequence of ndarray of int, optional
+            Per record, the source channels its ``W`` drives (default: the columns of
+            ``W`` that are not all zero; a channel listed but zero costs only time).
+        start : int
+            The first tick whose recorded references are needed: a run that ends before
+            it computes only the checked outputs a bound does not clear, and its
+            references are NaN (what a campaign's ``skip`` discards).
 
         Returns
         -------
@@ -476,7 +483,9 @@ class FastResponse(SteadyState):
             raise AnalysisError(f"every input matrix of a batch must have shape ({K}, "
                                 f"{self.m}); got {', '.join(str(W.shape) for W in Ws)}")
         E, s = len(Ws), self.n_memory
-        actives = [np.flatnonzero(np.any(W != 0.0, axis=0)) for W in Ws]
+        if actives is None:
+            actives = [np.flatnonzero(np.any(W != 0.0, axis=0)) for W in Ws]
+        actives = [np.asarray(a, int) for a in actives]
         r = len(self._computed) + len(set(self._check_col) - set(range(len(self._computed))))
         # the runs of the record, in order: (type key, start)
         units = []
@@ -488,7 +497,7 @@ class FastResponse(SteadyState):
                 units.append(((sig, min(L, K - k)), k))
                 k += L
         by_type = {}
-        for i, (key, start) in enumerate(units):
+        for i, (key, _) in enumerate(units):
             by_type.setdefault(key, []).append(i)
         types = {key: self._type(*key) for key in by_type}
         windows = {key: np.array([units[i][1] for i in idx])[:, None] + np.arange(types[key].L)
@@ -543,20 +552,30 @@ class FastResponse(SteadyState):
         need = np.flatnonzero(~skip)
         at = np.cumsum(~skip) - 1           # the column of each computed row
         Y = np.zeros((E, K, need.size))
+        checked = np.zeros(r, bool)
+        checked[self._check_col] = True
+        if start > 0:   # a reference no limit checks is not needed before start
+            Y[:, :start, at[np.flatnonzero(~checked[:n_ref])]] = np.nan
         for key, idx in by_type.items():
-            t, n_u = types[key], len(idx)
-            sel = np.flatnonzero(~skip[t.live])
-            X = X0[:, idx].reshape(E * n_u, s)
-            out = (X @ self._rows(t, sel).T).reshape(E, n_u, t.L * sel.size)   # free
-            for e, (Wa, active) in enumerate(zip(Was, actives)):
-                if active.size:
-                    out[e] += self._forced(t, active, Wa[windows[key]], sel)
-            rows = windows[key].ravel()
-            out = out.reshape(E, n_u * t.L, sel.size)
-            if sel.size == need.size:
-                Y[:, rows] = out
-            else:
-                Y[:, rows[:, None], at[t.live[sel]]] = out
+            t = types[key]
+            early = windows[key][:, -1] < start
+            for part, refs_too in ((~early, True), (early, False)):
+                sel = np.flatnonzero(~skip[t.live] & (refs_too | checked[t.live]))
+                if not part.any() or not sel.size:
+                    continue
+                pidx, win = np.asarray(idx)[part], windows[key][part]
+                n_u = len(pidx)
+                X = X0[:, pidx].reshape(E * n_u, s)
+                out = (X @ self._rows(t, sel).T).reshape(E, n_u, t.L * sel.size)  # free
+                for e, (Wa, active) in enumerate(zip(Was, actives)):
+                    if active.size:
+                        out[e] += self._forced(t, active, Wa[win], sel)
+                rows = win.ravel()
+                out = out.reshape(E, n_u * t.L, sel.size)
+                if sel.size == need.size:
+                    Y[:, rows] = out
+                else:
+                    Y[:, rows[:, None], at[t.live[sel]]] = out
         return [self._record(y, check, np.where(skip, b, np.nan)) for y, b in zip(Y, bounds)]
 
     def _record(self, Y: np.ndarray, check: bool, bounds=None) -> Record:

@@ -90,7 +90,8 @@ def _setup(campaign, runner):
         for ev in events:
             sc = case_of[(cf, ev)].scenario
             inputs[(cf, ev)] = (sc, runner.inputs(runner.compiled(sc), sc))
-    return {**ctx, "base": base, "inputs": inputs, "models": models}
+    actives = {key: np.flatnonzero(np.any(W != 0.0, axis=0)) for key, (_, W) in inputs.items()}
+    return {**ctx, "base": base, "inputs": inputs, "models": models, "actives": actives}
 
 
 def _digest(model) -> str:
@@ -120,6 +121,10 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     tb = lin0.plan.timebase
     dt = tb.output_ticks * float(tb.base)
     record_ticks = tb.n_ticks
+    # the first tick the metrics read (the campaign's skip): the lines of sight before it
+    # are not computed, the limits are checked over the whole record
+    first = int(np.searchsorted(lin0.plan.timebase.times(range(record_ticks + 1)),
+                                campaign.skip + float(tb.start) - 0.5 * dt))
     values = np.full((len(samples), len(ctx["configs"]), len(ctx["events"]),
                       len(ctx["pairs"]), len(campaign.metrics)), np.nan)
     status = np.zeros((len(samples), len(ctx["configs"])), int)
@@ -148,8 +153,14 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
             # the events of a configuration share its loop: computed together
             Ws, scales = zip(*(_sample_input(runner, fr, *ctx["inputs"][(cf, ev)], draws,
                                              items, s) for ev in ctx["events"]))
+            # the channels each event drives, found once unless the sample redrew it
+            actives = [ctx["actives"][(cf, ev)] if W is ctx["inputs"][(cf, ev)][1] else None
+                       for ev, W in zip(ctx["events"], Ws)]
+            actives = [a if a is not None else np.flatnonzero(np.any(W != 0.0, axis=0))
+                       for a, W in zip(actives, Ws)]
             for ei, rec in enumerate(fr.run_many(Ws, check=False, bound_limits=True,
-                                                 scales=scales)):
+                                                 scales=scales, actives=actives,
+                                                 start=first)):
                 if rec.reached:   # a rail or limit: outside the linear model
                     values[row, ci] = np.inf
                     status[row, ci] |= LIMIT

@@ -21,8 +21,8 @@ Run::
   the samples.
 * **The exact floor of a sample** (``--no-floor`` leaves it out): the products an exact
   engine cannot leave out, on the nominal loops the samples perturb (their memory
-  states, live rows and driven channels): the free responses of the 24 records, the row
-  and column Krylov products of every run type (in the doubling steps the engine uses),
+  states, live rows and driven channels): the free responses of the 24 records after the
+  campaign's skip (the lines of sight before it are not needed), the row and column Krylov products of every run type (in the doubling steps the engine uses),
   its ``M^L`` and the eigenvalues of the super-period map.  Printed as flops over this machine's one-thread square dgemm rate
   (a lower bound: no product runs faster than that), and as the same products timed in
   their own shapes on one thread; beside it, the measured cost of a sample.
@@ -81,6 +81,9 @@ def _products(camp, runner) -> tuple:
         Ws = [mcm._sample_input(runner, fr, *ctx["inputs"][(cf, ev)], draws, items, 0)[0]
               for ev in ctx["events"]]
         E, K = len(Ws), Ws[0].shape[0]
+        # the lines of sight a campaign's skip discards are not needed (their limits are:
+        # bounded from the states, which the recursion gives)
+        kept = (K - mcm.first_tick(camp, lin)) / K
         k = np.unique(np.concatenate([np.flatnonzero(np.any(W != 0, axis=0))
                                       for W in Ws])).size
         n_los = len(fr._computed)
@@ -98,7 +101,7 @@ def _products(camp, runner) -> tuple:
                     gemms += [(1, (hi - lo) * t.live.size, s, s),   # row Krylov C M^q
                               (1, s, s, (hi - lo) * k)]             # column Krylov M^q N
                 gemms.append((L.bit_length() + bin(L).count("1") - 2, s, s, s))   # M^L
-            gemms.append((1, E * n_u, s, L * n_los))      # free responses
+            gemms.append((1, E * max(1, round(n_u * kept)), s, L * n_los))   # free
         eigs.append(balance(fr.period_map())[0])
         rows.append(f"{cf}: memory state {s}, live rows {'/'.join(map(str, lives))}, "
                     f"{k} driven channels, {E} records of {K} ticks, {n_los} lines")

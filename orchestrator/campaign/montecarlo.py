@@ -121,10 +121,9 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     tb = lin0.plan.timebase
     dt = tb.output_ticks * float(tb.base)
     record_ticks = tb.n_ticks
-    # the first tick the metrics read (the campaign's skip): the lines of sight before it
-    # are not computed, the limits are checked over the whole record
-    first = int(np.searchsorted(lin0.plan.timebase.times(range(record_ticks + 1)),
-                                campaign.skip + float(tb.start) - 0.5 * dt))
+    # the lines of sight before the first tick the metrics read are not computed; the
+    # limits are checked over the whole record
+    first = first_tick(campaign, lin0)
     values = np.full((len(samples), len(ctx["configs"]), len(ctx["events"]),
                       len(ctx["pairs"]), len(campaign.metrics)), np.nan)
     status = np.zeros((len(samples), len(ctx["configs"])), int)
@@ -169,6 +168,15 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                 x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
                 values[row, ci, ei] = metric_values(x.T, dt, campaign.metrics)
     return values, status
+
+
+def first_tick(campaign, lin) -> int:
+    """The first tick of a record whose line of sight the metrics read (the campaign's
+    ``skip``, as :func:`_evaluate` keeps the ticks)."""
+    tb = lin.plan.timebase
+    dt = tb.output_ticks * float(tb.base)
+    return int(np.searchsorted(tb.times(range(tb.n_ticks + 1)),
+                               campaign.skip + float(tb.start) - 0.5 * dt))
 
 
 _WORKER: dict = {}   # per worker process: the compiled loops of the campaign it serves

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import math
 import os
 import sys
 from pathlib import Path
@@ -253,8 +254,8 @@ def budget_lines(summary_path, limit: int = 20) -> list:
 
 def _bound_words(q: dict, assurance) -> str:
     """A level's distribution-free upper bound in words ("" for a file without one)."""
-    if assurance is None or "upper_bound" not in q:
-        return ""
+    if assurance is None or "upper_bound" not in q or not math.isfinite(q["value"]):
+        return ""   # no bound to give above a value that is already out of the model
     at = f"{100 * assurance:g} % assurance"
     if q.get("upper_rank") is None:
         return f" (no bound at {at} below {q['samples_for_bound']} samples)"

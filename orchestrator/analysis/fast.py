@@ -43,7 +43,7 @@ import scipy.fft as sfft
 
 from .blocks import AnalysisError
 from .fastparts import (Record, _causal_conv, _doubling, _fft_length, _power, _powers,
-                        _relevant)
+                        _relevant, _same_pattern, _tick_map)
 from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
@@ -151,11 +151,11 @@ class FastResponse(SteadyState):
         first = {}
         for k, sig in enumerate(sigs):
             first.setdefault(sig, k)
-        if like is not None and self._same_pattern(like):
+        if like is not None and _same_pattern(self, like):
             S = like._S   # the tick maps on the memory state's columns alone
-            maps = {sig: self._tick_map(k, S) for sig, k in first.items()}
+            maps = {sig: _tick_map(self, k, S) for sig, k in first.items()}
         else:
-            maps = {sig: self._tick_map(k) for sig, k in first.items()}  # a kind of tick each
+            maps = {sig: _tick_map(self, k) for sig, k in first.items()}  # a kind of tick each
             read = np.zeros(lin.n, bool)
             for M, _ in maps.values():
                 read |= np.any(M != 0.0, axis=0)
@@ -185,44 +185,6 @@ class FastResponse(SteadyState):
 
     def _signature(self, k: int) -> tuple:
         return tuple(k % b.period == 0 for b in self.lin.blocks.values())
-
-    def _same_pattern(self, like) -> bool:
-        """Whether ``like`` compiled the same scenario and records with blocks of the
-        same non-zero patterns (so the same memory state)."""
-        a, b = self.lin, like.lin
-        if (like.refs != self.refs or a.n != b.n or list(a.order) != list(b.order)
-                or a.blocks.keys() != b.blocks.keys()):
-            return False
-        for name, x in a.blocks.items():
-            y = b.blocks[name]
-            if x is y:
-                continue
-            if (x.kind, x.period, x.n) != (y.kind, y.period, y.n) or not np.array_equal(
-                    x.feedthrough, y.feedthrough):
-                return False
-            for u, v in ((x.A, y.A), (x.B, y.B), (x.C, y.C), (x.D, y.D)):
-                if u.shape != v.shape or not np.array_equal(u != 0.0, v != 0.0):
-                    return False
-        return True
-
-    def _tick_map(self, k: int, cols=None):
-        """``(M, N)`` of tick ``k``: ``X+ = M X + N w`` on the whole lifted state, ``M``
-        of the state columns ``cols`` only when given (the rows are independent
-        combinations of the columns: the same numbers as those columns of the whole)."""
-        lin, n, m = self.lin, self.lin.n, self.m
-        cols = np.arange(n) if cols is None else np.asarray(cols, int)
-        c = cols.size
-        X = np.zeros((n, c + m))
-        X[cols, np.arange(c)] = 1.0
-
-        def w_next(name):
-            rows = np.zeros((len(lin.blocks[name].outputs), c + m))
-            off = c + self._in_off[name]
-            rows[:, off:off + rows.shape[0]] = np.eye(rows.shape[0])
-            return rows
-
-        X = lin._tick(X, k, w_next)   # k < the super-period, a multiple of every period
-        return X[:, :c], X[:, c:]
 
     def _type(self, sig, L: int) -> _RunType:
         key = (sig, L)

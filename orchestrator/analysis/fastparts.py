@@ -139,3 +139,44 @@ def _power(M: np.ndarray, L: int, powers: tuple) -> np.ndarray:
         if L >> j & 1:
             out = P if out is None else P @ out
     return out
+
+
+def _same_pattern(fr, like) -> bool:
+    """Whether the compiled loop ``like`` is of the same scenario and records as ``fr``
+    (a :class:`~orchestrator.analysis.fast.FastResponse` being built) with blocks of the
+    same non-zero patterns (so the same memory state)."""
+    a, b = fr.lin, like.lin
+    if (like.refs != fr.refs or a.n != b.n or list(a.order) != list(b.order)
+            or a.blocks.keys() != b.blocks.keys()):
+        return False
+    for name, x in a.blocks.items():
+        y = b.blocks[name]
+        if x is y:
+            continue
+        if (x.kind, x.period, x.n) != (y.kind, y.period, y.n) or not np.array_equal(
+                x.feedthrough, y.feedthrough):
+            return False
+        for u, v in ((x.A, y.A), (x.B, y.B), (x.C, y.C), (x.D, y.D)):
+            if u.shape != v.shape or not np.array_equal(u != 0.0, v != 0.0):
+                return False
+    return True
+
+def _tick_map(fr, k: int, cols=None):
+    """``(M, N)`` of tick ``k`` of the loop ``fr``: ``X+ = M X + N w`` on the whole
+    lifted state, ``M``
+    of the state columns ``cols`` only when given (the rows are independent
+    combinations of the columns: the same numbers as those columns of the whole)."""
+    lin, n, m = fr.lin, fr.lin.n, fr.m
+    cols = np.arange(n) if cols is None else np.asarray(cols, int)
+    c = cols.size
+    X = np.zeros((n, c + m))
+    X[cols, np.arange(c)] = 1.0
+
+    def w_next(name):
+        rows = np.zeros((len(lin.blocks[name].outputs), c + m))
+        off = c + fr._in_off[name]
+        rows[:, off:off + rows.shape[0]] = np.eye(rows.shape[0])
+        return rows
+
+    X = lin._tick(X, k, w_next)   # k < the super-period, a multiple of every period
+    return X[:, :c], X[:, c:]

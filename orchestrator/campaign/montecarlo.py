@@ -171,8 +171,20 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
 
 
 def first_tick(campaign, lin) -> int:
-    """The first tick of a record whose line of sight the metrics read (the campaign's
-    ``skip``, as :func:`_evaluate` keeps the ticks)."""
+    """The first tick of a record whose line of sight the metrics read.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Its ``skip`` (s) is what the metrics leave out, as :func:`_evaluate` keeps the
+        ticks.
+    lin : LinearScenario
+        A loop of the campaign (its time base).
+
+    Returns
+    -------
+    int
+    """
     tb = lin.plan.timebase
     dt = tb.output_ticks * float(tb.base)
     return int(np.searchsorted(tb.times(range(tb.n_ticks + 1)),

@@ -477,6 +477,7 @@ def test_a_samples_loop_compiled_like_its_nominal_one_gives_the_same_records(eos
 
     from orchestrator.analysis.blocks import structure_block
     from orchestrator.analysis.fast import FastResponse
+    from orchestrator.analysis.fastparts import _same_pattern
     from structfmu.discrete import discretize
 
     runner = eos_pair[-1]
@@ -495,11 +496,11 @@ def test_a_samples_loop_compiled_like_its_nominal_one_gives_the_same_records(eos
                                              b.period * off.lin.base, b.feedthrough,
                                              blockwise=True))
     alone, like = FastResponse(lin, off.refs), FastResponse(lin, off.refs, like=off)
-    assert np.array_equal(alone._S, like._S) and like._same_pattern(off)
+    assert np.array_equal(alone._S, like._S) and _same_pattern(like, off)
     W = rng.standard_normal((401, off.m))
     got, want = like.run(W, check=False), alone.run(W, check=False)
     peak = np.maximum(np.abs(want.values).max(axis=0), 1e-300)
     assert np.max(np.abs(got.values - want.values) / peak) < 1e-12
     # isolation on drives the controllers that isolation off leaves at gain 0
     other = FastResponse(on.lin, on.refs, like=off)
-    assert not other._same_pattern(off) and other.n_memory == on.n_memory > off.n_memory
+    assert not _same_pattern(other, off) and other.n_memory == on.n_memory > off.n_memory

@@ -126,7 +126,9 @@ _RITZ_ZOH: dict = {}
 def _ritz_zoh(K, D, h):
     """:func:`block_zoh` of the Ritz block, kept for the next model with the same arrays
     (a Monte Carlo sample's modes: the exponential of the block is 5 ms of the EOS
-    model's 6.6 ms discretisation)."""
+    model's 6.6 ms discretisation).  Equal to a fresh one to round-off, not always to
+    the bit (the BLAS thread count of the call that made it): the linear engine's
+    alone."""
     key = (id(K), id(D), float(h))
     hit = _RITZ_ZOH.get(key)
     if hit is None or hit[0] is not K or hit[1] is not D:
@@ -178,7 +180,12 @@ def discretize(model: ReducedModel, h: float,
         Step (s); positive and finite.
     blockwise_filter : bool
         The accelerometer filter's rows by :func:`filter_zoh` (block by block, equal to
-        round-off) instead of one exponential of the whole model (what the FMU steps).
+        round-off) instead of one exponential of the whole model (what the FMU steps),
+        and the Ritz block's exponential kept between models that share the block (a
+        Monte Carlo sample's modes).  Without it every exponential is taken afresh: what
+        an FMU packs, whose bits must not depend on what ran before in the process (the
+        Ritz block's exponential under one BLAS thread differs from the one under two in
+        its last bits: 2.7e-12 on the EOS model).
 
     Returns
     -------
@@ -188,7 +195,7 @@ def discretize(model: ReducedModel, h: float,
     if not (np.isfinite(h) and h > 0):
         raise ValueError(f"discretisation step must be positive and finite, got {h!r}")
     a11, a12, a21, a22, g1, g2 = modal_zoh(model.omega, model.modal_damping, h)
-    Phi_o, Gam_o = _ritz_zoh(model.K_oo, model.D_oo, h)
+    Phi_o, Gam_o = (_ritz_zoh if blockwise_filter else block_zoh)(model.K_oo, model.D_oo, h)
     G_o = Gam_o @ model.B_o if model.n_ritz else np.zeros((0, model.n_inputs))
     if model.n_filter_states == 0:
         F_x, F_u = None, None

@@ -6,6 +6,14 @@ side by side in two threads.  Each thread asks OpenBLAS for one thread of its ow
 (``openblas_set_num_threads_local``, OpenBLAS 0.3.27 and newer): N threads of
 two-threaded products on N cores would fight over them.  Where that call is missing
 (another BLAS, another OS), the threads run all the same.
+
+The "local" count is not the worker's alone: after a worker thread has set it, the
+process's other threads compute with it too (measured with the OpenBLAS numpy and scipy
+ship).  A pool of such workers (:func:`map_threads`, the linear engine's cases) runs
+inside :func:`blas_threads_kept`, which gives the process its count back: without it,
+every later product of the process ran on one thread, and the exponential an FMU build
+packs (the stiff Ritz block's) moved in its last bits, so that an FMU built after a
+linear campaign differed from one built before.
 """
 
 from __future__ import annotations
@@ -14,8 +22,9 @@ import ctypes
 import functools
 import os
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 
-__all__ = ["map_threads", "one_blas_thread"]
+__all__ = ["blas_thread_counts", "blas_threads_kept", "map_threads", "one_blas_thread"]
 
 
 @functools.cache
@@ -45,6 +54,29 @@ def one_blas_thread() -> None:
         setter(1)
 
 
+def blas_thread_counts() -> list:
+    """The thread count every loaded OpenBLAS uses for the calling thread (empty where
+    the call is missing)."""
+    setters = _local_setters()
+    counts = [fn(1) for fn in setters]   # the call returns the count it replaces
+    for fn, n in zip(setters, counts):
+        fn(n)
+    return counts
+
+
+@contextmanager
+def blas_threads_kept():
+    """Give every loaded OpenBLAS the calling thread's count back when the block ends
+    (the block's worker threads may take one each: :func:`one_blas_thread`)."""
+    setters = _local_setters()
+    before = blas_thread_counts()
+    try:
+        yield
+    finally:
+        for fn, n in zip(setters, before):
+            fn(n)
+
+
 def map_threads(fn, items, workers: int | None = None) -> list:
     """``[fn(x) for x in items]``, the items in threads (one BLAS thread each).
 
@@ -65,5 +97,5 @@ def map_threads(fn, items, workers: int | None = None) -> list:
     n = min(len(items), workers or os.cpu_count() or 1)
     if n <= 1:
         return [fn(x) for x in items]
-    with ThreadPoolExecutor(n, initializer=one_blas_thread) as pool:
+    with blas_threads_kept(), ThreadPoolExecutor(n, initializer=one_blas_thread) as pool:
         return list(pool.map(fn, items))

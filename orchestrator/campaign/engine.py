@@ -231,29 +231,32 @@ def _run_threads(todo, args, on_done):
     """The linear engine's cases in threads of this process, one per core: they share
     its compiled loops (a configuration is closed once: the runner's lock holds the
     others back while it is), and their products and the window kernel release the GIL;
-    one BLAS thread each."""
+    one BLAS thread each, and the process's own count back afterwards (a worker's leaks
+    into the process: :func:`orchestrator.analysis._threads.blas_threads_kept`)."""
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
-    from ..analysis._threads import one_blas_thread
+    from ..analysis._threads import blas_threads_kept, one_blas_thread
 
-    pool = ThreadPoolExecutor(min(len(todo), os.cpu_count() or 1),
-                              initializer=one_blas_thread)
-    futs = {pool.submit(execute_case, case, *args): case for case in todo}
-    reported = set()
-    try:
-        for fut in as_completed(futs):
-            reported.add(fut)
-            on_done(futs[fut], fut.result())
-    except BaseException:
-        # interrupted: the cases not started are dropped; those running finish (a linear
-        # case takes milliseconds) and are counted, before the caller tidies the folder
-        pool.shutdown(wait=True, cancel_futures=True)
-        for fut, case in futs.items():
-            if fut not in reported and not fut.cancelled():
-                on_done(case, fut.result())
-        raise
-    finally:
-        pool.shutdown(wait=False)
+    with blas_threads_kept():
+        pool = ThreadPoolExecutor(min(len(todo), os.cpu_count() or 1),
+                                  initializer=one_blas_thread)
+        futs = {pool.submit(execute_case, case, *args): case for case in todo}
+        reported = set()
+        try:
+            for fut in as_completed(futs):
+                reported.add(fut)
+                on_done(futs[fut], fut.result())
+        except BaseException:
+            # interrupted: the cases not started are dropped; those running finish (a
+            # linear case takes milliseconds) and are counted, before the caller tidies
+            # the folder
+            pool.shutdown(wait=True, cancel_futures=True)
+            for fut, case in futs.items():
+                if fut not in reported and not fut.cancelled():
+                    on_done(case, fut.result())
+            raise
+        finally:
+            pool.shutdown(wait=False)
 
 
 def _run_local(todo, args, workers, on_done):

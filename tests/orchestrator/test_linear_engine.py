@@ -205,34 +205,58 @@ def test_powers_by_squaring_give_the_matrix_power(L):
 
 def test_krylov_products_by_doubling_equal_the_sequential_ones(eos_pair):
     """The row and column Krylov products and ``M^L`` of the EOS loop's 99-tick run,
-    computed by doubling, against one product per tick.  The tick map mixes metres,
-    volts and strains (its 2-norm is about 1e12), so the tolerance is measured here, on
-    this BLAS: the round-off between two other orders of the same products (one product
-    per tick against numpy's ``matrix_power`` at ``q = L - 1``), times 20 for the
-    roundings the squarings add (log2 L = 7 levels; 5x measured)."""
+    computed by doubling, against one product per tick.
+
+    The tolerance comes from the conditioning of the products, not from a run: in the
+    balanced coordinates (exact power-of-two scaling, which changes no rounding) any
+    parenthesisation of ``C M^q`` has a first-order error of at most (its products) x
+    ``n eps`` x the largest ``||C M^a|| ||M^b|| ||M^c||`` over ``a + b + c = q``
+    (Frobenius norms of the exact powers, here the sequential ones), and the two ways
+    differ by at most twice that.  On this BLAS they differ by 3e-7 of it; a power off
+    by one, by 6e5 times it.  (An earlier tolerance, 20 times the difference between
+    two other orders of the same products, failed once the run types were built under
+    one BLAS thread and the check under two: 55 times that difference.)"""
+    from scipy.linalg import matrix_balance
+
     MP = np.linalg.matrix_power
     fr = _isolation_on_loop(eos_pair)
     sig, L = max(fr._runs, key=lambda r: r[1])
     t = fr._type(sig, L)
     M, C = t.M, fr._maps[sig][2][t.live]
     ch = np.flatnonzero(np.any(t.N != 0, axis=0))[:3]
+    n, eps = M.shape[0], np.finfo(float).eps
     O, K, seq = [C], [t.N[:, ch]], M
     for _ in range(1, L):
         O.append(O[-1] @ M)
         K.append(M @ K[-1])
     for _ in range(2, L + 1):
         seq = seq @ M
-    ML = MP(M, L)
-    O, K = np.concatenate(O), np.stack(K[::-1], axis=1)   # K: M^(L-1-l) N_c
     G, _ = fr._columns(t, ch)
-    tiny = 1e-14   # a floor, where the two orders happen to agree to the last bit
-    for got, want, scatter in (
-            (t.O, O, np.abs(C @ MP(M, L - 1) - O[-C.shape[0]:]).max()),
-            (G, K, np.abs(MP(M, L - 1) @ t.N[:, ch] - K[:, 0]).max()),
-            (t.ML, seq, np.abs(ML - seq).max())):
-        assert np.abs(got - want).max() <= 20 * scatter + tiny * np.abs(want).max()
+    d = matrix_balance(M, permute=False, separate=True)[1][0]     # M_b = D^-1 M D
+    Mb = M / d[:, None] * d[None, :]
+    norms = [np.sqrt(n)]                                           # ||M_b^j||, j = 0 .. L
+    P = np.eye(n)
+    for _ in range(L):
+        P = Mb @ P
+        norms.append(np.linalg.norm(P))
+    # the largest ||M_b^b|| ||M_b^c|| with b + c = s, b >= 1
+    pair = [0.0] + [max(norms[k] * norms[s - k] for k in range(1, s + 1))
+                    for s in range(1, L + 1)]
+    r = C.shape[0]
+    rows_b = [np.linalg.norm(O[q] * d[None, :]) for q in range(L)]   # ||C_b M_b^q||
+    got_O = t.O.reshape(L, r, n)
+    for q in range(1, L):
+        tol = 2 * 2 * q * n * eps * max(rows_b[p] * pair[q - p] for p in range(q))
+        assert np.linalg.norm((got_O[q] - O[q]) * d[None, :]) <= tol, q
+    Nb = np.linalg.norm(t.N[:, ch] / d[:, None])
+    for q in range(1, L):      # G[:, l] holds M^(L-1-l) N, K[q] holds M^q N
+        tol = 2 * 2 * q * n * eps * Nb * pair[q]
+        assert np.linalg.norm((G[:, L - 1 - q] - K[q]) / d[:, None]) <= tol, q
+    tol_L = 2 * 2 * L * n * eps * pair[L]
+    scale = d[None, :] / d[:, None]
+    assert np.linalg.norm((t.ML - seq) * scale) <= tol_L
     # and not vacuous: a power off by one is far outside
-    assert np.abs(MP(M, L + 1) - seq).max() > 1e3 * (20 * np.abs(ML - seq).max())
+    assert np.linalg.norm((MP(M, L + 1) - seq) * scale) > 1e3 * tol_L
 
 
 def test_rail_reached_is_refused_with_the_instance(eos_fmus, tmp_path):

@@ -126,7 +126,8 @@ def convergence_hint(report: dict) -> str | None:
 
     Per confidence level, the sample count that narrows every finite value's bootstrap
     interval below 2 % and the time the samples beyond this run's would take at its own
-    rate (its wall time over the samples it computed, start-up included: an estimate).
+    rate (its wall time over the samples it computed, start-up included: an estimate);
+    and the levels whose upper bounds at the run's assurance already hold.
 
     Parameters
     ----------
@@ -147,10 +148,17 @@ def convergence_hint(report: dict) -> str | None:
     for pc, k in sorted(need.items(), key=lambda kv: float(kv[0])):
         when = f", {_duration((k - n) * rate)} more" if rate else ""
         parts.append(f"P{100 * float(pc):g} about {k:,} samples{when}")
+    # the unconverged levels whose distribution-free bounds exist at this count
+    bounded = sorted({float(pc) for line in report["lines"]
+                      for pc, q in line.get("quantiles", {}).items()
+                      if pc in need and q.get("upper_rank") is not None})
     return ("to narrow every finite value's interval below 2 %: " + "; ".join(parts)
             + (f" (at this run's {rate:.2g} s a sample; more workers or a Dask cluster "
                "divide it)" if rate else "")
-            + f"; --samples N with the same --out keeps these {n}")
+            + f"; --samples N with the same --out keeps these {n}"
+            + (f"; meanwhile the upper bounds at {100 * report['assurance']:g} % assurance "
+               "hold at this count (" + ", ".join(f"P{100 * pc:g}" for pc in bounded)
+               + ")" if bounded and report.get("assurance") else ""))
 
 
 def _duration(seconds: float) -> str:

@@ -726,6 +726,13 @@ def test_convergence_hint_names_per_level_the_count_and_the_time_at_the_runs_rat
     # a run that computed nothing (all resumed) gives the counts without a time
     text = convergence_hint({**rep, "resumed": 1000})
     assert "P95 about 4,000 samples" in text and "more" not in text.split(";")[0]
+    # the levels whose distribution-free bounds already hold are named (P95 from 59
+    # samples at 95 % assurance; P99.73 needs 1109)
+    for line in lines:
+        line["quantiles"]["0.95"]["upper_rank"] = 962
+        line["quantiles"]["0.9973"]["upper_rank"] = None
+    text = convergence_hint({**rep, "assurance": 0.95})
+    assert text.endswith("the upper bounds at 95 % assurance hold at this count (P95)")
 
 
 

@@ -22,7 +22,8 @@ Run::
 * **The exact floor of a sample** (``--no-floor`` leaves it out): the products an exact
   engine cannot leave out, on the nominal loops the samples perturb (their memory
   states, live rows and driven channels): the free responses of the 24 records after the
-  campaign's skip (the lines of sight before it are not needed), the row and column Krylov products of every run type (in the doubling steps the engine uses),
+  campaign's skip (the lines of sight before it are not needed), the row and column
+  Krylov products of every run type (in the doubling steps the engine uses),
   its ``M^L`` and the eigenvalues of the super-period map.  Printed as flops over this machine's one-thread square dgemm rate
   (a lower bound: no product runs faster than that), and as the same products timed in
   their own shapes on one thread; beside it, the measured cost of a sample.

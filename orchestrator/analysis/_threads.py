@@ -68,12 +68,11 @@ def blas_thread_counts() -> list:
 def blas_threads_kept():
     """Give every loaded OpenBLAS the calling thread's count back when the block ends
     (the block's worker threads may take one each: :func:`one_blas_thread`)."""
-    setters = _local_setters()
     before = blas_thread_counts()
     try:
         yield
     finally:
-        for fn, n in zip(setters, before):
+        for fn, n in zip(_local_setters(), before):
             fn(n)
 
 

@@ -425,9 +425,10 @@ class FastResponse(SteadyState):
         scales : sequence of ndarray, shape (m,), optional
             Per record, a factor on each source channel: the record of ``W * scale``
             without that copy of ``W`` (a Monte Carlo sample's amplitudes).
-        actives : sequence of ndarray of int, optional
-            Per record, the source channels its ``W`` drives (default: the columns of
-            ``W`` that are not all zero; a channel listed but zero costs only time).
+        actives : sequence of (ndarray of int or None), optional
+            Per record, the source channels its ``W`` drives (None, or no sequence: the
+            columns of ``W`` that are not all zero; a channel listed but zero costs only
+            time).
         start : int
             The first tick whose recorded references are needed: a run that ends before
             it computes only the checked outputs a bound does not clear, and its
@@ -445,9 +446,8 @@ class FastResponse(SteadyState):
             raise AnalysisError(f"every input matrix of a batch must have shape ({K}, "
                                 f"{self.m}); got {', '.join(str(W.shape) for W in Ws)}")
         E, s = len(Ws), self.n_memory
-        if actives is None:
-            actives = [np.flatnonzero(np.any(W != 0.0, axis=0)) for W in Ws]
-        actives = [np.asarray(a, int) for a in actives]
+        actives = [np.flatnonzero(np.any(W != 0.0, axis=0)) if a is None else
+                   np.asarray(a, int) for W, a in zip(Ws, actives or [None] * E)]
         r = len(self._computed) + len(set(self._check_col) - set(range(len(self._computed))))
         # the runs of the record, in order: (type key, start)
         units = []

@@ -161,11 +161,12 @@ def _same_pattern(fr, like) -> bool:
                 return False
     return True
 
+
 def _tick_map(fr, k: int, cols=None):
     """``(M, N)`` of tick ``k`` of the loop ``fr``: ``X+ = M X + N w`` on the whole
-    lifted state, ``M``
-    of the state columns ``cols`` only when given (the rows are independent
-    combinations of the columns: the same numbers as those columns of the whole)."""
+    lifted state, ``M`` of the state columns ``cols`` only when given (the rows are
+    independent combinations of the columns: the same numbers as those columns of the
+    whole)."""
     lin, n, m = fr.lin, fr.lin.n, fr.m
     cols = np.arange(n) if cols is None else np.asarray(cols, int)
     c = cols.size

@@ -320,8 +320,8 @@ def samples_for_bound(p: float, assurance: float) -> int:
     return n
 
 
-def _check_levels(p: float, assurance: float) -> None:
-    if not (0 < p < 1 and 0 < assurance < 1):
+def _check_levels(p: float | None, assurance: float) -> None:
+    if not ((p is None or 0 < p < 1) and 0 < assurance < 1):
         raise UncertaintyError(f"a confidence bound needs a level and an assurance in "
                                f"(0, 1); got {p!r} and {assurance!r}")
 
@@ -383,7 +383,7 @@ def proportion_lower_bound(successes: int, n: int, assurance: float = 0.95) -> f
     """
     from scipy.special import betaincinv
 
-    _check_levels(0.5, assurance)
+    _check_levels(None, assurance)
     if not 0 <= successes <= n or n < 1:
         raise UncertaintyError(f"{successes} successes of {n} trials is not a count")
     if successes == 0:

@@ -155,8 +155,6 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
             # the channels each event drives, found once unless the sample redrew it
             actives = [ctx["actives"][(cf, ev)] if W is ctx["inputs"][(cf, ev)][1] else None
                        for ev, W in zip(ctx["events"], Ws)]
-            actives = [a if a is not None else np.flatnonzero(np.any(W != 0.0, axis=0))
-                       for a, W in zip(actives, Ws)]
             for ei, rec in enumerate(fr.run_many(Ws, check=False, bound_limits=True,
                                                  scales=scales, actives=actives,
                                                  start=first)):
@@ -164,8 +162,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                     values[row, ci] = np.inf
                     status[row, ci] |= LIMIT
                     break
-                keep = rec.times >= rec.times[0] + campaign.skip - 0.5 * dt
-                x = rec.values[::tb.output_ticks][keep[::tb.output_ticks]]
+                x = rec.values[::tb.output_ticks][-(-first // tb.output_ticks):]
                 values[row, ci, ei] = metric_values(x.T, dt, campaign.metrics)
     return values, status
 

@@ -118,8 +118,24 @@ def block_zoh(K, D, h):
     return E[:2 * n, :2 * n], E[:2 * n, 2 * n:]
 
 
-#: The Ritz block's exact ZOH per (its arrays, step): a modal perturbation keeps the
-#: block (the arrays themselves, kept here so that their ids stay theirs).
+def _kept(store: dict, arrays: tuple, extra: tuple, make):
+    """``make()``, kept in ``store`` for the same ``arrays`` (by identity: a modal
+    perturbation of a model keeps its Ritz block's arrays, and the store holds them so
+    that their ids stay theirs) and ``extra``; at most four entries.  The arrays made
+    are read-only: every model with those arrays shares them."""
+    key = (*map(id, arrays), *extra)
+    hit = store.get(key)
+    if hit is None or any(a is not b for a, b in zip(hit[0], arrays)):
+        if len(store) >= 4:
+            store.clear()
+        made = make()
+        for a in made:
+            a.flags.writeable = False
+        hit = store[key] = (arrays, made)
+    return hit[1]
+
+
+#: The Ritz block's exact ZOH per (its arrays, step).
 _RITZ_ZOH: dict = {}
 
 
@@ -129,16 +145,7 @@ def _ritz_zoh(K, D, h):
     model's 6.6 ms discretisation).  Equal to a fresh one to round-off, not always to
     the bit (the BLAS thread count of the call that made it): the linear engine's
     alone."""
-    key = (id(K), id(D), float(h))
-    hit = _RITZ_ZOH.get(key)
-    if hit is None or hit[0] is not K or hit[1] is not D:
-        if len(_RITZ_ZOH) >= 4:
-            _RITZ_ZOH.clear()
-        hit = (K, D, *block_zoh(K, D, h))
-        for a in hit[2:]:
-            a.flags.writeable = False     # shared by every model with this block
-        _RITZ_ZOH[key] = hit
-    return hit[2], hit[3]
+    return _kept(_RITZ_ZOH, (K, D), (float(h),), lambda: block_zoh(K, D, h))
 
 
 @dataclass(frozen=True)
@@ -293,10 +300,7 @@ def filter_zoh(model, h: float) -> tuple:
     for k in range(n_acc):   # the filter's own states
         F_x[k * o:(k + 1) * o, ns + k * o:ns + (k + 1) * o] = Ea
     if n_r:
-        key = (id(model.K_oo), id(model.D_oo), id(model.B_o), id(model.C_o), float(h),
-               acc.tobytes(), repr(model.accel_lowpass.to_json()))
-        hit = _RITZ_ROWS.get(key)
-        if hit is None:
+        def ritz_rows():
             Af, Bf, _ = filter_blocks(model.accel_lowpass, n_acc)
             n_f = Af.shape[0]
             m = 3 * n_r + n_f
@@ -310,11 +314,11 @@ def filter_zoh(model, h: float) -> tuple:
             Zo[F, F] = Af
             Zo[F, 2 * n_r + n_f:] = Bf @ Co
             Eo = la.expm(Zo * h)[F]
-            hit = (Eo[:, :2 * n_r], Eo[:, 2 * n_r + n_f:] @ model.B_o,
-                   (model.K_oo, model.D_oo, model.B_o, model.C_o))
-            if len(_RITZ_ROWS) >= 4:
-                _RITZ_ROWS.clear()
-            _RITZ_ROWS[key] = hit
+            return Eo[:, :2 * n_r], Eo[:, 2 * n_r + n_f:] @ model.B_o
+
+        hit = _kept(_RITZ_ROWS, (model.K_oo, model.D_oo, model.B_o, model.C_o),
+                    (float(h), acc.tobytes(), repr(model.accel_lowpass.to_json())),
+                    ritz_rows)
         F_x[:, 2 * n_m:ns] = hit[0]
         F_u = F_u + hit[1]
     return F_x, F_u

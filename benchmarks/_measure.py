@@ -7,6 +7,7 @@ and peak memory of its process and prints one marked JSON line (:func:`emit`), w
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import resource
@@ -25,6 +26,28 @@ def peak_rss_mb() -> float:
             if line.startswith("VmHWM:"):
                 return int(line.split()[1]) / 1024.0
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # pragma: no cover
+
+
+def blas_cores() -> list:
+    """The kernel family each OpenBLAS loaded in this process runs (``Haswell``,
+    ``SkylakeX``, ...): what a measured product rate depends on.  ``OPENBLAS_CORETYPE``
+    chooses it when the library's own detection picks less than the CPU can do."""
+    try:
+        with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:
+            paths = sorted({ln.split()[-1] for ln in f if "openblas" in ln.split()[-1].lower()})
+    except OSError:
+        return []
+    out = []
+    for path in paths:
+        lib = ctypes.CDLL(path)
+        for name in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename",
+                     "openblas_get_corename64_", "openblas_get_corename"):
+            fn = getattr(lib, name, None)
+            if fn is not None:
+                fn.restype = ctypes.c_char_p
+                out.append(fn().decode())
+                break
+    return out
 
 
 def best_of(fn, repeat: int) -> tuple:

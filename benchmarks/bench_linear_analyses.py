@@ -24,9 +24,14 @@ Run::
   states, live rows and driven channels): the free responses of the 24 records after the
   campaign's skip (the lines of sight before it are not needed), the row and column
   Krylov products of every run type (in the doubling steps the engine uses),
-  its ``M^L`` and the eigenvalues of the super-period map.  Printed as flops over this machine's one-thread square dgemm rate
+  its ``M^L``, the state recursion over the runs (the start states the free responses
+  need) with the input side of each record's channels, and the eigenvalues of the
+  super-period map.  Printed as flops over this machine's one-thread square dgemm rate
   (a lower bound: no product runs faster than that), and as the same products timed in
-  their own shapes on one thread; beside it, the measured cost of a sample.
+  their own shapes on one thread; beside it, the measured cost of a sample.  With it,
+  what rules out the cheaper exact formulations (:func:`formulations`): the density of
+  the loops' tick maps, their eigenvalues at 1 and eigenvector condition, and the band
+  of the static Ritz block's modes.
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ import warnings
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _measure import best_of, peak_rss_mb  # noqa: E402
+from _measure import best_of, blas_cores, peak_rss_mb  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -85,8 +90,9 @@ def _products(camp, runner) -> tuple:
         # the lines of sight a campaign's skip discards are not needed (their limits are:
         # bounded from the states, which the recursion gives)
         kept = (K - mcm.first_tick(camp, lin)) / K
-        k = np.unique(np.concatenate([np.flatnonzero(np.any(W != 0, axis=0))
-                                      for W in Ws])).size
+        drives = [np.flatnonzero(np.any(W != 0, axis=0)) for W in Ws]
+        k = np.unique(np.concatenate(drives)).size
+        k_sum = sum(d.size for d in drives)       # each record's own channels
         n_los = len(fr._computed)
         runs = {}
         for sig, L in fr._runs:
@@ -103,6 +109,10 @@ def _products(camp, runner) -> tuple:
                               (1, s, s, (hi - lo) * k)]             # column Krylov M^q N
                 gemms.append((L.bit_length() + bin(L).count("1") - 2, s, s, s))   # M^L
             gemms.append((1, E * max(1, round(n_u * kept)), s, L * n_los))   # free
+            # the state recursion: a run's start states from the one before, for every
+            # record (what the free responses start from), and the input side of each
+            # record's own channels over its runs
+            gemms += [(n_u, s, s, E), (1, n_u, L * k_sum, s)]
         eigs.append(balance(fr.period_map())[0])
         rows.append(f"{cf}: memory state {s}, live rows {'/'.join(map(str, lives))}, "
                     f"{k} driven channels, {E} records of {K} ticks, {n_los} lines")
@@ -141,6 +151,45 @@ def exact_floor(camp, runner) -> tuple:
     for P in eigs:   # the nominal loop's own map: its eigenvalues converge as a sample's
         t_shapes += best_of(lambda: np.linalg.eigvals(P), 3)[0]
     return flop / 1e9, rate, flop / 1e9 / rate, t_shapes, rows
+
+
+def formulations(ctx: dict) -> list:
+    """What rules out cheaper exact formulations of a sample, measured on the nominal loops.
+
+    Parameters
+    ----------
+    ctx : dict
+        The Monte Carlo's compiled nominal loops (``montecarlo._setup``).
+
+    Returns
+    -------
+    list of str
+        Per configuration, the density of the tick map the long runs apply (a sparse or
+        block-diagonal one would make the Krylov products and powers cheap), its
+        eigenvalues at 1 and the condition number of its eigenvector matrix (a
+        diagonalisable, well-conditioned map would give every power in its eigenbasis);
+        then the band of the static Ritz block's modes (fast ones could be made static).
+    """
+    import scipy.linalg as la
+
+    out = []
+    for cf in ctx["configs"]:
+        lin, structs, fr = ctx["base"][cf]
+        sig = max(fr._runs, key=lambda r: r[1])[0]      # the long run's tick map
+        M = fr._maps[sig][0]
+        Mb, _ = balance(M)
+        w, V = np.linalg.eig(Mb)
+        out.append(f"{cf}: tick map {np.count_nonzero(M) / M.size:.0%} non-zero, "
+                   f"{int(np.sum(np.abs(w - 1.0) < 1e-6))} eigenvalues at 1, eigenvector "
+                   f"condition {np.linalg.cond(V):.1e}")
+    model = ctx["base"][ctx["configs"][0]][0].blocks[ctx["base"][ctx["configs"][0]][1][0]].model
+    if model.n_ritz:
+        w2, V2 = la.eigh(model.K_oo)
+        f = np.sqrt(np.abs(w2)) / (2.0 * np.pi)
+        zeta = np.diag(V2.T @ model.D_oo @ V2) / (2.0 * np.sqrt(np.abs(w2)))
+        out.append(f"static Ritz block: {model.n_ritz} modes at {f.min():.0f}-{f.max():.0f} Hz "
+                   f"(median {np.median(f):.0f} Hz), damping {zeta.min():.3f}-{zeta.max():.3f}")
+    return out
 
 
 def main(argv=None) -> int:
@@ -207,6 +256,7 @@ def main(argv=None) -> int:
         mcm._evaluate(camp, lrun, ctx, draws, list(range(1, args.core_samples + 1)))
         t_core = (time.perf_counter() - t0) / args.core_samples
         floor = exact_floor(camp, lrun) if args.floor else None
+        forms = formulations(ctx) if args.floor else []
     print(f"one co-simulated EOS case (8 s at 1 kHz, native FMUs): {t_case:.2f} s")
     print(f"{'analysis':<48}{'linear (s)':>12}{'co-simulation (s)':>20}")
     print(f"{'RWA sweep, 500 speeds x 15 axes x 2 configs':<48}{t_sweep:>12.2f}"
@@ -230,12 +280,17 @@ def main(argv=None) -> int:
         print("exact floor of a sample (the products it cannot leave out; one core):")
         for r in rows:
             print(f"  {r}")
-        print(f"  {gflop:.1f} GFlop at {rate:.0f} GFlop/s (square dgemm here): {t_bound:.3f} s "
+        cores_run = ", ".join(blas_cores()) or "unknown"
+        print(f"  {gflop:.1f} GFlop at {rate:.0f} GFlop/s (square dgemm here, OpenBLAS "
+              f"kernels {cores_run}): {t_bound:.3f} s "
               f"-> 1000 samples on {cores} cores >= {1000 * t_bound / cores:.0f} s")
         print(f"  the same products timed in their shapes: {t_shapes:.3f} s -> "
               f"{1000 * t_shapes / cores:.0f} s for 1000 on {cores} cores")
         print(f"  measured: {t_core:.3f} s a sample, {t_core / t_bound:.1f}x the floor; the "
               f"issue's 60 s for 1000 on {cores} cores is {60 * cores / 1000:.3f} s a sample")
+        print("what rules out cheaper exact formulations (nominal loops):")
+        for r in forms:
+            print(f"  {r}")
     return 0
 
 

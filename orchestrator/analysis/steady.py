@@ -19,9 +19,10 @@ class SteadyState:
 
     def period_map(self) -> np.ndarray:
         """The memory state's map over one super-period, ``(n_memory, n_memory)``."""
-        Phi = np.eye(self.n_memory)
-        for sig, L in self._runs:
-            Phi = self._type(sig, L).ML @ Phi
+        Phi = None
+        for sig, L in self._runs:   # the first run's map starts it: no product with I
+            ML = self._type(sig, L).ML
+            Phi = ML.copy() if Phi is None else ML @ Phi
         return Phi
 
     def period_schur(self) -> tuple:

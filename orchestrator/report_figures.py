@@ -95,7 +95,7 @@ def worst_window(t, x, window: float, skip: float = 0.0):
     if t.size < 3:
         return None
     dt = float(np.median(np.diff(t)))
-    keep = t >= t[0] + skip - 0.5 * dt
+    keep = t >= M.skip_start(t[0], skip, dt)
     t, x = t[keep], x[keep]
     n = M.window_samples(window, dt)
     if x.size < n:

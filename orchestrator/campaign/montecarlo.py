@@ -182,10 +182,12 @@ def first_tick(campaign, lin) -> int:
     -------
     int
     """
+    from ..metrics import skip_start
+
     tb = lin.plan.timebase
     dt = tb.output_ticks * float(tb.base)
     return int(np.searchsorted(tb.times(range(tb.n_ticks + 1)),
-                               campaign.skip + float(tb.start) - 0.5 * dt))
+                               skip_start(float(tb.start), campaign.skip, dt)))
 
 
 _WORKER: dict = {}   # per worker process: the compiled loops of the campaign it serves

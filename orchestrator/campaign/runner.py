@@ -232,7 +232,7 @@ def case_metrics(t, columns: Mapping, instruments: Mapping, metrics, skip: float
     if not np.allclose(d, dt, rtol=1e-6, atol=1e-12):
         raise ValueError("results time column is not uniformly spaced; "
                          "expected one output interval")
-    keep = t >= t[0] + skip - 0.5 * dt
+    keep = t >= M.skip_start(t[0], skip, dt)
     rows = []
     for inst, axes in instruments.items():
         for axis, var in axes.items():

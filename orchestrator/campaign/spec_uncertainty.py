@@ -1,5 +1,6 @@
 """The ``[uncertainty]`` table of a campaign file: sample counts, seed, confidence levels,
-the assurance of their bounds and the uncertain inputs, each checked and refused in one sentence before any case runs."""
+the assurance of their bounds and the uncertain inputs, each checked and refused in one
+sentence before any case runs."""
 
 from __future__ import annotations
 

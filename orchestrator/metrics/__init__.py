@@ -26,7 +26,7 @@ from .ecss import (
     rpe,
     sliding_means,
 )
-from .kinds import metric_values
+from .kinds import metric_values, skip_start
 from .peak import peak_to_peak, peak_to_peak_series, window_samples
 from .rms import jitter_rms, stability_rms
 from .spectral import (
@@ -68,6 +68,7 @@ __all__ = [
     "rms",
     "rms_from_psd",
     "rpe",
+    "skip_start",
     "sliding_means",
     "stability_rms",
     "stability_rms_from_psd",

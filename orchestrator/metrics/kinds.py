@@ -8,7 +8,28 @@ from . import ecss
 from .peak import peak_to_peak
 from .rms import jitter_rms, stability_rms
 
-__all__ = ["metric_values"]
+__all__ = ["metric_values", "skip_start"]
+
+
+def skip_start(t0: float, skip: float, dt: float) -> float:
+    """The first time a campaign's metrics read: ``t0 + skip``, less half a sample so
+    that the sample at that time is kept whatever its round-off.
+
+    Parameters
+    ----------
+    t0 : float
+        Time of the record's first sample (s).
+    skip : float
+        Transient the metrics leave out (s).
+    dt : float
+        Sample interval of the record (s).
+
+    Returns
+    -------
+    float
+        The samples at or after it are the ones the metrics read.
+    """
+    return t0 + skip - 0.5 * dt
 
 
 def metric_values(x, dt: float, metrics) -> np.ndarray:

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .blocks import AnalysisError
+from .loops import disk_to_gain_phase, scenario_margins
 from .scenario import LinearScenario, _cycles
 
 
@@ -116,7 +117,7 @@ def ceiling(lin: LinearScenario, performance, disturbance: str, freqs_hz, *,
 
 
 def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
-    """A readable table: poles (in ``band`` Hz), decay of ``modes``, gain margins.
+    """A readable table: poles (in ``band`` Hz), decay of ``modes``, loop margins.
 
     Parameters
     ----------
@@ -125,8 +126,8 @@ def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
     modes : sequence of float
         Mode frequencies (Hz) whose nearby closed-loop poles are reported with their
         decay.
-    margins : bool
-        Add the gain margins of every active controller.
+    margins : bool or list of GroupMargins
+        Add the margins of every loop (:func:`~.loops.scenario_margins`), or these.
     band : (float, float), optional
         Pole frequency band (Hz); default 0 to half the hyperperiod rate.
 
@@ -160,13 +161,53 @@ def report(lin: LinearScenario, *, modes=(), margins=True, band=None) -> str:
                          f"{cyc:.2f} cycles to 90 % decay of its own response")
     if margins:
         lines.append("")
-        lines.append("gain margins (factor on each active controller's gain, other loops "
-                     "closed)")
-        lines.append(f"  {'controller':<24} {'upper':>9} {'(dB)':>7} {'lower':>9}")
         off = [c for c in lin.controllers() if c not in lin.controllers(active_only=True)]
-        if off:
-            lines.append(f"  (gain 0, not analysed: {', '.join(off)})")
-        for c in lin.controllers(active_only=True):
-            g = lin.gain_margins(c)
-            lines.append(f"  {c:<24} {g.upper:9.3g} {g.upper_db:7.2f} {g.lower:9.3g}")
+        lines.extend(margins_table(margins if isinstance(margins, list)
+                                   else scenario_margins(lin), off))
     return "\n".join(lines)
+
+
+def margins_table(groups, off=()) -> list:
+    """Lines of the loop margins table, one row per loop and one per group.
+
+    Parameters
+    ----------
+    groups : list of GroupMargins
+        From :func:`~.loops.scenario_margins`.
+    off : sequence of str
+        Controllers at gain 0 (listed as not analysed).
+
+    Returns
+    -------
+    list of str
+    """
+    lines = ["loop margins (each loop broken at its command, the others closed; gain up / "
+             "down and disk in dB, phase in deg)",
+             f"  {'loop':<24} {'crossover Hz':>12} {'gain up':>8} {'down':>7} {'phase':>7} "
+             f"{'disk dB':>8} {'disk deg':>8}  stabilised"]
+    if not groups:
+        lines.append("  (no active loop)")
+
+    def num(v, fmt):
+        return "inf" if v == math.inf else ("-" if not math.isfinite(v) else format(v, fmt))
+    for g in groups:
+        for m in g.loops:
+            fc = f"{m.crossovers_hz[0]:.4g}" if m.crossovers_hz else "-"
+            if not m.stable:
+                how = "UNSTABLE as it is"
+            elif m.phase_stabilised:
+                how = "phase-stabilised at " + ", ".join(
+                    f"{f:.3g} Hz (+{p:.1f} dB)" for f, p in m.phase_stabilised[:4])
+            else:
+                how = "gain-stabilised above crossover"
+            lines.append(f"  {m.loop:<24} {fc:>12} {num(m.gain_up_db, '8.2f'):>8} "
+                         f"{num(m.gain_down_db, '7.2f'):>7} {num(m.phase_deg, '7.1f'):>7} "
+                         f"{num(m.disk_db, '8.2f'):>8} {num(m.disk_deg, '8.1f'):>8}  {how}")
+        gd, pd = disk_to_gain_phase(g.disk_alpha)
+        note = f"; {', '.join(g.opened)} opened" if g.opened else ""
+        lines.append(f"  {'group ' + g.name:<24} {'':>12} {num(g.common_up_db, '8.2f'):>8} "
+                     f"{num(g.common_down_db, '7.2f'):>7} {'':>7} {num(gd, '8.2f'):>8} "
+                     f"{num(pd, '8.1f'):>8}  MIMO disk, common gain{note}")
+    if off:
+        lines.append(f"  (gain 0, not analysed: {', '.join(off)})")
+    return lines

@@ -20,7 +20,9 @@ def add_arguments(parser) -> None:
                         help="report the decay of the pole nearest this mode (repeatable)")
     parser.add_argument("--band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                         help="list the closed-loop poles in this band (Hz)")
-    parser.add_argument("--no-margins", action="store_true", help="skip the gain margins")
+    parser.add_argument("--no-margins", action="store_true", help="skip the loop margins")
+    parser.add_argument("--json", default=None, metavar="FILE.json",
+                        help="write the poles' stability and every loop's margins to FILE")
     parser.add_argument("--performance", action="append", default=[], metavar="INST.VAR",
                         help="output whose upper bound on reduction to compute "
                              "(repeatable)")
@@ -69,6 +71,7 @@ def run(args) -> int:
     """Print the analysis; return 0."""
     # deferred: the parser imports every subcommand (orchestrator.cli)
     from orchestrator.analysis import AnalysisError, ceiling, linearize, report
+    from orchestrator.analysis.loops import scenario_margins
     from orchestrator.scenario import parse_override
 
     overrides = dict(parse_override(s) for s in args.overrides)
@@ -84,7 +87,13 @@ def run(args) -> int:
         lin = lin.opened(args.open)
     if args.transfer:
         return _spectra(lin, args)
-    print(report(lin, modes=args.mode, margins=not args.no_margins, band=args.band))
+    groups = [] if args.no_margins else scenario_margins(lin)
+    print(report(lin, modes=args.mode, margins=groups if groups else not args.no_margins,
+                 band=args.band))
+    if args.json:
+        _write_json(args.json, {"scenario": str(args.scenario), "stable": lin.is_stable(),
+                                "max_abs_z": max(abs(p.z) for p in lin.poles()),
+                                "groups": [g.as_dict() for g in groups]})
     if args.performance:
         if not (args.disturbance and args.freq):
             raise AnalysisError("--performance needs --disturbance INST.VAR and at least "
@@ -171,3 +180,21 @@ def _spectra(lin, args) -> int:
         atomic_write(args.plot, lambda tmp: Path(tmp).write_bytes(data))
         print(f"figure: {args.plot}")
     return 0
+
+
+def _write_json(path, data) -> None:
+    """Write ``data`` as JSON (infinite numbers as the strings "inf"/"-inf")."""
+    import json
+    import math
+
+    from orchestrator.files import write_text_atomic
+
+    def clean(v):
+        if isinstance(v, float) and not math.isfinite(v):
+            return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        return v
+    write_text_atomic(path, json.dumps(clean(data), indent=1))

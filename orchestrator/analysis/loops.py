@@ -46,7 +46,7 @@ import numpy as np
 from .blocks import AnalysisError, _source_block
 
 __all__ = ["BrokenLoop", "LoopMargins", "GroupMargins", "broken_loop", "group_margins",
-           "scenario_margins", "loop_groups", "disk_to_gain_phase"]
+           "scenario_margins", "loop_groups", "disk_to_gain_phase", "margins_of"]
 
 _BREAK = "__loop_break"
 
@@ -285,10 +285,26 @@ def group_margins(lin, channels, name: str, opened=()) -> GroupMargins:
     -------
     GroupMargins
     """
-    by_inst = {}
-    for c in channels:
-        by_inst.setdefault(c.split(".", 1)[0], []).append(c)
-    joint = broken_loop(lin, [c for cs in by_inst.values() for c in cs])
+    return margins_of(broken_loop(lin, channels), name, opened)
+
+
+def margins_of(joint: BrokenLoop, name: str, opened=()) -> GroupMargins:
+    """Margins of each loop of a broken loop and of all its loops together.
+
+    Parameters
+    ----------
+    joint : BrokenLoop
+        The loops broken at their commands (from :func:`broken_loop`, or assembled from
+        matrices).
+    name : str
+        Group name.
+    opened : sequence of str
+        Instances opened before breaking (reported).
+
+    Returns
+    -------
+    GroupMargins
+    """
     channels = list(joint.channels)
     m = len(channels)
     f = _grid(joint)

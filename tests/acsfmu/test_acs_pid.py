@@ -150,7 +150,7 @@ def test_state_array_round_trip_and_errors():
     s = acs_advance(cfg, initial_state(cfg, 0.0, 2.0), 0.35, [1e-3, 0, 0], [0, 1e-4, 0])
     r = AcsState.from_array(s.as_array())
     np.testing.assert_array_equal(r.as_array(), s.as_array())
-    with pytest.raises(AcsConfigError, match=r"shape \(3,\); expected \(15,\)"):
+    with pytest.raises(AcsConfigError, match=r"shape \(3,\); expected \(39,\)"):
         AcsState.from_array(np.zeros(3))
     with pytest.raises(AcsConfigError, match="torque_limit must be positive"):
         AcsConfig(gains, torque_limit=[1.0, -1.0, 1.0])

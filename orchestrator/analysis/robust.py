@@ -1,0 +1,363 @@
+"""Robust stability of a scenario's loops over a modal uncertainty set.
+
+The set is a campaign's ``[uncertainty]`` table (:mod:`orchestrator.campaign.spec_uncertainty`):
+factors on the modal frequencies and damping ratios (per mode or common) and on
+controller gains, each within its distribution's bounds; the amplitudes and phases of
+sources do not move a pole and are left out.  Every loop is the exact sampled loop of
+:func:`~orchestrator.analysis.linearize` (all rates, delays and holds; the modes above a
+loop's Nyquist frequency alias as they do), with the sample's structure in place, and
+stability is read from its poles over one hyperperiod.
+
+:func:`robust_stability` answers with
+
+* ``sampled``: ``samples`` random points of the set, the unstable count, its one-sided
+  95 % Clopper-Pearson upper bound, the worst ``|z|``, and for the worst samples what
+  drives them: the loops whose opening makes the sample stable, and the modes that carry
+  the unstable pole (their share of its eigenvector);
+* ``corners``: every damping bound (all modes at the low, then the high factor) across a
+  grid of common frequency factors;
+* ``margin_found``: the smallest scale ``k`` of the set about nominal (each factor's range
+  ``[1 - k (1 - low), 1 + k (high - 1)]``) at which a destabilising point was found, by a
+  search along the rays through the worst samples and corners, confirmed by eigenvalues;
+  with that point;
+* ``margin_guaranteed``: the largest ``k`` proven stable.  No certificate is computed
+  yet: the value is None and ``certificate`` says so; a sampled search can only find an
+  upper bound on the true margin.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .blocks import AnalysisError, structure_block
+from .uncertainty import UncertaintyError, draw
+
+__all__ = ["UncertainSet", "uncertain_set", "robust_stability", "loop_at"]
+
+_RIGID_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class UncertainSet:
+    """The uncertain parameters that move poles, with their bounds.
+
+    Attributes
+    ----------
+    items : tuple of Uncertain
+        Modal frequency, modal damping and gain parameters.
+    modes : dict of str to ndarray
+        Parameter name -> indices of the modes it moves.
+    structure : str
+        The structure instance whose modes move.
+    """
+
+    items: tuple
+    modes: dict
+    structure: str
+
+    def bounds(self, name) -> tuple:
+        it = next(i for i in self.items if i.name == name)
+        return float(it.distribution.low), float(it.distribution.high)
+
+
+def uncertain_set(lin, items) -> UncertainSet:
+    """The part of an ``[uncertainty]`` list that moves poles, checked.
+
+    Parameters
+    ----------
+    lin : LinearScenario
+        The nominal loop (its structure gives the modes' frequencies).
+    items : sequence of Uncertain
+        From :func:`orchestrator.campaign.spec_uncertainty.parse_uncertainty`.
+
+    Returns
+    -------
+    UncertainSet
+
+    Raises
+    ------
+    UncertaintyError
+        One sentence: a set without finite bounds, a factor bound at or below zero
+        (a negative damping or frequency), or no structure to perturb.
+    """
+    keep = [it for it in items if it.kind in ("modal_frequency", "modal_damping", "gain")]
+    if not keep:
+        raise UncertaintyError("the uncertainty set has no modal frequency, modal damping "
+                               "or gain parameter: nothing in it moves a pole")
+    for it in keep:
+        d = it.distribution
+        if not (math.isfinite(d.low) and math.isfinite(d.high)):
+            raise UncertaintyError(f"uncertain {it.name!r} has no finite bounds "
+                                   f"[{d.low}, {d.high}]; the robust analysis needs a bounded "
+                                   "set: give low and high")
+        if it.kind != "gain" and not d.low > 0:
+            what = "damping ratio" if it.kind == "modal_damping" else "frequency"
+            raise UncertaintyError(f"uncertain {it.name!r} lets the modal {what} factor reach "
+                                   f"{d.low:g}: its set includes a {what} at or below zero; "
+                                   "expected low > 0")
+    structs = [n for n, b in lin.blocks.items() if b.kind == "structure"]
+    if len(structs) != 1:
+        raise AnalysisError(f"the robust analysis needs one structure instance; the "
+                            f"scenario has {len(structs)}")
+    model = lin.blocks[structs[0]].model
+    f = model.omega / (2 * math.pi)
+    modes = {}
+    for it in keep:
+        if it.kind == "gain":
+            for inst in it.instances:
+                if inst not in lin.controllers():
+                    raise UncertaintyError(f"uncertain {it.name!r} names {inst!r}, which is "
+                                           "not a controller of the scenario")
+            continue
+        idx = np.flatnonzero((f >= it.band[0]) & (f <= it.band[1]) & (f > 0))
+        if idx.size == 0:
+            raise UncertaintyError(f"uncertain {it.name!r}: no mode in the band "
+                                   f"{list(it.band)} Hz")
+        modes[it.name] = idx
+    return UncertainSet(tuple(keep), modes, structs[0])
+
+
+def _factors(uset, values: dict, n_modes: int):
+    """Per-mode frequency and damping factors and per-controller gains of one point."""
+    fw, fz, gains = np.ones(n_modes), np.ones(n_modes), {}
+    for it in uset.items:
+        v = np.atleast_1d(values[it.name])
+        if it.kind == "gain":
+            for j, inst in enumerate(it.instances):
+                gains[inst] = gains.get(inst, 1.0) * float(v[j if v.size > 1 else 0])
+            continue
+        idx = uset.modes[it.name]
+        target = fw if it.kind == "modal_frequency" else fz
+        target[idx] *= v if v.size == idx.size else v[0]
+    return fw, fz, gains
+
+
+def loop_at(lin, uset, values: dict):
+    """The loop at one point of the set.
+
+    Parameters
+    ----------
+    lin : LinearScenario
+        Nominal loop.
+    uset : UncertainSet
+    values : dict of str to ndarray
+        Parameter name -> its factor(s) (one per selected mode for a per-mode
+        parameter, one per instance for a gain).
+
+    Returns
+    -------
+    LinearScenario
+    """
+    b = lin.blocks[uset.structure]
+    fw, fz, gains = _factors(uset, values, b.model.n_modes)
+    model = replace(b.model, omega=b.model.omega * fw,
+                    modal_damping=b.model.modal_damping * fw * fz)
+    out = lin.with_block(structure_block(model, b.name, b.period, b.period * lin.base,
+                                         b.feedthrough, blockwise=True))
+    for inst, g in gains.items():
+        out = out.with_gain(inst, g)
+    return out
+
+
+def _radius(lin) -> tuple:
+    """Largest pole modulus (rigid-body poles at 1 left out), and the lifted map."""
+    Phi = lin.lifted()
+    ev, vecs = np.linalg.eig(Phi)
+    moving = np.abs(ev - 1.0) > _RIGID_TOL
+    i = int(np.argmax(np.where(moving, np.abs(ev), -1.0)))
+    return float(abs(ev[i])), ev[i], vecs[:, i]
+
+
+def _scaled(uset, values: dict, k: float) -> dict:
+    """A point moved to ``k`` times its distance from nominal (factors about 1)."""
+    return {name: 1.0 + k * (np.asarray(v, float) - 1.0) for name, v in values.items()}
+
+
+def clopper_pearson_upper(k: int, n: int, assurance: float = 0.95) -> float:
+    """One-sided upper bound on a probability from ``k`` events in ``n`` trials.
+
+    Parameters
+    ----------
+    k, n : int
+        Events and trials.
+    assurance : float
+        Confidence of the bound (-).
+
+    Returns
+    -------
+    float
+    """
+    from scipy.stats import beta
+
+    return 1.0 if k >= n else float(beta.ppf(assurance, k + 1, n - k))
+
+
+def _drivers(lin, lin_p, uset, z, vec, groups) -> dict:
+    """What drives an unstable sample: loops whose opening stabilises it, and modes."""
+    loops = []
+    for name, chans in groups.items():
+        insts = sorted({c.split(".", 1)[0] for c in chans})
+        r, _, _ = _radius(lin_p.opened(insts))
+        if r < 1.0:
+            loops.append(name)
+    sx = lin.slots[uset.structure][0]
+    n_m = lin.blocks[uset.structure].model.n_modes
+    v = vec[sx]
+    share = np.abs(v[:n_m]) ** 2 + np.abs(v[n_m:2 * n_m]) ** 2
+    total = share.sum()
+    top = np.argsort(share)[::-1][:3]
+    f0 = lin.blocks[uset.structure].model.omega / (2 * math.pi)
+    T = lin.T
+    return {"pole_freq_hz": float(abs(np.angle(z)) / (2 * math.pi * T)),
+            "abs_z": float(abs(z)),
+            "loops": loops,
+            "modes": [{"mode": int(j + 1), "nominal_hz": float(f0[j]),
+                       "share": float(share[j] / total) if total > 0 else 0.0}
+                      for j in top]}
+
+
+def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int = 5,
+                     worst: int = 3, k_max: float = 4.0, progress=None) -> dict:
+    """Sampled, corner and found-margin robust stability (see the module docstring).
+
+    Parameters
+    ----------
+    lin : LinearScenario
+        The nominal loop.
+    items : sequence of Uncertain
+        The uncertainty set (the kinds that do not move poles are left out).
+    samples : int
+        Random points drawn (>= 1).
+    seed : int
+        Seed of the draws.
+    grid : int
+        Common frequency factors across the set's range for the corners (>= 2).
+    worst : int
+        Worst samples whose drivers are named and whose rays are searched.
+    k_max : float
+        Largest scale of the set searched for a destabilising point (-).
+    progress : callable, optional
+        ``progress(done, total)`` after each evaluation.
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``samples``, ``unstable``, ``unstable_p_upper``, ``worst_abs_z``,
+        ``nominal_abs_z``, ``corners``, ``margin_guaranteed``, ``certificate``,
+        ``margin_found``, ``found_point``, ``drivers``.
+    """
+    from .loops import loop_groups
+
+    if not (isinstance(samples, int) and samples >= 1):
+        raise UncertaintyError(f"samples is {samples!r}; expected a whole number >= 1")
+    if not (isinstance(grid, int) and grid >= 2):
+        raise UncertaintyError(f"grid is {grid!r}; expected a whole number >= 2")
+    uset = uncertain_set(lin, items)
+    model = lin.blocks[uset.structure].model
+    total = samples + 2 * grid + 1
+    done = [0]
+
+    def tick():
+        done[0] += 1
+        if progress:
+            progress(done[0], total)
+
+    r0, _, _ = _radius(lin)
+    tick()
+    d = draw(list(uset.items), samples, seed, model.omega / (2 * math.pi))
+    radii, poles = np.empty(samples), []
+    for s in range(samples):
+        vals = {name: d.values[name][s] for name in d.values}
+        r, z, vec = _radius(loop_at(lin, uset, vals))
+        radii[s] = r
+        poles.append((z, vec))
+        tick()
+    unstable = int((radii >= 1.0).sum())
+    # corners: every damping bound over a grid of common frequency factors
+    fw_items = [it for it in uset.items if it.kind == "modal_frequency"]
+    zt_items = [it for it in uset.items if it.kind == "modal_damping"]
+    lo_w = min([uset.bounds(it.name)[0] for it in fw_items], default=1.0)
+    hi_w = max([uset.bounds(it.name)[1] for it in fw_items], default=1.0)
+    corners = []
+    for fw in np.linspace(lo_w, hi_w, grid):
+        for side in (0, 1):
+            vals = _point(uset, d, fw, side)
+            r, _, _ = _radius(loop_at(lin, uset, vals))
+            corners.append({"frequency_factor": float(fw),
+                            "damping": "low" if side == 0 else "high",
+                            "damping_factor": [uset.bounds(it.name)[side] for it in zt_items],
+                            "abs_z": r, "stable": r < 1.0})
+            tick()
+    groups = loop_groups(lin)
+    order = np.argsort(radii)[::-1][:worst]
+    drivers = []
+    for s in order:
+        if radii[s] < 1.0:
+            break
+        vals = {name: d.values[name][s] for name in d.values}
+        dr = _drivers(lin, loop_at(lin, uset, vals), uset, *poles[s], groups)
+        drivers.append({"sample": int(s), **dr})
+    # found margin: rays through the worst samples and corners
+    rays = [{name: d.values[name][s] for name in d.values} for s in order]
+    rays += [_point(uset, d, c["frequency_factor"], 0 if c["damping"] == "low" else 1)
+             for c in sorted(corners, key=lambda c: -c["abs_z"])[:worst]]
+    found, point = math.inf, None
+    for vals in rays:
+        k = _ray_limit(lin, uset, vals, k_max, found)
+        if k < found:
+            found, point = k, _scaled(uset, vals, k * 1.001)
+    found_point = None
+    if point is not None:
+        r, _, _ = _radius(loop_at(lin, uset, point))
+        found_point = {"k": found * 1.001, "abs_z": r,
+                       "factors": {n: np.atleast_1d(v).tolist() for n, v in point.items()}}
+    return {"samples": samples, "unstable": unstable,
+            "unstable_p_upper": clopper_pearson_upper(unstable, samples),
+            "worst_abs_z": float(radii.max()), "nominal_abs_z": r0,
+            "nominal_stable": r0 < 1.0, "corners": corners,
+            "margin_guaranteed": None,
+            "certificate": "not computed: no robust-stability certificate is implemented "
+                           "yet; margin_found is an upper bound on the true margin",
+            "margin_found": found if math.isfinite(found) else None,
+            "found_point": found_point, "drivers": drivers,
+            "structure": uset.structure,
+            "parameters": [it.name for it in uset.items]}
+
+
+def _point(uset, d, fw: float, side: int) -> dict:
+    """Every mode at frequency factor ``fw`` and damping bound ``side`` (0 low, 1 high);
+    gains at nominal."""
+    vals = {}
+    for it in uset.items:
+        k = d.values[it.name].shape[1]
+        if it.kind == "modal_frequency":
+            vals[it.name] = np.full(k, fw)
+        elif it.kind == "modal_damping":
+            vals[it.name] = np.full(k, uset.bounds(it.name)[side])
+        else:
+            vals[it.name] = np.ones(k)
+    return vals
+
+
+def _ray_limit(lin, uset, vals, k_max: float, below: float, tol: float = 0.01) -> float:
+    """Smallest scale along the ray through ``vals`` at which the loop is unstable
+    (``inf`` if none up to ``k_max``; the search stops at ``below``)."""
+    prev = 0.0
+    for k in np.arange(0.25, min(k_max, below) + 1e-9, 0.25):
+        pt = _scaled(uset, vals, k)
+        if any(np.any(v <= 0) for n, v in pt.items()
+               if any(it.name == n and it.kind != "gain" for it in uset.items)):
+            break    # a factor at zero: outside any physical set
+        r, _, _ = _radius(loop_at(lin, uset, pt))
+        if r >= 1.0:
+            a, b = prev, k
+            while b - a > tol * b:
+                m = 0.5 * (a + b)
+                rm, _, _ = _radius(loop_at(lin, uset, _scaled(uset, vals, m)))
+                a, b = (a, m) if rm >= 1.0 else (m, b)
+            return b
+        prev = k
+    return math.inf

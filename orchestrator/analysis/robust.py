@@ -162,13 +162,28 @@ def loop_at(lin, uset, values: dict):
     return out
 
 
-def _radius(lin) -> tuple:
-    """Largest pole modulus (rigid-body poles at 1 left out), and the lifted map."""
-    Phi = lin.lifted()
-    ev, vecs = np.linalg.eig(Phi)
+def _radius(lin, like=None) -> float:
+    """Largest pole modulus over one hyperperiod, rigid-body poles at 1 left out.
+
+    ``like`` is the nominal loop compiled (:class:`~orchestrator.analysis.fast.
+    FastResponse`): a sample's loop shares its layout and its map is taken by doubling.
+    """
+    from scipy.linalg import matrix_balance
+
+    from .fast import FastResponse
+
+    fr = FastResponse(lin, [], strict=False, like=like)
+    ev = np.linalg.eigvals(matrix_balance(fr.period_map(), permute=False)[0])
+    moving = np.abs(ev - 1.0) > _RIGID_TOL
+    return float(np.abs(ev[moving]).max()) if moving.any() else 0.0
+
+
+def _unstable_pole(lin) -> tuple:
+    """The largest moving pole of the lifted map and its eigenvector (lifted layout)."""
+    ev, vecs = np.linalg.eig(lin.lifted())
     moving = np.abs(ev - 1.0) > _RIGID_TOL
     i = int(np.argmax(np.where(moving, np.abs(ev), -1.0)))
-    return float(abs(ev[i])), ev[i], vecs[:, i]
+    return ev[i], vecs[:, i]
 
 
 def _scaled(uset, values: dict, k: float) -> dict:
@@ -195,13 +210,13 @@ def clopper_pearson_upper(k: int, n: int, assurance: float = 0.95) -> float:
     return 1.0 if k >= n else float(beta.ppf(assurance, k + 1, n - k))
 
 
-def _drivers(lin, lin_p, uset, z, vec, groups) -> dict:
+def _drivers(lin, lin_p, uset, groups) -> dict:
     """What drives an unstable sample: loops whose opening stabilises it, and modes."""
+    z, vec = _unstable_pole(lin_p)
     loops = []
     for name, chans in groups.items():
         insts = sorted({c.split(".", 1)[0] for c in chans})
-        r, _, _ = _radius(lin_p.opened(insts))
-        if r < 1.0:
+        if _radius(lin_p.opened(insts)) < 1.0:
             loops.append(name)
     sx = lin.slots[uset.structure][0]
     n_m = lin.blocks[uset.structure].model.n_modes
@@ -265,15 +280,16 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
         if progress:
             progress(done[0], total)
 
-    r0, _, _ = _radius(lin)
+    from .fast import FastResponse
+
+    like = FastResponse(lin, [], strict=False)
+    r0 = _radius(lin, like)
     tick()
     d = draw(list(uset.items), samples, seed, model.omega / (2 * math.pi))
-    radii, poles = np.empty(samples), []
+    radii = np.empty(samples)
     for s in range(samples):
         vals = {name: d.values[name][s] for name in d.values}
-        r, z, vec = _radius(loop_at(lin, uset, vals))
-        radii[s] = r
-        poles.append((z, vec))
+        radii[s] = _radius(loop_at(lin, uset, vals), like)
         tick()
     unstable = int((radii >= 1.0).sum())
     # corners: every damping bound over a grid of common frequency factors
@@ -285,7 +301,7 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
     for fw in np.linspace(lo_w, hi_w, grid):
         for side in (0, 1):
             vals = _point(uset, d, fw, side)
-            r, _, _ = _radius(loop_at(lin, uset, vals))
+            r = _radius(loop_at(lin, uset, vals), like)
             corners.append({"frequency_factor": float(fw),
                             "damping": "low" if side == 0 else "high",
                             "damping_factor": [uset.bounds(it.name)[side] for it in zt_items],
@@ -298,7 +314,7 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
         if radii[s] < 1.0:
             break
         vals = {name: d.values[name][s] for name in d.values}
-        dr = _drivers(lin, loop_at(lin, uset, vals), uset, *poles[s], groups)
+        dr = _drivers(lin, loop_at(lin, uset, vals), uset, groups)
         drivers.append({"sample": int(s), **dr})
     # found margin: rays through the worst samples and corners
     rays = [{name: d.values[name][s] for name in d.values} for s in order]
@@ -306,12 +322,12 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
              for c in sorted(corners, key=lambda c: -c["abs_z"])[:worst]]
     found, point = math.inf, None
     for vals in rays:
-        k = _ray_limit(lin, uset, vals, k_max, found)
+        k = _ray_limit(lin, uset, vals, k_max, found, like)
         if k < found:
             found, point = k, _scaled(uset, vals, k * 1.001)
     found_point = None
     if point is not None:
-        r, _, _ = _radius(loop_at(lin, uset, point))
+        r = _radius(loop_at(lin, uset, point), like)
         found_point = {"k": found * 1.001, "abs_z": r,
                        "factors": {n: np.atleast_1d(v).tolist() for n, v in point.items()}}
     return {"samples": samples, "unstable": unstable,
@@ -342,7 +358,8 @@ def _point(uset, d, fw: float, side: int) -> dict:
     return vals
 
 
-def _ray_limit(lin, uset, vals, k_max: float, below: float, tol: float = 0.01) -> float:
+def _ray_limit(lin, uset, vals, k_max: float, below: float, like=None,
+               tol: float = 0.01) -> float:
     """Smallest scale along the ray through ``vals`` at which the loop is unstable
     (``inf`` if none up to ``k_max``; the search stops at ``below``)."""
     prev = 0.0
@@ -351,12 +368,11 @@ def _ray_limit(lin, uset, vals, k_max: float, below: float, tol: float = 0.01) -
         if any(np.any(v <= 0) for n, v in pt.items()
                if any(it.name == n and it.kind != "gain" for it in uset.items)):
             break    # a factor at zero: outside any physical set
-        r, _, _ = _radius(loop_at(lin, uset, pt))
-        if r >= 1.0:
+        if _radius(loop_at(lin, uset, pt), like) >= 1.0:
             a, b = prev, k
             while b - a > tol * b:
                 m = 0.5 * (a + b)
-                rm, _, _ = _radius(loop_at(lin, uset, _scaled(uset, vals, m)))
+                rm = _radius(loop_at(lin, uset, _scaled(uset, vals, m)), like)
                 a, b = (a, m) if rm >= 1.0 else (m, b)
             return b
         prev = k

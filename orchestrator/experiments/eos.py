@@ -30,10 +30,6 @@ STRUCTURE = "eos_testbed_structure"
 MOUNTS_STRUCTURE = "eos_testbed_mounts_structure"
 #: What the budget campaign runs (the all-legs structure is built besides).
 ACS_INERTIA = (378.0, 827.0, 1123.0)   # as scenarios/eos_budget.toml (kg m^2)
-#: The ACS design of scenarios/eos_budget.toml (tested equal to the scenario's).
-ACS_PARAMETERS = {"bandwidth": 0.04, "notch_hz_x": 0.5, "notch_zeta_num_x": 0.02,
-                  "notch_zeta_den_x": 0.7, "lowpass_hz_x": 0.25, "lowpass_hz_y": 0.3,
-                  "lowpass_hz_z": 0.3}
 FMUS = ("eos_testbed_structure", "disturbance", "acs", "piezo_p845_37",
         "controller_testbed_isolation", "controller_eos_isolation")
 
@@ -65,19 +61,10 @@ def ensure_fmus(fmu_dir="fmus", names=FMUS, kind="native") -> Path:
 
 
 def acs_config():
-    """The ACS of the scenario (``ACS_INERTIA``, 10 Hz): the parameters of
-    scenarios/eos_budget.toml's ``acs`` instance, as its FMU reads them."""
-    from acsfmu.filters import AcsFilters
-
-    T = 0.1
-    p = ACS_PARAMETERS
-    g = [pid_gains_for(j, p["bandwidth"], 50.0, T) for j in ACS_INERTIA]
+    """The ACS of the scenario (0.1 Hz PID per axis at 10 Hz, inertias ``ACS_INERTIA``)."""
+    g = [pid_gains_for(j, 0.1, 50.0, 0.1) for j in ACS_INERTIA]
     kp, ki, kd = (list(x) for x in zip(*g))
-    filters = AcsFilters(sample_time=T, notch_hz=[p["notch_hz_x"], 0.0, 0.0],
-                         notch_zeta_num=p["notch_zeta_num_x"],
-                         notch_zeta_den=p["notch_zeta_den_x"],
-                         lowpass_hz=[p["lowpass_hz_x"], p["lowpass_hz_y"], p["lowpass_hz_z"]])
-    return AcsConfig(PidGains(kp, ki, kd), sample_time=T, filters=filters)
+    return AcsConfig(PidGains(kp, ki, kd), sample_time=0.1)
 
 
 def wrench(t, preset: str, scale: float = 1.0):

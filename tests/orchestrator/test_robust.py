@@ -91,14 +91,3 @@ def test_bad_sets_are_refused_in_one_sentence(lin, items, words):
     with pytest.raises(UncertaintyError, match=words) as exc:
         uncertain_set(lin, items)
     assert str(exc.value).count(". ") == 0 and "\n" not in str(exc.value)
-
-
-def test_experiments_acs_is_the_shipped_scenarios():
-    import tomllib
-
-    from orchestrator.experiments.eos import ACS_INERTIA, ACS_PARAMETERS
-
-    with open("scenarios/eos_budget.toml", "rb") as fh:
-        params = tomllib.load(fh)["fmus"]["acs"]["parameters"]
-    assert {k: params[k] for k in ACS_PARAMETERS} == ACS_PARAMETERS
-    assert tuple(params[f"inertia_{a}"] for a in "xyz") == ACS_INERTIA

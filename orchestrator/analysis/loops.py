@@ -98,7 +98,19 @@ class BrokenLoop:
 
     def stable(self, factors, tol: float = 1e-9) -> bool:
         """Every pole of :meth:`closed` inside the unit circle (rigid-body poles at 1
-        allowed)."""
+        allowed).
+
+        Parameters
+        ----------
+        factors : array_like, shape (m,)
+            Real or complex factors on the commands (-).
+        tol : float
+            Margin inside the unit circle (-).
+
+        Returns
+        -------
+        bool
+        """
         ev = np.linalg.eigvals(self.closed(factors))
         rigid = np.abs(ev - 1.0) < 1e-6
         return bool(np.all(rigid | (np.abs(ev) < 1.0 - tol)))

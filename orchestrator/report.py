@@ -4,7 +4,10 @@
 writes either one self-contained HTML file (figures embedded as base64 PNG) or a Markdown
 file with PNG figures next to it.  Contents, in reading order:
 
-1. The verdict (:mod:`orchestrator.report_verdict`): one row per instrument and axis, the
+1. The verdict (:mod:`orchestrator.report_verdict`), opened by a Monte Carlo line per
+   configuration when the folder holds ``uncertainty.json`` (stable samples with the
+   bound of the probability of instability, P(meet) and the 95/95 value of the weakest
+   line; an unbounded value marked failing); then one row per instrument and axis, the
    RSS of every configuration side by side, the change, the requirement, margins,
    pass/fail and the dominant event.  The budget metric is the metric and window of the
    first requirement (or the first metric).
@@ -51,7 +54,8 @@ from .report_figures import (
     scatter_figure,
 )
 from .report_sweeps import WORST_HEAD, spectrum_figure, sweep_sections, uncertainty_sections
-from .report_verdict import axes_by_event, dominant_by_axis, metric_words, verdict_table, verdicts
+from .report_verdict import (axes_by_event, dominant_by_axis, metric_words, montecarlo_lines,
+                             verdict_table, verdicts)
 from .report_verdict import same_window as _same_window
 
 UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
@@ -275,12 +279,12 @@ body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}
 table{border-collapse:collapse;font-size:12px;margin:1em 0}
 th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}
 th{background:#eee} td:first-child,th:first-child{text-align:left}
-td.fail{background:#f8d0d0;font-weight:bold} td.pass{background:#d6f0d6}
+td.fail,span.fail{background:#f8d0d0;font-weight:bold} td.pass{background:#d6f0d6}
 td.incomplete{background:#f6ecc8} table.text td{text-align:left}
 table.verdict td:nth-child(2),table.verdict td:last-child{text-align:left}
 img{max-width:100%;border:1px solid #ddd;margin:0.5em 0}
 h1{font-size:22px;margin:0.3em 0} h2{font-size:17px;margin:1.2em 0 0.4em}
-p{font-size:13px;margin:0.4em 0} p.key{font-size:11px;color:#555}
+p,ul.mc{font-size:13px;margin:0.4em 0} p.key{font-size:11px;color:#555}
 details{margin:0.6em 0;font-size:13px} summary{cursor:pointer}
 """
 
@@ -326,6 +330,9 @@ def _contents(out_dir: Path):
     engine_text, check_rows, flagged = _cross_check(out_dir, camp)
     vhead, vrows = verdict_table(configs, lines)
     n_fail = sum(row.count("FAIL") > 0 for row in vrows)
+    unc_path = out_dir / "uncertainty.json"
+    mc = (montecarlo_lines(json.loads(unc_path.read_text(encoding="utf-8")), metric, window)
+          if unc_path.is_file() else [])
     return {
         "title": f"Jitter report: {camp.get('name', out_dir.name)}",
         "intro": (f"{metric_words(metric, window)} in {unit}, RSS over the events; "
@@ -334,7 +341,7 @@ def _contents(out_dir: Path):
                   f"{n_fail} failing in at least one configuration."
                   + (" With sweeps, each configuration's worst sweep point." if swept
                      else "")),
-        "verdict": (vhead, vrows),
+        "verdict": (vhead, vrows), "mc": mc,
         "key": ("RSS = root-sum-square over the events of a configuration; change = (last "
                 "configuration − first) / first; requirements are the campaign file's "
                 "inputs; margin = requirement − RSS; dominant event: the largest share of "
@@ -355,9 +362,14 @@ def _html(c) -> str:
     parts = [(f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>"
               f"{html.escape(c['title'])}</title><style>{_CSS}</style></head><body>"),
              f"<h1>{html.escape(c['title'])}</h1>",
-             f"<h2 id='verdict'>Verdict</h2><p>{html.escape(c['intro'])}</p>",
-             _html_table(vhead, vrows, "verdict"),
-             f"<p class='key'>{html.escape(c['key'])}</p>"]
+             "<h2 id='verdict'>Verdict</h2>"]
+    if c["mc"]:
+        parts.append("<ul class='mc'>" + "".join(
+            "<li>" + "".join(f"<span class='{cls}'>{html.escape(t)}</span>" if cls
+                             else html.escape(t) for t, cls in pieces) + "</li>"
+            for pieces in c["mc"]) + "</ul>")
+    parts += [f"<p>{html.escape(c['intro'])}</p>", _html_table(vhead, vrows, "verdict"),
+              f"<p class='key'>{html.escape(c['key'])}</p>"]
     if c["failed"]:
         parts += ["<h2>Failed cases</h2>",
                   _html_table(["case", "error"], c["failed"], "text")]
@@ -396,7 +408,11 @@ def _html(c) -> str:
 
 def _markdown(c, fig_dir: Path) -> str:
     vhead, vrows = c["verdict"]
-    parts = [f"# {c['title']}", "", "## Verdict", "", c["intro"], "",
+    parts = [f"# {c['title']}", "", "## Verdict", ""]
+    if c["mc"]:   # a failing piece in bold
+        parts += ["- " + "".join(f"**{t}**" if cls else t for t, cls in pieces)
+                  for pieces in c["mc"]] + [""]
+    parts += [c["intro"], "",
              _md_table(vhead, vrows), "", c["key"], ""]
     if c["failed"]:
         parts += ["## Failed cases", "", _md_table(["case", "error"], c["failed"]), ""]

@@ -346,6 +346,8 @@ def uncertainty_sections(out_dir, instruments, unit):
     """
     import json
 
+    from .campaign.mcresults import unbounded_words
+
     out_dir = Path(out_dir)
     path = out_dir / "uncertainty.json"
     samples_path = out_dir / "uncertainty_samples.parquet"
@@ -385,7 +387,9 @@ def uncertainty_sections(out_dir, instruments, unit):
                     axs[i][0].plot([q["value"]], [float(pc)], "o", ms=4,
                                    color=line.get_color())
                     rows.append([ln["configuration"], inst, axis, first_metric,
-                                 f"{100 * float(pc):g} %", _fmt(q["value"]),
+                                 f"{100 * float(pc):g} %",
+                                 _fmt(q["value"]) if math.isfinite(q["value"])
+                                 else unbounded_words(ln),
                                  f"[{_fmt(q['low'])}, {_fmt(q['high'])}]",
                                  "yes" if q["converged"] else "no" + (
                                      f" (about {q['samples_for_2pct']} samples)"
@@ -434,10 +438,11 @@ def uncertainty_sections(out_dir, instruments, unit):
         fast = (rep.get("diverging_in_record") or {}).get(cf, 0)
         if k or lim:
             text += (f" {cf}: {k} sample(s) with an unstable closed loop ({fast} doubling "
-                     f"within the record; their records are evaluated as the co-simulation "
-                     f"would give them{most('unstable', cf)}) and {lim} whose record "
-                     f"reached a rail or limit{most('limit_reached', cf)}, counted as "
-                     "exceeding every requirement (the CDF stops below 1).")
+                     f"within the record{most('unstable', cf)}) and {lim} whose record "
+                     f"reached a rail or limit{most('limit_reached', cf)}, all counted as "
+                     "exceeding every requirement (the CDF stops below 1; the records of "
+                     "the unstable ones, as the co-simulation would give them, are the "
+                     "record_value of uncertainty_samples.parquet).")
     text += _leaders(rep.get("lines", []))
     return figures, rows, text
 

@@ -4,6 +4,8 @@
 axis, the RSS of every configuration side by side (with sweeps: its worst point), the
 requirement, the margins, pass or fail and the dominant event.  :func:`dominant_by_axis`
 names the event that dominates each axis, which the report's time histories follow.
+:func:`montecarlo_lines` opens the verdict of a campaign with a Monte Carlo: per
+configuration, its stability and its weakest line.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ __all__ = [
     "axes_by_event",
     "dominant_by_axis",
     "metric_words",
+    "montecarlo_lines",
     "verdict_table",
     "verdicts",
 ]
@@ -259,3 +262,92 @@ def axes_by_event(dominant):
     for axis, (event, _) in dominant.items():
         out.setdefault(event, []).append(axis)
     return out
+
+
+def _weakest(lines, metric, window):
+    """The line of a configuration that least meets its requirement: the lowest P(meet),
+    then the largest upper bound against the requirement (without requirements, the
+    largest bound); the budget metric's lines when there are some."""
+    mine = [ln for ln in lines if ln["metric"] == metric
+            and same_window(ln.get("window"), window)] or lines
+
+    def bound(ln):
+        q = next(iter(ln.get("quantiles", {}).values()), {})
+        b = q.get("upper_bound", q.get("value", math.nan))
+        req = ln.get("requirement")
+        return b / req if _finite(req) and req > 0 else b
+
+    return min(mine, key=lambda ln: (ln.get("p_meet", 1.0),
+                                     -bound(ln) if _finite(bound(ln)) else -math.inf))
+
+
+def montecarlo_lines(report, metric, window):
+    """The Monte Carlo lines that open a verdict, one per configuration.
+
+    Each says how many samples are stable with the one-sided upper bound of the
+    probability of instability, and for the configuration's weakest line (lowest
+    P(meet)) P(meet) with its lower bound and the value at P_c = 0.95 (else the first
+    level) with its upper bound at the run's assurance (the 95/95 value).  An infinite
+    value reads "unbounded: N of M samples unstable", marked failing, with the inputs
+    most related to the instability.
+
+    Parameters
+    ----------
+    report : dict
+        The content of ``uncertainty.json``.
+    metric : str
+        The budget metric kind.
+    window : float or None
+        Its window (s).
+
+    Returns
+    -------
+    list of list of (str, str)
+        Per configuration, its text as pieces with a class: "" or ``"fail"``.
+    """
+    from .campaign.mcresults import unstable_upper_bound
+
+    n, assurance = report["samples"], report.get("assurance", 0.95)
+    at = f"{100 * assurance:g} %"
+    out = []
+    for cf, k in report.get("unstable", {}).items():
+        lines = [ln for ln in report.get("lines", []) if ln["configuration"] == cf]
+        bound = (report.get("stability") or {}).get(cf, {}).get(
+            "unstable_upper_bound", unstable_upper_bound(k, n, assurance))
+        parts = [(f"Monte Carlo, {cf or 'all cases'}: ", ""),
+                 (f"{n - k} of {n} samples stable", "fail" if k else ""),
+                 (f" (probability of instability <= {bound:.3g} at {at})", "")]
+        if lines:
+            ln = _weakest(lines, metric, window)
+            qs = ln.get("quantiles", {})
+            pc = next((p for p in qs if float(p) == 0.95), next(iter(qs), None))
+            parts.append((f"; weakest line {ln['instrument']} {ln['axis']}, "
+                          f"{metric_words(ln['metric'], ln.get('window'))}", ""))
+            if "p_meet" in ln:
+                low = (f" (>= {ln['p_meet_low']:.3f} at {at})" if "p_meet_low" in ln
+                       else "")
+                parts.append((f": P(meet {ln['requirement']:g} {ln['unit']}) = "
+                              f"{ln['p_meet']:.3f}{low}", ""))
+            if pc is not None:
+                parts += _bound_pieces(qs[pc], ln, float(pc), assurance, report, cf)
+        out.append(parts)
+    return out
+
+
+def _bound_pieces(q, line, pc, assurance, report, cf):
+    """The P_c/assurance value of a line as pieces: the bound, the count it needs, or
+    an unbounded value with the inputs most related to the instability."""
+    from .campaign.mcresults import unbounded_words
+
+    label = f", {100 * pc:g}/{100 * assurance:g} value "
+    if math.isfinite(q.get("value", math.nan)) and q.get("upper_rank") is None:
+        return [(label + f"needs {q.get('samples_for_bound')} samples", "")]
+    b = q.get("upper_bound", q.get("value", math.nan))
+    if _finite(b) and math.isfinite(b):
+        return [(label + f"{b:.4g} {line['unit']}", "")]
+    key = "unstable" if line.get("unstable") else "limit_reached"
+    drivers = ((report.get("drivers") or {}).get(key) or {}).get(cf) or {}
+    top = sorted(drivers, key=lambda name: (-abs(drivers[name]), name))[:3]
+    named = ", ".join(f"{d} {drivers[d]:+.2f}" for d in top)
+    return [(label, ""), (unbounded_words(line), "fail"),
+            (f" (drivers, rank correlation with the flag: {named})" if top else "", "")]

@@ -399,7 +399,8 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
     Parameters
     ----------
     samples : ndarray, shape (n,)
-        The budget value of every sample (e.g. arcsec).
+        The budget value of every sample (e.g. arcsec); ``inf`` for a sample outside
+        the model (an unstable loop, a rail reached), which exceeds every requirement.
     confidence : sequence of float
         Levels ``P_c`` in (0, 1), e.g. ``0.95, 0.9973``.
     requirement : float
@@ -425,9 +426,11 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         ``upper_bound`` with its rank ``upper_rank`` and ``samples_for_bound``
         (:func:`quantile_upper_bound`: above the true value with probability
         ``>= assurance``, whatever the distribution), ``meets``: ``prob(X < X_max) >=
-        P_c`` on the samples, and ``meets_assured``: ``upper_bound < X_max``), ``p_meet``
-        (fraction of samples ``< X_max``, with its binomial standard error ``p_meet_se``
-        and its Clopper-Pearson lower bound ``p_meet_low`` at ``assurance``),
+        P_c`` on the samples and the value at ``P_c`` below ``X_max`` (an infinite value
+        never meets), and ``meets_assured``: ``upper_bound < X_max``), ``p_meet``
+        (fraction of samples ``< X_max``, an infinite one never below it, with its
+        binomial standard error ``p_meet_se`` and its Clopper-Pearson lower bound
+        ``p_meet_low`` at ``assurance``),
         ``assurance``, ``sensitivity`` (input -> rank
         correlation, largest magnitude first), ``first_order`` (input ->
         :func:`first_order_index`, largest first: what drives the budget whether or not
@@ -469,7 +472,9 @@ def statistics(samples: np.ndarray, confidence, requirement: float = math.nan, *
         for pc in confidence:
             chk = check_requirement(x[:, None], requirement, pc, "ensemble")
             q = out["quantiles"][float(pc)]
-            q["meets"] = bool(chk.passed)
+            # the interpolated value can lie above X_max (or be infinite) while the
+            # fraction below X_max reaches P_c: both must hold, or the line reads false
+            q["meets"] = bool(chk.passed and q["value"] < requirement)
             q["meets_assured"] = bool(q["upper_bound"] < requirement)
         p = check_requirement(x[:, None], requirement, 1.0, "ensemble").probability
         out["p_meet"] = p

@@ -3,14 +3,16 @@
 Every sample draws the uncertain inputs (:func:`orchestrator.analysis.uncertainty.draw`),
 closes each configuration's loop with them (modal frequencies and damping on the reduced
 structure, controller gains), drives it with every event (source amplitudes and phases),
-takes the campaign's metrics of each record and the RSS over the events.  Only those
+takes the campaign's metrics of each record and the RSS over the events (a sample whose
+loop is unstable counts as exceeding every requirement, :mod:`.mcresults`).  Only those
 numbers are kept: memory holds ``samples x configurations x events x axes x metrics``
 floats and one record at a time, whatever the sample count or the record length.
 
 Written to the campaign folder: ``uncertainty_samples.parquet`` (every sample's RSS per
-configuration, instrument, axis and metric), ``uncertainty.json`` (per line: mean, std,
-the value at each confidence level with its bootstrap interval, the probability of
-meeting the requirement, the sensitivity ranking and the ECSS interpretation) and
+configuration, instrument, axis and metric, with the records' own RSS beside it),
+``uncertainty.json`` (per line: mean, std, the value at each confidence level with its
+bootstrap interval, the probability of meeting the requirement, the sensitivity ranking
+and the ECSS interpretation; per configuration, the unstable samples) and
 ``uncertainty_summary.csv`` (one row per line and confidence level).
 
 Samples are kept as they finish, under ``uncertainty_parts/<digest>/`` (the digest of
@@ -32,19 +34,16 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
 
 from ..files import atomic_write
 from ..progress import ProgressBar
-from .mcresults import (DIVERGING, LIMIT, UNSTABLE, _convergence, _lines, _report,
-                        _samples_table)
-from .store import canonical, write_json, write_table
+from .mcresults import (DIVERGING, LIMIT, SAMPLES_FILE, UNCERTAINTY_FILE, UNSTABLE,
+                        _convergence, _lines, _report, write_results)
+from .store import canonical
 
 __all__ = ["run_uncertainty", "SAMPLES_FILE", "UNCERTAINTY_FILE"]
 
-SAMPLES_FILE = "uncertainty_samples.parquet"
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-UNCERTAINTY_FILE = "uncertainty.json"
 
 
 def _perturbed(model, draws, items, s):
@@ -108,8 +107,10 @@ def _digest(model) -> str:
 def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     """Metrics ``(len(samples), configs, events, pairs, metrics)`` and the status bits of
     every sample and configuration: 1 a record reached a rail or limit (its metrics are
-    ``inf``: it exceeds every requirement), 2 the closed loop is unstable, 4 so unstable
-    that it more than doubles over the record."""
+    ``inf``: it exceeds every requirement), 2 the closed loop is unstable (its metrics
+    are those of its records; the statistics count it as exceeding every requirement,
+    :func:`.mcresults._counted`), 4 so unstable that it more than doubles over the
+    record."""
     from ..analysis.blocks import structure_block
     from ..analysis.fast import FastResponse
     from ..analysis.sweep import unstable_poles
@@ -320,13 +321,9 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
         if need is None or n >= top:
             break
         n = min(top, max(n + 1, min(4 * n, need)))   # at most four times more a round
-    out = Path(out_dir)
-    write_table(_samples_table(campaign, ctx, values), out / SAMPLES_FILE)
-    write_table(pa.Table.from_pylist(summary), out / "uncertainty_summary.csv", csv=True)
-    write_json(out / UNCERTAINTY_FILE, json.loads(json.dumps(
-        _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall),
-        default=float)))
-    return out / UNCERTAINTY_FILE
+    return write_results(out_dir, campaign, ctx, values, status, summary,
+                         _report(campaign, ctx, draws, status, lines, folder, out_dir,
+                                 rounds, wall))
 
 
 def _samples(campaign, out_dir, runner, ctx, draws, folder, workers, scheduler, progress,

@@ -342,7 +342,7 @@ def test_unstable_samples_are_counted_and_fail_once_out_of_the_model(tmp_path, t
     """Gains 1 to 6 times the design: the loop goes unstable once the diagonal's factor
     passes about 2.5 (its largest pole |z| = 1.10 per super-period at 3 x, 2.6 at 5 x,
     with the longeron at 1 x; stable at 2 x) and diverges within 2 s; every such sample
-    is counted, and those whose records reach a rail fail every requirement."""
+    is counted and fails every requirement, as do those whose records reach a rail."""
     unc = {"samples": 30, "seed": 9, "confidence": [0.5],
            "parameters": [{"name": "g", "kind": "gain", "instances": ["ctrl_diag",
                                                                        "ctrl_long"],
@@ -351,10 +351,21 @@ def test_unstable_samples_are_counted_and_fail_once_out_of_the_model(tmp_path, t
     k = rep["unstable"]["on"]
     assert 0 < k < 30 and rep["diverging_in_record"]["on"] <= k
     lim = rep["limit_reached"]["on"]
+    out = rep["stability"]["on"]["failing_every_requirement"]
+    assert max(k, lim) <= out <= k + lim
     for line in rep["lines"]:
-        assert line["unstable"] == k and line["n_infinite"] == lim
+        assert line["unstable"] == k and line["n_infinite"] == out
         if "p_meet" in line:
-            assert line["p_meet"] <= 1 - lim / 30 + 1e-12
+            assert line["p_meet"] <= 1 - out / 30 + 1e-12
+    # the records of the unstable samples stay in the per-sample table
+    import pyarrow.parquet as pq
+    rows = pq.read_table(tmp_path / "uncertainty_samples.parquet").to_pylist()
+    assert sum(r["unstable"] for r in rows) == k * len(rep["lines"])
+    assert all(r["value"] == math.inf for r in rows if r["unstable"])
+    # an unstable sample whose records stayed within the rails keeps a finite record:
+    # |unstable \ limited| = |unstable or limited| - |limited| of them, in every line
+    assert sum(math.isfinite(r["record_value"]) for r in rows if r["unstable"]) == (
+        (out - lim) * len(rep["lines"]))
     # the diagonal's factor decides it: the input most related to the unstable samples.
     # A flag exactly above factor 2.5 of a uniform on [1, 6] (p = 0.7) has the rank
     # correlation sqrt(3 p (1 - p)) = 0.79 with it; 0.6 leaves two standard errors of a

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import importlib
 import json
-import math
 import os
 import sys
 from pathlib import Path
@@ -98,7 +97,7 @@ def run(args) -> int:
         verify_campaign,
         write_summary,
     )
-    from ..campaign.mcresults import convergence_hint
+    from ..campaign.mcresults import command_lines, convergence_hint
 
     camp = load_campaign(args.campaign, args.uncertainty, args.samples)
     engine = args.engine or camp.engine
@@ -179,25 +178,8 @@ def run(args) -> int:
                       "no finite value to converge" if widest is None else
                       f"widest interval of a finite value {100 * widest:.2g} %"
                       + ("" if widest < 0.02 else ": not converged at max_samples")))
-        for cf, k in rep["unstable"].items():
-            if k or rep["limit_reached"][cf]:
-                print(f"  {cf}: {k} sample(s) with an unstable loop "
-                      f"({rep['diverging_in_record'][cf]} doubling within the record), "
-                      f"{rep['limit_reached'][cf]} reaching a rail or limit (counted as "
-                      "exceeding every requirement)")
-        for line in rep["lines"]:
-            qs = ", ".join(f"P{100 * float(pc):g} = {q['value']:.4g}"
-                           + ("" if q["converged"] else " (not converged" + (
-                               f"; about {q['samples_for_2pct']} samples would be)"
-                               if q.get("samples_for_2pct") else ")"))
-                           + _bound_words(q, line.get("assurance"))
-                           for pc, q in line.get("quantiles", {}).items())
-            meet = (f", meets {line['requirement']:g} with p = {line['p_meet']:.3f}"
-                    + (f" (>= {line['p_meet_low']:.3f} at {100 * line['assurance']:g} % "
-                       "assurance)" if "p_meet_low" in line else "")
-                    if "p_meet" in line else "")
-            print(f"  {line['configuration']:<16} {line['instrument']:>6}/{line['axis']:<6}"
-                  f" {qs} {line['unit']}{meet}")
+        for text in command_lines(rep):
+            print(text)
         hint = convergence_hint(rep)
         if hint:
             print(f"  {hint}")
@@ -250,13 +232,3 @@ def budget_lines(summary_path, limit: int = 20) -> list:
     if len(lines) > limit:
         out.append(f"  ... {len(lines) - limit} more lines in budget.csv")
     return out
-
-
-def _bound_words(q: dict, assurance) -> str:
-    """A level's distribution-free upper bound in words ("" for a file without one)."""
-    if assurance is None or "upper_bound" not in q or not math.isfinite(q["value"]):
-        return ""   # no bound to give above a value that is already out of the model
-    at = f"{100 * assurance:g} % assurance"
-    if q.get("upper_rank") is None:
-        return f" (no bound at {at} below {q['samples_for_bound']} samples)"
-    return f" <= {q['upper_bound']:.4g} at {at}"

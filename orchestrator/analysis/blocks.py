@@ -213,56 +213,52 @@ def _controller_block(slave, name, period, h, ft):
 
 
 def _acs_block(slave, name, period, h, ft):
-    """Block of the ACS: state ``[z (3), input filters, notch, low-pass, u (3)]``.
+    return acs_block(slave.config(), name, period, h, ft)
 
-    Each filter switched on adds its two direct-form-II-transposed states (the six
-    anti-alias filters in input order, then the notches and low-passes of the axes that
-    have one), so with every filter off the state is ``[z, u]``.  ``model`` holds the
-    filter set (:class:`acsfmu.filters.AcsFilters`).
+
+def acs_block(config, name: str, period: int, h: float, ft=None) -> Block:
+    """Block of an ACS: state ``[z (3), input filters, notch, low-pass, u (3)]``.
+
+    The law is :func:`acsfmu.law.delayed_law` (the one the FMU steps, without
+    saturation).  Each filter switched on adds its two direct-form-II-transposed states
+    (the six anti-alias filters in input order, then the notches and low-passes of the
+    axes that have one), so with every filter off the state is ``[z, u]``.  ``model``
+    holds the filter set (:class:`acsfmu.filters.AcsFilters`).
+
+    Parameters
+    ----------
+    config : acsfmu.pid.AcsConfig
+        Gains, sample time, limits and filters.
+    name : str
+        Instance name.
+    period : int
+        Period in base ticks.
+    h : float
+        Communication period (s); must equal the controller's sample time.
+    ft : ndarray of bool, shape (6,), optional
+        Feedthrough of the outputs (none by default).
+
+    Returns
+    -------
+    Block
     """
-    from acsfmu.filters import biquad_state_space
+    from acsfmu.law import delayed_law
 
-    cfg = slave.config()
-    T = cfg.sample_time
+    T = config.sample_time
     if abs(h - T) > 1e-9 * T:
         raise AnalysisError(f"ACS {name!r} communicates every {h} s but samples every {T} s; "
                             "the linear analysis needs the two equal")
-    g, f = cfg.gains, cfg.filters
-    kp, ki, kd = (np.asarray(v, float) * np.ones(3) for v in (g.kp, g.ki, g.kd))
-    sections = ((6 if f.antialias_on else 0) + int(np.sum(f.notch_on))
-                + int(np.sum(f.lowpass_on)))
-    n = 6 + 2 * sections
-    eye = np.eye(n + 6)              # a signal is a row over [x (n); inputs (6)]
-    M = np.zeros((n, n + 6))         # rows of [A B]
-    k = 3
-
-    def section(coef, signal):       # one biquad fed by signal: its output row
-        nonlocal k
-        a, b, c, d = biquad_state_space(coef)
-        s = eye[k:k + 2]
-        M[k:k + 2] = a @ s + np.outer(b, signal)
-        k += 2
-        return c @ s + d * signal
-
-    inputs = [eye[n + j] for j in range(6)]  # roll, pitch, yaw, rate_x, rate_y, rate_z
-    if f.antialias_on:
-        inputs = [section(f.antialias, x) for x in inputs]
-    # z+ = z + T e, v = -(kp e + kd r + ki z), through the notch and low-pass; u+ = w
-    v = [-(kp[i] * inputs[i] + kd[i] * inputs[3 + i] + ki[i] * eye[i]) for i in range(3)]
-    v = [section(f.notch[i], v[i]) if f.notch_on[i] else v[i] for i in range(3)]
-    v = [section(f.lowpass[i], v[i]) if f.lowpass_on[i] else v[i] for i in range(3)]
-    for i in range(3):
-        M[i] = eye[i] + T * inputs[i]
-        M[n - 3 + i] = v[i]
-    A, B = M[:, :n], M[:, n:]
+    A, B, Cu = delayed_law(config)
+    n = A.shape[0]
     C = np.zeros((6, n))
-    C[:3, n - 3:] = np.eye(3)   # wheel speeds: not fed back in the linear analysis
+    C[:3] = Cu                  # wheel speeds: not fed back in the linear analysis
     ins = ("roll", "pitch", "yaw", "rate_x", "rate_y", "rate_z")
     outs = ("Tx", "Ty", "Tz", "wheel_speed_x", "wheel_speed_y", "wheel_speed_z")
-    tl = np.broadcast_to(np.asarray(cfg.torque_limit, float), (3,))
+    tl = np.broadcast_to(np.asarray(config.torque_limit, float), (3,))
     limits = tuple((o, -float(t), float(t), "torque limit") for o, t in zip(outs[:3], tl))
-    return Block(name, "acs", period, A, B, C, np.zeros((6, 6)), ins, outs, ft,
-                 limits=limits, model=f, unmodelled=tuple(
+    return Block(name, "acs", period, A, B, C, np.zeros((6, 6)), ins, outs,
+                 np.zeros(6, bool) if ft is None else ft, limits=limits,
+                 model=config.filters, unmodelled=tuple(
                      f"output {name}.{o} (the wheel speeds are not in the linear model)"
                      for o in outs[3:]))
 

@@ -118,7 +118,8 @@ class AcsPlant:
         -------
         list of (float, float)
             ``(frequency Hz in (0, Nyquist), damping ratio)`` of each pole pair whose
-            equivalent damping ``-ln|z| / |ln z|`` is below 0.3, by frequency.
+            equivalent damping ``-ln|z| / |ln z|`` is below 0.3, by frequency (a
+            repeated pole once).
         """
         ev = np.linalg.eigvals(self.Phi)
         out = []
@@ -130,7 +131,12 @@ class AcsPlant:
             if zeta < _LIGHT:
                 out.append((float(abs(np.angle(z)) / (2 * math.pi * self.period)),
                             float(zeta)))
-        return sorted(out)
+        kept = []   # a repeated pole (equal modes of several axes) once
+        for m in sorted(out):
+            if not kept or abs(m[0] - kept[-1][0]) > 1e-9 * m[0] \
+                    or abs(m[1] - kept[-1][1]) > 1e-6 * max(m[1], 1e-9):
+                kept.append(m)
+        return kept
 
 
 @dataclass(frozen=True)
@@ -440,9 +446,7 @@ class _Search:
             above = not math.isfinite(fc) or fn > fc
             if d >= self.pm and (self.phase_ok or not above):
                 verdicts.append(ModeVerdict(fn, zeta, peak, "phase", d, "deg"))
-            elif d >= self.pm:   # phase-stabilised, but gain stabilisation was asked
-                verdicts.append(ModeVerdict(fn, zeta, peak, "fails", -peak, "dB"))
-            elif peak < 0:    # below 0 dB: a gain margin short of the request
+            elif peak < 0 or (above and not self.phase_ok):   # a gain margin short
                 verdicts.append(ModeVerdict(fn, zeta, peak, "fails", -peak, "dB"))
             else:
                 verdicts.append(ModeVerdict(fn, zeta, peak, "fails", d, "deg"))
@@ -799,12 +803,16 @@ def _refusal(s: _Search, r: AxisResult, bw, ratios) -> str:
     if worst is not None and (r.phase_margin >= s.pm or
                               worst[0] > (s.pm - r.phase_margin) / s.pm):
         m = worst[1]
-        got = (f"keeps {m.margin:.1f} dB" if m.unit == "dB"
-               else f"keeps {m.margin:.1f} deg of phase where |L| is within "
-                    f"{s.gm:g} dB of 1")
+        if m.unit == "deg":
+            got = (f"keeps {m.margin:.1f} deg of phase where |L| is within {s.gm:g} dB "
+                   "of 1")
+        elif m.margin >= 0:
+            got = f"keeps {m.margin:.1f} dB"
+        else:
+            got = f"rises {-m.margin:.1f} dB above 0 dB"
+        asked = f"{s.gm:g} dB or {s.pm:g} deg" if s.phase_ok else f"{s.gm:g} dB"
         return (f"ACS design: {r.axis}: the {m.freq_hz:.3g} Hz mode {got} at best "
-                f"({tried}; {s.gm:g} dB or {s.pm:g} deg requested); lower the requested "
-                "margin or add damping")
+                f"({tried}; {asked} requested); lower the requested margin or add damping")
     if r.phase_margin < s.pm:
         return (f"ACS design: {r.axis}: the rigid-body phase margin reaches "
                 f"{r.phase_margin:.1f} deg at best ({tried}; {s.pm:g} deg requested); "

@@ -385,7 +385,7 @@ def _loop(ch, Ti, f, nominal, stable_i, opened) -> LoopMargins:
                        True, tuple(opened))
 
 
-def broken_loop(lin, channels) -> BrokenLoop:
+def broken_loop(lin, channels, *, faster: bool = False) -> BrokenLoop:
     """The loop of ``lin`` broken at the given commands, over one loop period.
 
     Parameters
@@ -395,6 +395,10 @@ def broken_loop(lin, channels) -> BrokenLoop:
         slower instances first).
     channels : sequence of str
         Commands ``instance.output`` (of one or several instances).
+    faster : bool
+        Also break outputs of instances that run faster than the hyperperiod (a period
+        dividing it): their consumers then read the value at the loop's tick 0, held
+        over the loop period (exact when every consumer runs at the loop period).
 
     Returns
     -------
@@ -410,7 +414,8 @@ def broken_loop(lin, channels) -> BrokenLoop:
         per_inst.setdefault(inst, []).append(var)
     blocks, order, srcs = dict(lin.blocks), list(lin.order), {}
     for k, (inst, outs) in enumerate(per_inst.items()):
-        if lin.blocks[inst].period != lin.hyper:
+        p = lin.blocks[inst].period
+        if p != lin.hyper and not (faster and lin.hyper % p == 0):
             raise AnalysisError(f"{inst!r} runs every {lin.blocks[inst].period} ticks but "
                                 f"the loop's period is {lin.hyper}; open the slower "
                                 "instances first")

@@ -45,7 +45,7 @@ from acsfmu.law import axis_law
 from acsfmu.pid import AcsConfig, PidGains
 
 __all__ = ["AcsPlant", "AxisChoice", "ModeVerdict", "AxisResult", "FlexibleDesign",
-           "design_on_plant", "evaluate_on_plant", "check_request"]
+           "design_on_plant", "evaluate_on_plant", "check_request", "check_margins"]
 
 _AXIS_NAMES = ("roll", "pitch", "yaw")
 _RIGID = 1e-6          # a pole within this of z = 1 is a rigid-body pole
@@ -317,17 +317,9 @@ def check_request(sample_time: float, *, phase_margin: float, gain_margin_db: fl
     ------
     AcsConfigError
     """
+    check_margins(phase_margin=phase_margin, gain_margin_db=gain_margin_db,
+                  disk_margin_db=disk_margin_db)
     nyq = 0.5 / sample_time
-    if not (math.isfinite(gain_margin_db) and gain_margin_db >= 0):
-        raise AcsConfigError(f"ACS design: the requested gain margin {gain_margin_db:g} dB "
-                             "is below 0 dB; a margin is a factor the loop must tolerate, "
-                             "expected 0 dB or more (6 dB is usual)")
-    if not (math.isfinite(disk_margin_db) and disk_margin_db >= 0):
-        raise AcsConfigError(f"ACS design: the requested disk margin {disk_margin_db:g} dB "
-                             "is below 0 dB; expected 0 (none) or more")
-    if not (math.isfinite(phase_margin) and 0 < phase_margin < 90):
-        raise AcsConfigError(f"ACS design: the requested phase margin {phase_margin:g} deg "
-                             "is outside (0, 90) deg; expected e.g. 30 deg")
     bw = np.asarray(bandwidths, float)
     if bw.size == 0 or not np.all(np.isfinite(bw) & (bw > 0)):
         raise AcsConfigError(f"ACS design: the bandwidths {bw.tolist()} Hz must be positive "
@@ -342,6 +334,36 @@ def check_request(sample_time: float, *, phase_margin: float, gain_margin_db: fl
         if not (math.isfinite(r) and r > 0):
             raise AcsConfigError(f"ACS design: the low-pass ratio {r:g} must be positive (a "
                                  "corner that many times the crossover)")
+
+
+def check_margins(*, phase_margin: float, gain_margin_db: float,
+                  disk_margin_db: float = 0.0) -> None:
+    """Refuse requested margins in one sentence (the part of :func:`check_request`
+    that needs no sample time).
+
+    Parameters
+    ----------
+    phase_margin : float
+        Requested phase margin (deg), in (0, 90).
+    gain_margin_db : float
+        Requested gain margin (dB), at least 0.
+    disk_margin_db : float
+        Requested MIMO disk margin (dB), at least 0.
+
+    Raises
+    ------
+    AcsConfigError
+    """
+    if not (math.isfinite(gain_margin_db) and gain_margin_db >= 0):
+        raise AcsConfigError(f"ACS design: the requested gain margin {gain_margin_db:g} dB "
+                             "is below 0 dB; a margin is a factor the loop must tolerate, "
+                             "expected 0 dB or more (6 dB is usual)")
+    if not (math.isfinite(disk_margin_db) and disk_margin_db >= 0):
+        raise AcsConfigError(f"ACS design: the requested disk margin {disk_margin_db:g} dB "
+                             "is below 0 dB; expected 0 (none) or more")
+    if not (math.isfinite(phase_margin) and 0 < phase_margin < 90):
+        raise AcsConfigError(f"ACS design: the requested phase margin {phase_margin:g} deg "
+                             "is outside (0, 90) deg; expected e.g. 30 deg")
 
 
 def _grid(plant: AcsPlant, modes, n: int = 600) -> np.ndarray:

@@ -173,8 +173,22 @@ def text(res) -> str:
 
 
 def write(res, out, scenario, overrides, fmu_dir=None) -> None:
-    """``design.json``, ``set.txt`` (the --set lines) and ``scenario.toml`` (the scenario
-    with the design's parameters, its FMUs by absolute path) in ``out``."""
+    """Write ``design.json``, ``set.txt`` and ``scenario.toml`` into a folder.
+
+    Parameters
+    ----------
+    res : RobustDesign
+        The design.
+    out : Path
+        Folder (created).
+    scenario : path-like
+        The scenario designed.
+    overrides : dict of str to value
+        Its start values and the design's (written as ``--set`` lines and into the
+        scenario, whose FMUs are given by absolute path).
+    fmu_dir : path-like, optional
+        Folder searched first for FMUs.
+    """
     import json
     import math
     import tomllib

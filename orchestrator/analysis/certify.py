@@ -28,8 +28,12 @@ point is proven stable.  The proof is zero exclusion on a frequency grid:
   the boundary).  Aliases beyond ``2 w_max`` are bounded in closed form.
 * **Zero exclusion.**  With ``M(z) = b^T (I - K P0)^-1 K``, the perturbed loop is
   singular at ``z`` only if ``I - E`` is, ``E_ij = M_i c_j``; ``|E_ij| <= N_ij`` (the
-  resonant aliases with their direction, the others through ``|M_i| |w_j|``), and
-  ``rho(N) < 1`` (Collatz-Wielandt bound) excludes it.  The nominal loop stable, the
+  resonant aliases with their direction, the others entrywise).  Each mode's own loop
+  is taken exactly at its nearest alias: ``1 - E_jj = beta (d - d*) / d - (rest)``, so
+  ``|1 - E_jj| >= L_j = |beta| min |d - d*| / |d| - rest`` over the rectangle (a lightly
+  damped mode moved by many bandwidths keeps its phase: no disk around it).  With every
+  ``L_j > 0`` and ``rho(N_off / L) < 1`` (Collatz-Wielandt bound), ``I - E`` is
+  nonsingular.  The nominal loop stable, the
   modes' deviations stable and the scaled sets nested, no pole crosses the unit circle
   for any point up to that ``k``.
 
@@ -114,8 +118,9 @@ def loop_members(lin, structure: str) -> list:
     return [n for n in lin.order if n in both]
 
 
-def _seg_max(p, q, d0):
-    """Max of ``|d - d0|^2 / |d|^2`` over the segment ``d = p + t q``, ``t in [0, 1]``."""
+def _seg_max(p, q, d0, pick=np.maximum):
+    """Max (or, with ``pick=np.minimum``, min) of ``|d - d0|^2 / |d|^2`` over the segment
+    ``d = p + t q``, ``t in [0, 1]``."""
     a = np.abs(q) ** 2
     u = p - d0
     b1, c1 = 2 * (q.conj() * u).real, np.abs(u) ** 2
@@ -124,7 +129,7 @@ def _seg_max(p, q, d0):
     def f(t):
         return (a * t * t + b1 * t + c1) / (a * t * t + b2 * t + c2)
 
-    best = np.maximum(f(0.0), f(1.0))
+    best = pick(f(0.0), f(1.0))
     al, be, ga = a * (b2 - b1), 2 * a * (c2 - c1), b1 * c2 - c1 * b2
     disc = be * be - 4 * al * ga
     ok = (disc >= 0) & (np.abs(al) > 0)
@@ -132,11 +137,34 @@ def _seg_max(p, q, d0):
     den = np.where(ok, 2 * al, 1.0)
     for r in ((-be + sq) / den, (-be - sq) / den):
         inside = ok & (r > 0) & (r < 1)
-        best = np.where(inside, np.maximum(best, f(np.where(inside, r, 0.0))), best)
+        best = np.where(inside, pick(best, f(np.where(inside, r, 0.0))), best)
     lin_ = (np.abs(al) == 0) & (np.abs(be) > 0)
     r = -ga / np.where(lin_, be, 1.0)
     inside = lin_ & (r > 0) & (r < 1)
-    return np.where(inside, np.maximum(best, f(np.where(inside, r, 0.0))), best)
+    return np.where(inside, pick(best, f(np.where(inside, r, 0.0))), best)
+
+
+def _rect(nu, w0, c0, fw, fz):
+    """Corners of the rectangle holding ``d = w^2 - nu^2 + i |nu| c`` over the box."""
+    nu = np.abs(nu)
+    re_lo = (w0 * fw[0]) ** 2 - nu * nu
+    re_hi = (w0 * fw[1]) ** 2 - nu * nu
+    im_lo = nu * c0 * fw[0] * fz[0]
+    im_hi = nu * c0 * fw[1] * fz[1]
+    return (re_lo + 1j * im_lo, re_hi + 1j * im_lo, re_hi + 1j * im_hi, re_lo + 1j * im_hi)
+
+
+def _ratio_min(corners, dstar):
+    """Min of ``|d - d*| / |d|`` over the rectangle (0 when ``d*`` is inside it):
+    ``log|d - d*| - log|d|`` is harmonic off ``d*``, so the minimum is on the edges."""
+    a, b, c, d = corners
+    m = np.minimum.reduce([_seg_max(a, b - a, dstar, np.minimum),
+                           _seg_max(b, c - b, dstar, np.minimum),
+                           _seg_max(c, d - c, dstar, np.minimum),
+                           _seg_max(d, a - d, dstar, np.minimum)])
+    inside = ((dstar.real >= a.real) & (dstar.real <= b.real)
+              & (dstar.imag >= a.imag) & (dstar.imag <= c.imag))
+    return np.where(inside, 0.0, np.sqrt(m) * (1 - 1e-12))
 
 
 def dh_bound(nu, w0, c0, fw, fz):
@@ -159,13 +187,8 @@ def dh_bound(nu, w0, c0, fw, fz):
         ``d``), with ``d = w^2 - nu^2 + i nu c``.
     """
     nu = np.abs(np.asarray(nu, float))
-    re_lo = (w0 * fw[0]) ** 2 - nu * nu
-    re_hi = (w0 * fw[1]) ** 2 - nu * nu
-    im_lo = nu * c0 * fw[0] * fz[0]
-    im_hi = nu * c0 * fw[1] * fz[1]
     d0 = (w0 * w0 - nu * nu) + 1j * nu * c0
-    a, b = re_lo + 1j * im_lo, re_hi + 1j * im_lo
-    c, d = re_hi + 1j * im_hi, re_lo + 1j * im_hi
+    a, b, c, d = _rect(nu, w0, c0, fw, fz)
     m = np.maximum.reduce([_seg_max(a, b - a, d0), _seg_max(b, c - b, d0),
                            _seg_max(c, d - c, d0), _seg_max(d, a - d, d0)])
     return np.sqrt(m) / np.abs(d0) * (1 + 1e-12)
@@ -384,6 +407,9 @@ class _Bound:
         an = np.abs(num)[:, None, :]
         lo, hi = 0.97 * md.w0 * fw[0], 1.03 * md.w0 * fw[1]
         res = (an >= lo[None, :, None]) & (an <= hi[None, :, None])
+        # every mode's nearest alias is taken with its phase (its own loop exactly)
+        nearest = np.argmin(np.abs(an - md.w0[None, :, None]), axis=2)
+        np.put_along_axis(res, nearest[:, :, None], True, axis=2)
         near = np.abs(m)[None, None, :] <= self.Aj[None, :, None]
         # non-resonant aliases within |m| <= A_j: flat lists
         zi, ji, ai = np.nonzero(near & ~res)
@@ -391,7 +417,9 @@ class _Bound:
         self.nr = (zi, ji, num[zi, ai], wq)
         # resonant aliases: with their direction
         R = max(int(res.sum(axis=2).max()), 1)
-        order = np.argsort(~res, axis=2, kind="stable")[:, :, :R]
+        # resonant first, the nearest to the nominal mode first of all
+        key = np.where(res, np.abs(an - md.w0[None, :, None]), np.inf)
+        order = np.argsort(key, axis=2, kind="stable")[:, :, :R]
         valid = np.take_along_axis(res, order, axis=2)                 # (z, n, R)
         MC = [M[:, :, md.kinds == q] @ md.C[md.kinds == q] for q in (0, 1, 2)]
         G = np.zeros((nz, n, n, R), np.float32)
@@ -404,6 +432,15 @@ class _Bound:
         self.G = G * valid[:, None, :, :]
         nsel = np.take_along_axis(np.broadcast_to(num[:, None, :], res.shape), order, axis=2)
         self.rs = (nsel, _hold(nsel, md.P) / md.P * valid)
+        # the nearest resonant alias of each mode on its own loop, with its phase:
+        # M_jj c_j = alpha dh(i nu0) + (the other aliases, bounded)
+        nu0 = nsel[:, :, 0]
+        s0 = 1j * nu0
+        H0c = np.where(nu0 == 0, md.P, (1 - np.exp(-s0 * md.P)) / np.where(nu0 == 0, 1, s0))
+        jj = np.arange(n)
+        self.alpha = sum(MC[q][:, jj, jj] * np.take_along_axis(kap[q], order[:, :, 0], axis=1)
+                         for q in (0, 1, 2)) * H0c / md.P * valid[:, :, 0]
+        self.nu0, self.has0 = nu0, valid[:, :, 0]
 
     def take(self, keep):
         """Keep the grid points ``keep`` (bool)."""
@@ -416,6 +453,7 @@ class _Bound:
         self.nr = self.nr[:3] + (w[:, sel],)
         self.nu, self.absM, self.G = self.nu[idx], self.absM[idx], self.G[idx]
         self.rs = (self.rs[0][idx], self.rs[1][idx])
+        self.alpha, self.nu0, self.has0 = self.alpha[idx], self.nu0[idx], self.has0[idx]
         return self
 
     def rho(self, k: float) -> np.ndarray:
@@ -433,7 +471,22 @@ class _Bound:
         w0, c0, f0, f1, z0, z1 = par
         Ts = dh_bound(self.rs[0], w0, c0, (f0, f1), (z0, z1)) * self.rs[1]
         N = np.einsum("zijr,zjr->zij", self.G, Ts) + self.absM @ W
-        return _collatz(N)
+        # each mode's own loop exactly at its nearest alias: |1 - M_jj c_j| >= L_j
+        jj = np.arange(n)
+        diag = N[:, jj, jj]
+        rest = diag - self.G[:, jj, jj, 0] * Ts[:, :, 0]
+        w0, c0 = md.w0[None, :], md.c0[None, :]
+        nu0 = self.nu0
+        d0 = w0 * w0 - nu0 * nu0 + 1j * nu0 * c0
+        beta = 1 + self.alpha / d0
+        dstar = self.alpha / np.where(beta == 0, 1, beta)
+        dstar = np.where(nu0 < 0, dstar.conj(), dstar)     # rectangle of |nu|
+        corners = _rect(nu0, w0, c0, (fw[0][None], fw[1][None]), (fz[0][None], fz[1][None]))
+        exact = np.abs(beta) * _ratio_min(corners, dstar) - rest
+        L = np.where(self.has0, exact, 1.0 - diag)
+        N[:, jj, jj] = 0.0
+        rho = _collatz(N / np.where(L > 0, L, 1.0)[:, :, None])
+        return np.where((L > 0).all(axis=1), rho, np.inf)
 
 
 def _hold(num, P):
@@ -479,6 +532,21 @@ def _grid(md: _Modes, k_hi: float, poles, n_log: int = 400) -> np.ndarray:
     nu = np.abs(np.concatenate(pts))
     nu = np.mod(nu, Om)
     nu = np.where(nu > nyq, Om - nu, nu)
+    return np.unique(np.clip(nu, 1e-5 * nyq, nyq))
+
+
+def _band_grid(md: _Modes, k: float, cap: int = 4000) -> np.ndarray:
+    """Each mode's band at scale ``k``, spaced at a third of the half-power width of its
+    least damped point, folded into ``(0, pi/P]``."""
+    fw, fz = md.box(k)
+    pts = []
+    for w, lo, hi, c in zip(md.w0, md.w0 * fw[0], md.w0 * fw[1], md.c0 * fw[0] * fz[0]):
+        step = max(c / 6, 1e-9 * w)
+        pts.append(np.linspace(0.98 * lo, 1.02 * hi, int(min(cap, (1.04 * hi - 0.96 * lo) / step
+                                                              + 2))))
+    nu = np.mod(np.concatenate(pts), md.Om)
+    nyq = math.pi / md.P
+    nu = np.where(nu > nyq, md.Om - nu, nu)
     return np.unique(np.clip(nu, 1e-5 * nyq, nyq))
 
 
@@ -603,33 +671,53 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
         return _refuse(f"not computed: the modal model differs from the engine's sampled "
                        f"loop by {mcheck:.2e} (the loop does not hold the structure's inputs "
                        "over its period)", model_check=mcheck)
-    nu = _grid(md, k_hi, ev_cl)
-    say(f"certificate: {nu.size} frequencies, {U.size} modes, k up to {k_hi:.3g}")
-    kept = []
-    for c0 in range(0, nu.size, _CHUNK):
-        z = np.exp(1j * nu[c0:c0 + _CHUNK] * P)
-        K, P0 = Kresp(z, ui, yi), sresp(z) @ gmap
-        M = np.einsum("nu,zuy->zny", beta,
-                      np.linalg.solve(np.eye(len(u_ch)) - K @ P0, K))
-        b = _Bound(md, nu[c0:c0 + _CHUNK], M, k_hi)
-        fail = b.rho(k_hi) >= 1.0
-        if fail.any():
-            kept.append(b.take(fail))
-        if (c0 // _CHUNK) % 8 == 7:
-            say(f"certificate: {min(c0 + _CHUNK, nu.size)} of {nu.size} frequencies")
-    k_g, worst = k_hi, None
-    if kept:
-        lo, hi = 0.0, k_hi
+    def scan(nu, k_test, k_box):
+        """The grid points of ``nu`` not proven at ``k_test`` (their bounds kept)."""
+        kept = []
+        for c0 in range(0, nu.size, _CHUNK):
+            z = np.exp(1j * nu[c0:c0 + _CHUNK] * P)
+            K, P0 = Kresp(z, ui, yi), sresp(z) @ gmap
+            M = np.einsum("nu,zuy->zny", beta,
+                          np.linalg.solve(np.eye(len(u_ch)) - K @ P0, K))
+            b = _Bound(md, nu[c0:c0 + _CHUNK], M, k_box)
+            fail = b.rho(k_test) >= 1.0
+            if fail.any():
+                kept.append(b.take(fail))
+        return kept
+
+    def bisect(kept, lo, hi):
         while hi - lo > tol * max(hi, 1e-3):
             mid = 0.5 * (lo + hi)
             bad = any((b.rho(mid) >= 1.0).any() for b in kept)
             lo, hi = (lo, mid) if bad else (mid, hi)
-        k_g = lo
-        for b in kept:
-            r = b.rho(hi)
-            if (r >= 1.0).any():
-                worst = float(b.nu[int(np.argmax(r))] / (2 * math.pi))
-                break
+        return lo, hi
+
+    nu = _grid(md, k_hi, ev_cl)
+    say(f"certificate: {nu.size} frequencies, {U.size} modes, k up to {k_hi:.3g}")
+    kept = scan(nu, k_hi, k_hi)
+    k_g, hi = (k_hi, k_hi) if not kept else bisect(kept, 0.0, k_hi)
+    n_freq = nu.size
+    # refine: every mode's band at the spacing of the narrowest resonance in the box
+    # at the scale reached, until that scale holds on the refined grid
+    for _ in range(6):
+        if k_g <= 0:
+            break
+        fine = _band_grid(md, min(k_hi, k_g * (1 + 2 * tol)))
+        n_freq += fine.size
+        say(f"certificate: k {k_g:.4g} on {n_freq - fine.size} frequencies; checking "
+            f"{fine.size} more in the modes' bands")
+        more = scan(fine, k_g, min(k_hi, k_g * (1 + 2 * tol)))
+        if not more:
+            break
+        kept += more
+        k_g, hi = bisect(kept, 0.0, k_g)
+    worst = None
+    for b in kept:
+        r = b.rho(hi)
+        if (r >= 1.0).any():
+            worst = float(b.nu[int(np.argmax(r))] / (2 * math.pi))
+            break
+    nu = np.zeros(n_freq)
     return {"margin_guaranteed": float(k_g), "covers": what, "opened": opened,
             "certificate": (f"proven stable for every point of the set scaled by "
                             f"{k_g:.3g} about nominal ({what}), on {nu.size} frequencies"),

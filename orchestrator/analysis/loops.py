@@ -484,19 +484,26 @@ def loop_groups(lin) -> dict:
     return groups
 
 
-def scenario_margins(lin) -> list:
+def scenario_margins(lin, known=()) -> list:
     """Margins of every active loop group of a scenario (see the module docstring).
 
     Parameters
     ----------
     lin : LinearScenario
+    known : sequence of GroupMargins
+        Groups already measured on this loop (e.g. by the ACS design): kept, not
+        measured again.
 
     Returns
     -------
     list of GroupMargins
     """
+    done = {g.name: g for g in known}
     out = []
     for name, chans in loop_groups(lin).items():
+        if name in done:
+            out.append(done[name])
+            continue
         insts = {c.split(".", 1)[0] for c in chans}
         period = max(lin.blocks[i].period for i in insts)
         slow = [n for n, b in lin.blocks.items()

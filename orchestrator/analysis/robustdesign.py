@@ -415,7 +415,8 @@ def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
         for n in names:
             overrides[f"{n}.gain"] = float(_start_gain(lin, n) * 2.0 ** xi)
     say("measuring the design's margins")
-    margins = scenario_margins(final)
+    margins = scenario_margins(final, known=[acs_design.margins]
+                               if acs_design is not None and not targets else ())
     robust = resample = None
     if items is not None:
         say(f"robust stability of the design: {samples} samples (seed {seed}) and the "

@@ -235,9 +235,20 @@ class AxisResult:
     ok: bool
     disk_alpha: float = math.nan
 
-    def worst_mode(self):
-        """The mode with the least slack (None if the plant has none)."""
-        return min(self.modes, key=lambda m: m.margin, default=None) if self.modes else None
+    def worst_mode(self, gain_margin_db: float = 6.0, phase_margin: float = 30.0):
+        """The mode with the least slack over its requirement (None if there is none).
+
+        Parameters
+        ----------
+        gain_margin_db : float
+            The requirement of a mode given in dB (dB).
+        phase_margin : float
+            The requirement of a mode given in deg (deg).
+        """
+        def slack(m):
+            return (m.margin / max(gain_margin_db, 1e-9) if m.unit == "dB"
+                    else m.margin / max(phase_margin, 1e-9))
+        return min(self.modes, key=slack) if self.modes else None
 
     def as_dict(self) -> dict:
         """Plain numbers for JSON."""
@@ -717,6 +728,7 @@ def design_on_plant(plant: AcsPlant, inertia, *, phase_margin: float = 30.0,
                 "notch_hz": [float(f) for f in notch_hz] or "the two largest flexible peaks "
                             "of |L| above crossover, PID alone",
                 "design_phase_deg": design_phase, "phase_stabilise": phase_stabilise,
+                "phase_margin_deg": phase_margin, "gain_margin_db": gain_margin_db,
                 "disk_margin_db": disk_margin_db, "disk_cap_steps": lowered,
                 "evaluations": s.evaluations, "frequencies": int(s.f.size),
                 "plant_modes": len(s.modes)}

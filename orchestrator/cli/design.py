@@ -130,12 +130,12 @@ def text(res) -> str:
     if res.acs is not None:
         d = res.acs.design
         lines.append(f"ACS on the flexible plant ({res.acs.seconds:.1f} s):")
-        lines.append(f"  {'axis':<6} {'design':<58} {'PM deg':>7} {'worst mode':>26}")
+        lines.append(f"  {'axis':<6} {'design':<72} {'PM deg':>7} {'worst mode':>26}")
         req = d.searched
         for a in d.axes:
             w = a.worst_mode(req.get("gain_margin_db", 6.0), req.get("phase_margin_deg", 30.0))
             ws = (f"{w.freq_hz:.3g} Hz {w.how} {w.margin:.1f} {w.unit}" if w else "none")
-            lines.append(f"  {a.axis:<6} {a.choice.describe():<58} {a.phase_margin:7.1f} "
+            lines.append(f"  {a.axis:<6} {a.choice.describe():<72} {a.phase_margin:7.1f} "
                          f"{ws:>26}")
         lines.append(f"  MIMO disk margin {d.disk_db:.2f} dB / {d.disk_deg:.1f} deg")
     if res.factors:

@@ -616,11 +616,9 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
         md = _Modes(model, U, uset.items, uset, np.zeros((0, U.size)), np.zeros(0, int),
                     np.zeros((U.size, 0)), P, lowpass)
         k = min(k_max, md.k_lim * (1 - 1e-9))
-        return {"margin_guaranteed": k, "covers": what, "opened": opened,
-                "certificate": "no loop closes through the structure: every point with "
-                               "positive damping is stable", "period_s": P,
-                "frequencies": 0, "worst_hz": None, "model_check": None,
-                "wall_s": time.perf_counter() - t0}
+        return _result(k, what, opened, P, 0, None, None, t0,
+                       "no loop closes through the structure at this rate: every point with "
+                       "positive damping is stable")
     if lin_c.hyper != P_t:
         return _refuse(f"not computed: the loop's instances run every {P_t} ticks but its "
                        f"hyperperiod is {lin_c.hyper}")
@@ -640,10 +638,8 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
     ev_cl = np.linalg.eigvals(bl.closed(np.ones(len(chans))))
     r_lin = _moving_radius(ev_cl)
     if r_lin >= 1.0:
-        return {"margin_guaranteed": 0.0, "covers": what, "opened": opened,
-                "certificate": f"the nominal loop is unstable (|z| = {r_lin:.6f})",
-                "period_s": P, "frequencies": 0, "worst_hz": None, "model_check": None,
-                "wall_s": time.perf_counter() - t0}
+        return _result(0.0, what, opened, P, 0, None, None, t0,
+                       f"the nominal loop is unstable (|z| = {r_lin:.6f})")
     yo = [model.output_names.index(c.split(".", 1)[1]) for c in y_ch]
     feeds = [(j, u_ch.index(f"{s}.{lin_c.blocks[s].outputs[i]}"), g)
              for t, j, s, i, g in lin_c._conns if t == S and s in members]
@@ -718,11 +714,23 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
             worst = float(b.nu[int(np.argmax(r))] / (2 * math.pi))
             break
     nu = np.zeros(n_freq)
-    return {"margin_guaranteed": float(k_g), "covers": what, "opened": opened,
-            "certificate": (f"proven stable for every point of the set scaled by "
-                            f"{k_g:.3g} about nominal ({what}), on {nu.size} frequencies"),
-            "period_s": P, "frequencies": int(nu.size), "worst_hz": worst,
-            "model_check": mcheck, "wall_s": time.perf_counter() - t0}
+    return _result(k_g, what, opened, P, nu.size, worst, mcheck, t0,
+                   f"proven stable for every point of the set scaled by {k_g:.3g} about "
+                   f"nominal ({what}), on {nu.size} frequencies")
+
+
+def _result(k, what, opened, P, n_freq, worst, mcheck, t0, text) -> dict:
+    """The answer; with slower loops opened, the scale holds for the fast loops only and
+    ``margin_guaranteed`` is None (``margin_partial`` keeps it)."""
+    out = {"margin_guaranteed": float(k), "margin_partial": float(k), "complete": True,
+           "covers": what, "opened": opened, "certificate": text, "period_s": P,
+           "frequencies": int(n_freq), "worst_hz": worst, "model_check": mcheck,
+           "wall_s": time.perf_counter() - t0}
+    if opened:
+        out.update(margin_guaranteed=None, complete=False,
+                   certificate=f"not for the whole loop (loops at several rates): {text}; "
+                               f"{', '.join(opened)} opened, not covered")
+    return out
 
 
 def _structure_response(block, N: int, z, rows, cols):

@@ -20,9 +20,10 @@ stability is read from its poles over one hyperperiod.
   ``[1 - k (1 - low), 1 + k (high - 1)]``) at which a destabilising point was found, by a
   search along the rays through the worst samples and corners, confirmed by eigenvalues;
   with that point;
-* ``margin_guaranteed``: the largest ``k`` proven stable.  No certificate is computed
-  yet: the value is None and ``certificate`` says so; a sampled search can only find an
-  upper bound on the true margin.
+* ``margin_guaranteed``: the largest ``k`` proven stable, by the certificate of
+  :mod:`orchestrator.analysis.certify` (zero exclusion of the sampled-data loop over the
+  modes' value sets); ``certificate`` says what it covers.  The true margin lies between
+  the two: ``margin_guaranteed <= k* <= margin_found``.
 """
 
 from __future__ import annotations
@@ -235,7 +236,8 @@ def _drivers(lin, lin_p, uset, groups) -> dict:
 
 
 def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int = 5,
-                     worst: int = 3, k_max: float = 4.0, progress=None) -> dict:
+                     worst: int = 3, k_max: float = 4.0, progress=None,
+                     certificate: bool = True, say=None) -> dict:
     """Sampled, corner and found-margin robust stability (see the module docstring).
 
     Parameters
@@ -256,6 +258,10 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
         Largest scale of the set searched for a destabilising point (-).
     progress : callable, optional
         ``progress(done, total)`` after each evaluation.
+    certificate : bool
+        Compute ``margin_guaranteed`` (:func:`~orchestrator.analysis.certify.certify`).
+    say : callable, optional
+        ``say(text)`` for the certificate's stages.
 
     Returns
     -------
@@ -330,17 +336,32 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
         r = _radius(loop_at(lin, uset, point), like)
         found_point = {"k": found * 1.001, "abs_z": r,
                        "factors": {n: np.atleast_1d(v).tolist() for n, v in point.items()}}
+    cert = ({"margin_guaranteed": None, "certificate": "not computed (not asked for)"}
+            if not certificate else _certificate(lin, uset, k_max, say))
+    mg = cert["margin_guaranteed"]
     return {"samples": samples, "unstable": unstable,
             "unstable_p_upper": clopper_pearson_upper(unstable, samples),
             "worst_abs_z": float(radii.max()), "nominal_abs_z": r0,
             "nominal_stable": r0 < 1.0, "corners": corners,
-            "margin_guaranteed": None,
-            "certificate": "not computed: no robust-stability certificate is implemented "
-                           "yet; margin_found is an upper bound on the true margin",
+            "margin_guaranteed": mg,
+            "certificate": cert["certificate"],
+            "certificate_detail": {k: v for k, v in cert.items()
+                                   if k not in ("margin_guaranteed", "certificate")},
+            "margin_gap": (found - mg if mg is not None and math.isfinite(found) else None),
             "margin_found": found if math.isfinite(found) else None,
             "found_point": found_point, "drivers": drivers,
             "structure": uset.structure,
             "parameters": [it.name for it in uset.items]}
+
+
+def _certificate(lin, uset, k_max: float, say) -> dict:
+    """:func:`~orchestrator.analysis.certify.certify`, its refusals as a reason."""
+    from .certify import certify
+
+    try:
+        return certify(lin, uset, k_max=k_max, progress=say)
+    except AnalysisError as exc:
+        return {"margin_guaranteed": None, "certificate": f"not computed: {exc}"}
 
 
 def _point(uset, d, fw: float, side: int) -> dict:

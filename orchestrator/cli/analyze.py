@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 COMMAND = "analyze"
 HELP = ("linear closed loop of a scenario: poles and damping, decay of a mode, gain "
         "margins per loop, upper bound on reducing a performance output")
@@ -232,7 +234,9 @@ def _robust(lin, args) -> dict:
     bar = ProgressBar(1.0, "robust stability")
     try:
         res = robust_stability(lin, spec["parameters"], samples=n, seed=spec["seed"],
-                               progress=lambda d, t: bar(d / t))
+                               progress=lambda d, t: bar(d / t),
+                               say=lambda text: print(f"  {text}", file=sys.stderr,
+                                                      flush=True))
     finally:
         bar.close()
     print(_robust_text(res))
@@ -266,5 +270,17 @@ def _robust_text(res) -> str:
     lines.append(f"  margin found: {'none up to the search limit' if mf is None else f'{mf:.3g}'}"
                  " (smallest scale of the set about nominal with a destabilising point, "
                  "confirmed by eigenvalues)")
-    lines.append(f"  margin guaranteed: {res['certificate']}")
+    mg = res["margin_guaranteed"]
+    if mg is None:
+        lines.append(f"  margin guaranteed: none; {res['certificate']}")
+    else:
+        det = res.get("certificate_detail", {})
+        lines.append(f"  margin guaranteed: {mg:.3g} ({'the whole set' if mg >= 1 else 'NOT the whole set'}"
+                     f" proven stable; covers {det.get('covers', '?')}; "
+                     f"{det.get('frequencies', '?')} frequencies"
+                     + (f", tightest at {det['worst_hz']:.4g} Hz" if det.get("worst_hz") else "")
+                     + ")")
+        if res.get("margin_gap") is not None:
+            lines.append(f"  the true margin lies in [{mg:.3g}, {mf:.3g}] (gap "
+                         f"{res['margin_gap']:.3g})")
     return "\n".join(lines)

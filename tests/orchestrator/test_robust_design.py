@@ -21,40 +21,8 @@ from orchestrator.analysis.uncertainty import Distribution, Uncertain
 from orchestrator.campaign.objective import CampaignObjective
 
 SCENARIO = "scenarios/truss10_closed_loop.toml"
-CAMPAIGN = """
-[campaign]
-name = "truss10 design"
-scenario = "replaced.toml"
-unit = "arcsec"
-stop = 3.0
-output_interval = 1e-3
-
-[[events]]
-name = "diagonal 8.4 Hz"
-overrides = { "excitation.amp1" = 10.0, "excitation.amp2" = 0.0, "excitation.t_stop" = 2.0 }
-
-[[events]]
-name = "longeron 9.5 Hz"
-overrides = { "excitation.amp1" = 0.0, "excitation.amp2" = 10.0, "excitation.t_stop" = 2.0 }
-
-[[instruments]]
-name = "tip"
-[instruments.axes]
-roll = "structure.los_tip_roll"
-pitch = "structure.los_tip_pitch"
-yaw = "structure.los_tip_yaw"
-
-[[metrics]]
-kind = "peak_to_peak"
-windows = [0.5]
-
-[[requirements]]
-instrument = "tip"
-metric = "peak_to_peak"
-window = 0.5
-value = 5.0
-"""
-# every mode's frequency +-5 % and damping x0.5-2 on its own, as the shipped EOS set
+CAMPAIGN = "campaigns/truss10_design.toml"
+# every mode's frequency +-5 % and damping x0.5-2 on its own, as the campaign's set
 ITEMS = [Uncertain("frequencies", "modal_frequency", Distribution("uniform", 0.95, 1.05),
                    per_mode=True),
          Uncertain("damping", "modal_damping", Distribution("uniform", 0.5, 2.0),
@@ -62,10 +30,8 @@ ITEMS = [Uncertain("frequencies", "modal_frequency", Distribution("uniform", 0.9
 
 
 @pytest.fixture(scope="module")
-def campaign(tmp_path_factory):
-    path = tmp_path_factory.mktemp("design") / "truss_design.toml"
-    path.write_text(CAMPAIGN)
-    return path
+def campaign():
+    return CAMPAIGN
 
 
 @pytest.fixture(scope="module")
@@ -188,3 +154,55 @@ def test_objective_is_the_campaigns_budget(objective, fmu_dir):
     np.testing.assert_allclose([ln["value"] for ln in v.lines], rss, rtol=1e-7)
     assert v.value == pytest.approx(rss.max() / 5.0, rel=1e-7)
     assert v.binding == f"tip {list(axes)[int(np.argmax(rss))]} peak_to_peak"
+
+
+def test_the_shipped_set_is_the_one_tested():
+    import tomllib
+
+    from orchestrator.campaign.spec_uncertainty import parse_uncertainty
+
+    with open(CAMPAIGN, "rb") as fh:
+        table = tomllib.load(fh)["uncertainty"]
+    items = parse_uncertainty(table, {"structure": None})["parameters"]
+    assert [(i.name, i.kind, i.distribution, i.per_mode) for i in items] == \
+        [(i.name, i.kind, i.distribution, i.per_mode) for i in ITEMS]
+
+
+def test_the_command_writes_a_design_that_loads(fmu_dir, tmp_path, capsys):
+    import json
+    import tomllib
+
+    from orchestrator.cli import main
+    from orchestrator.scenario import parse_override
+
+    out = tmp_path / "d"
+    code = main(["design", SCENARIO, "--tune", "ctrl_diag,ctrl_long", "--campaign", CAMPAIGN,
+                 "--uncertainty", CAMPAIGN, "--samples", "6", "--max-evaluations", "10",
+                 "--fmu-dir", str(fmu_dir), "--out", str(out)])
+    assert code == 0
+    printed = capsys.readouterr()
+    assert "objective: the largest ratio" in printed.out
+    assert "robust (independent draw): 0 of 6 samples unstable" in printed.out
+    assert "jitterfmu: design: judging the start" in printed.err      # progress
+    report = json.loads((out / "design.json").read_text())
+    assert report["searched"]["constraints"][2].startswith("every one of 6 random points")
+    assert report["objective"]["value"] <= report["objective_start"]["value"]
+    sets = dict(parse_override(line.split(" ", 1)[1])
+                for line in (out / "set.txt").read_text().splitlines())
+    assert sets == report["overrides"]
+    with open(out / "scenario.toml", "rb") as fh:
+        written = tomllib.load(fh)
+    for key, value in sets.items():
+        inst, var = key.split(".")
+        assert written["fmus"][inst]["parameters"][var] == value
+
+
+def test_the_command_refuses_a_negative_margin_in_one_line(capsys):
+    from orchestrator.cli import main
+
+    code = main(["design", SCENARIO, "--tune", "ctrl_diag", "--campaign", CAMPAIGN,
+                 "--margin-db", "-2", "--out", "unused"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.splitlines()[0] == ("jitterfmu: error: the requested gain margin -2 dB is "
+                                   "below 0 dB; expected 0 dB or more (6 dB is usual)")

@@ -20,9 +20,9 @@ opened, its bandwidth range lowered step by step until the set is stable with it
 gains are then tuned with it in place.  The gains are searched in ``log2`` steps from
 the scenario's own (a coordinate search: each factor, and all together, up and down by
 ``x2``, then ``x2^(1/2)``, down to ``x2^(1/8)``; a move is kept when it lowers the
-objective and meets the constraints).  A start that misses the constraints is first
-scaled down, all factors together, until it meets them.  So the result is never worse
-than a feasible start.  Its robust stability is then checked again on an independent
+objective by more than ``rtol`` of it and meets the constraints).  A start that misses
+the constraints is first scaled down, all factors together, until it meets them.  So
+the result is never worse than a feasible start.  Its robust stability is then checked again on an independent
 draw (another seed) with :func:`~orchestrator.analysis.robust.robust_stability`, which
 also searches the smallest destabilising scale of the set.
 """
@@ -257,7 +257,7 @@ class _Judge:
 def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
                   samples: int = 20, seed: int = 0, grid: int = 3, set_scale: float = 1.0,
                   acs_options=None,
-                  max_evaluations: int = 80, min_step: float = 0.125,
+                  max_evaluations: int = 80, min_step: float = 0.125, rtol: float = 1e-3,
                   progress=None) -> RobustDesign:
     """Tune gains and the ACS for the objective, robustly stable (module docstring).
 
@@ -292,6 +292,9 @@ def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
         Most candidates judged in the gain search.
     min_step : float
         Smallest step of the search (``log2`` of a factor).
+    rtol : float
+        A move is kept when it lowers the objective by more than this fraction (-): a
+        line the tuned loops barely reach does not drag them about.
     progress : callable, optional
         ``progress(message)`` at each stage and kept move.
 
@@ -400,7 +403,7 @@ def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
                 if np.any(np.abs(xc) > _BOUND) or evals[0] >= max_evaluations:
                     continue
                 val, why = judged(xc)
-                if val.value < best * (1 - 1e-9) and not why:
+                if val.value < best * (1 - rtol) and not why:
                     x, best, best_val, moved = xc, val.value, val, True
                     say(f"kept {', '.join(f'{t[0]} x{2 ** xi:.3g}' for t, xi in zip(targets, x))}"
                         f": objective {best:.4g}")
@@ -442,7 +445,8 @@ def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
                if do_acs else "not tuned",
         "search": f"log2 coordinate search from the start (each factor and all together, "
                   f"steps x2 down to x2^{min_step:g}), factors within 2^-{_BOUND:g}..2^"
-                  f"{_BOUND:g}; a start that misses the constraints scaled down first",
+                  f"{_BOUND:g}, a move kept when it lowers the objective by more than "
+                  f"{rtol:g} of it; a start that misses the constraints scaled down first",
         "evaluations": evals[0], "max_evaluations": max_evaluations}
     return RobustDesign(overrides, {t[0]: float(2.0 ** xi) for t, xi in zip(targets, x)},
                         v0, best_val, not why0, why0, final, margins, robust, resample,

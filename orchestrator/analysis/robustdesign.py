@@ -22,8 +22,8 @@ the scenario's own (a coordinate search: each factor, and all together, up and d
 ``x2``, then ``x2^(1/2)``, down to ``x2^(1/8)``; a move is kept when it lowers the
 objective by more than ``rtol`` of it and meets the constraints).  A start that misses
 the constraints is first scaled down, all factors together, until it meets them.  So
-the result is never worse than a feasible start.  Its robust stability is then checked again on an independent
-draw (another seed) with :func:`~orchestrator.analysis.robust.robust_stability`, which
+the result is never worse than a feasible start.  Its robust stability is then checked
+again on an independent draw (another seed) with :func:`~orchestrator.analysis.robust.robust_stability`, which
 also searches the smallest destabilising scale of the set.
 """
 

@@ -9,8 +9,6 @@ objective when the scenario is built again from them.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 

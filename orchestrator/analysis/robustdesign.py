@@ -23,8 +23,9 @@ the scenario's own (a coordinate search: each factor, and all together, up and d
 objective by more than ``rtol`` of it and meets the constraints).  A start that misses
 the constraints is first scaled down, all factors together, until it meets them.  So
 the result is never worse than a feasible start.  Its robust stability is then checked
-again on an independent draw (another seed) with :func:`~orchestrator.analysis.robust.robust_stability`, which
-also searches the smallest destabilising scale of the set.
+again on an independent draw (another seed) with
+:func:`~orchestrator.analysis.robust.robust_stability`, which also searches the smallest
+destabilising scale of the set.
 """
 
 from __future__ import annotations

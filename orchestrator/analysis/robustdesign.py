@@ -427,7 +427,7 @@ def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
             f"corners, then {samples} independent samples (seed {seed + 1})")
         robust = robust_stability(final, items, samples=samples, seed=seed, grid=grid)
         resample = robust_stability(final, items, samples=samples, seed=seed + 1, grid=grid,
-                                    worst=3, k_max=0.0)
+                                    worst=3, k_max=0.0, certificate=False)
     searched = {
         "objective": getattr(objective, "describe", lambda: None)() if objective else None,
         "constraints": [

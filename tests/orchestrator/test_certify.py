@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from orchestrator.analysis import linearize
-from orchestrator.analysis.certify import _rect, _ratio_min, certify, dh_bound
+from orchestrator.analysis.certify import certify
+from orchestrator.analysis.certify_bounds import _rect, _ratio_min, dh_bound
 from orchestrator.analysis.robust import _radius, loop_at, robust_stability, uncertain_set
 from orchestrator.analysis.uncertainty import Distribution, Uncertain
 

@@ -305,7 +305,7 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
             break
     nu = np.zeros(n_freq)
     return _result(k_g, what, opened, P, nu.size, worst, mcheck, t0,
-                   f"proven stable for every point of the set scaled by {k_g:.3g} about "
+                   f"proven stable for every point of the set scaled by {k_g:.4g} about "
                    f"nominal ({what}), on {nu.size} frequencies")
 
 

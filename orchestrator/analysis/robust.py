@@ -234,10 +234,14 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
 
 def _certificate(lin, uset, k_max: float, say) -> dict:
     """:func:`~orchestrator.analysis.certify.certify`, its refusals as a reason."""
+    from ._threads import blas_threads_kept, one_blas_thread
     from .certify import certify
 
     try:
-        return certify(lin, uset, k_max=k_max, progress=say)
+        # many small products: one BLAS thread each (two fight over busy cores)
+        with blas_threads_kept():
+            one_blas_thread()
+            return certify(lin, uset, k_max=k_max, progress=say)
     except AnalysisError as exc:
         return {"margin_guaranteed": None, "certificate": f"not computed: {exc}"}
 

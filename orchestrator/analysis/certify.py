@@ -126,7 +126,8 @@ def _moving_radius(ev) -> float:
 
 
 def _refuse(text: str, **extra) -> dict:
-    return {"margin_guaranteed": None, "certificate": text, **extra}
+    return {"margin_guaranteed": None, "margin_partial": None, "complete": False,
+            "certificate": text, **extra}
 
 
 def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,

@@ -189,5 +189,5 @@ def _model_check(lin_c, uset, bl, yi, ui, y_ch, md: _Modes, in_cols, gmap, N, sr
                 cj[r] = md.C[r] * (dh @ (kap[q] * H0))[None, :] / md.P
         err_b = max(err_b, rel(cj @ b_in, dv, np.maximum(
             np.abs(dv).max(axis=-1, keepdims=True),
-            1e-6 * np.abs(G0).max(axis=(0, 2))[:, None])))
+            1e-4 * np.abs(G0).max(axis=(0, 2))[:, None])))
     return max(err_a, err_b)

@@ -275,12 +275,12 @@ def _robust_text(res) -> str:
         lines.append(f"  margin guaranteed: none; {res['certificate']}")
     else:
         det = res.get("certificate_detail", {})
-        lines.append(f"  margin guaranteed: {mg:.3g} ({'the whole set' if mg >= 1 else 'NOT the whole set'}"
+        lines.append(f"  margin guaranteed: {mg:.4g} ({'the whole set' if mg >= 1 else 'NOT the whole set'}"
                      f" proven stable; covers {det.get('covers', '?')}; "
                      f"{det.get('frequencies', '?')} frequencies"
                      + (f", tightest at {det['worst_hz']:.4g} Hz" if det.get("worst_hz") else "")
                      + ")")
         if res.get("margin_gap") is not None:
-            lines.append(f"  the true margin lies in [{mg:.3g}, {mf:.3g}] (gap "
+            lines.append(f"  the true margin lies in [{mg:.4g}, {mf:.4g}] (gap "
                          f"{res['margin_gap']:.3g})")
     return "\n".join(lines)

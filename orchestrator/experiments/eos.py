@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from acsfmu.design import pid_gains_for
+from acsfmu.filters import AcsFilters
 from acsfmu.pid import AcsConfig, PidGains
 from distfmu.presets import get_preset
 from fmutools.ensure import ensure_fmus as _ensure
@@ -22,7 +23,8 @@ from structfmu.models import eos_testbed
 from . import CAMPAIGNS, SCENARIOS
 
 __all__ = ["SCENARIO", "CAMPAIGN", "STRUCTURE", "MOUNTS_STRUCTURE", "FMUS", "ACS_INERTIA",
-           "mounts_structure_model", "ensure_fmus", "acs_config", "wrench", "leg_loops"]
+           "ACS_PARAMETERS", "mounts_structure_model", "ensure_fmus", "acs_config", "wrench",
+           "leg_loops"]
 
 SCENARIO = SCENARIOS / "eos_budget.toml"
 CAMPAIGN = CAMPAIGNS / "eos_budget.toml"
@@ -30,6 +32,11 @@ STRUCTURE = "eos_testbed_structure"
 MOUNTS_STRUCTURE = "eos_testbed_mounts_structure"
 #: What the budget campaign runs (the all-legs structure is built besides).
 ACS_INERTIA = (378.0, 827.0, 1123.0)   # as scenarios/eos_budget.toml (kg m^2)
+#: The ACS design of scenarios/eos_budget.toml (tested equal to the scenario's): 0.04 Hz
+#: crossover, a notch at the 0.5 Hz array mode and low-passes (Hz, dimensionless).
+ACS_PARAMETERS = {"bandwidth": 0.04, "notch_hz_x": 0.5, "notch_zeta_num_x": 0.02,
+                  "notch_zeta_den_x": 0.7, "lowpass_hz_x": 0.25, "lowpass_hz_y": 0.3,
+                  "lowpass_hz_z": 0.3}
 FMUS = ("eos_testbed_structure", "disturbance", "acs", "piezo_p845_37",
         "controller_testbed_isolation", "controller_eos_isolation")
 
@@ -61,10 +68,17 @@ def ensure_fmus(fmu_dir="fmus", names=FMUS, kind="native") -> Path:
 
 
 def acs_config():
-    """The ACS of the scenario (0.1 Hz PID per axis at 10 Hz, inertias ``ACS_INERTIA``)."""
-    g = [pid_gains_for(j, 0.1, 50.0, 0.1) for j in ACS_INERTIA]
+    """The ACS of the scenario at 10 Hz: inertias ``ACS_INERTIA`` and the design
+    ``ACS_PARAMETERS``, as the ACS FMU builds its configuration from them."""
+    T = 0.1
+    p = ACS_PARAMETERS
+    g = [pid_gains_for(j, p["bandwidth"], 50.0, T) for j in ACS_INERTIA]
     kp, ki, kd = (list(x) for x in zip(*g))
-    return AcsConfig(PidGains(kp, ki, kd), sample_time=0.1)
+    filters = AcsFilters(sample_time=T, notch_hz=[p["notch_hz_x"], 0.0, 0.0],
+                         notch_zeta_num=p["notch_zeta_num_x"],
+                         notch_zeta_den=p["notch_zeta_den_x"],
+                         lowpass_hz=[p["lowpass_hz_x"], p["lowpass_hz_y"], p["lowpass_hz_z"]])
+    return AcsConfig(PidGains(kp, ki, kd), sample_time=T, filters=filters)
 
 
 def wrench(t, preset: str, scale: float = 1.0):

@@ -36,11 +36,25 @@ def _requirements_by_instrument(path):
     return reqs
 
 
-def _check_report_opens_with_the_verdict(html, shot_dir):
+def _dominant(table):
+    """Per (instrument, axis) of the budget table: the event with the largest share of
+    the RSS² summed over isolation off and on, computed here from the events' values."""
+    out = {}
+    for r in table:
+        score = {}
+        for key in ("events_off", "events_on"):
+            total = sum(v * v for v in r[key].values())
+            for event, v in r[key].items():
+                score[event] = score.get(event, 0.0) + v * v / total
+        out[(r["instrument"], r["axis"])] = max(score, key=score.get)
+    return out
+
+
+def _check_report_opens_with_the_verdict(html, shot_dir, table):
     """The budget report: its first table is the verdict, one row per instrument axis (15)
-    all in the first 1280x900 screen of headless Chromium (screenshot in shot_dir); the
-    SAD, which dominates pitch, has a time history for every instrument's pitch, and the
-    roll-pitch image plane is drawn."""
+    all in the first 1280x900 screen of headless Chromium (screenshot in shot_dir); each
+    axis has the time history of its dominant event (axes that share one in one figure),
+    the SAD dominating pitch; and the roll-pitch image plane is drawn."""
     import re
 
     from .browser import ink, render, verdict_bands
@@ -48,9 +62,15 @@ def _check_report_opens_with_the_verdict(html, shot_dir):
     text = html.read_text(encoding="utf-8")
     first = re.search(r'<table class="(\w*)">.*?<tbody>(.*?)</tbody>', text)
     assert first.group(1) == "verdict" and first.group(2).count("<tr>") == 15
+    dominant = _dominant(table)
     for inst in ("CERES", "TIR", "MISR", "SWIR", "VNIR"):
-        assert f"<figcaption>{inst} pitch: time history of SAD</figcaption>" in text
-        assert f"<figcaption>{inst} roll, yaw: time history of VNIR pointing" in text
+        assert dominant[(inst, "pitch")] == "SAD"
+        by_event = {}
+        for axis in ("roll", "pitch", "yaw"):
+            by_event.setdefault(dominant[(inst, axis)], []).append(axis)
+        for event, axes in by_event.items():
+            assert (f"<figcaption>{inst} {', '.join(axes)}: time history of {event}"
+                    "</figcaption>") in text
         assert f"<figcaption>{inst}: boresight roll–pitch" in text
     dom, png = render(html, shot_dir)
     assert dom.index('<table class="verdict">') == dom.index("<table")
@@ -90,7 +110,7 @@ def test_eos_budget(out, tmp_path, suite_fmu_dir):
     # The report's budget chart has isolation off and on for every instrument and axis.
     camp_dir = Path(res["campaign_dir"])
     html = write_report(camp_dir, "html")
-    _check_report_opens_with_the_verdict(html, tmp_path / "browser")
+    _check_report_opens_with_the_verdict(html, tmp_path / "browser", table)
     summary = pq.read_table(camp_dir / "summary.parquet").to_pylist()
     rows = [r for r in summary if r["metric"] == "peak_to_peak"]
     grid = budget_grid(rows, {i: {"roll": 0, "pitch": 0, "yaw": 0} for i in shipped})
@@ -130,23 +150,56 @@ def test_eos_budget(out, tmp_path, suite_fmu_dir):
             assert r["margin_off"] == b["margin_off"]
 
 
-def test_eos_budget_primary_contributors(tmp_path, suite_fmu_dir):
-    """Calibration check, not a reproduction: the SWIR cryocooler's amplitude (4 N) is
-    fitted to the paper's primary contributors (Fig. 8: VNIR pointing, the SWIR
-    cryocooler, the CERES scan and the SAD), read as one of the four largest of the
-    twelve events on SWIR, each on its worst axis (distfmu.presets), and 3 N is not
-    enough.  Not fitted: that the other three on top are the paper's other three."""
-    res = eos_budget.run(tmp_path, quick=False, fmu_dir=suite_fmu_dir)
+@pytest.fixture(scope="module")
+def swir_events(tmp_path_factory, suite_fmu_dir):
+    """The full-length budget's events on SWIR, isolation off, each on its worst axis
+    (arcsec), largest first."""
+    res = eos_budget.run(tmp_path_factory.mktemp("budget_full"), quick=False,
+                         fmu_dir=suite_fmu_dir)
     assert res["n_failed"] == 0 and len(res["events"]) == 12
     worst = {}
     for r in res["budget"]:
         if r["instrument"] == "SWIR":
             for event, v in r["events_off"].items():
                 worst[event] = max(worst.get(event, 0.0), v)
-    top = sorted(worst, key=worst.get, reverse=True)
-    assert "SWIR cryocooler" in top[:4]
-    assert 0.75 * worst["SWIR cryocooler"] < worst[top[4]]   # 3 N would rank fifth
-    assert set(top[:4]) == {"VNIR pointing", "SWIR cryocooler", "CERES scan", "SAD"}
+    return dict(sorted(worst.items(), key=lambda kv: kv[1], reverse=True))
+
+
+#: The four largest events on SWIR with the shipped ACS (0.04 Hz), arcsec, measured with
+#: ``jitterfmu reproduce eos-budget``: CERES scan 4.58, MOPITT scan 1.72, SAD 1.57, SWIR
+#: cryocooler 1.41; VNIR pointing fifth, 0.71.  With the earlier 0.1 Hz ACS (unstable on
+#: this plant): SAD 1.79, VNIR pointing 1.69, CERES scan 1.34, SWIR cryocooler 0.84,
+#: MOPITT scan fifth, 0.65.  The ranking depends on the ACS, and the paper's (EOS AM-1's)
+#: is not ours (docs/eos_experiments.md).
+FIG8_ACS = ("with the shipped 0.04 Hz ACS the four largest events on SWIR are CERES scan, "
+            "MOPITT scan, SAD and SWIR cryocooler; VNIR pointing ranks fifth (0.71 arcsec "
+            "against MOPITT scan's 1.72)")
+
+
+def test_eos_budget_swir_cryocooler_is_a_primary_contributor(swir_events):
+    """Calibration check, not a reproduction: the SWIR cryocooler's amplitude (4 N) is
+    fitted to the paper's primary contributors (Fig. 8: VNIR pointing, the SWIR
+    cryocooler, the CERES scan and the SAD), read as one of the four largest of the
+    twelve events on SWIR, each on its worst axis (distfmu.presets)."""
+    assert "SWIR cryocooler" in list(swir_events)[:4]
+
+
+@pytest.mark.xfail(strict=True, reason="the 4 N was fitted with the earlier 0.1 Hz ACS; with "
+                   "the shipped 0.04 Hz ACS 3 N ranks fourth as well (0.75 x 1.41 = 1.06 "
+                   "arcsec against VNIR pointing's 0.71, fifth): the fit no longer pins 4 N")
+def test_eos_budget_swir_cryocooler_needs_4n(swir_events):
+    # 3 N would rank fifth: the fitted amplitude is the smallest that ranks it fourth
+    top = list(swir_events)
+    assert 0.75 * swir_events["SWIR cryocooler"] < swir_events[top[4]]
+
+
+@pytest.mark.xfail(strict=True, reason=FIG8_ACS)
+def test_reproduces_fig8_primary_contributors(swir_events):
+    # paper (Fig. 8): the primary contributors on SWIR are VNIR pointing, the SWIR
+    # cryocooler, the CERES scan and the SAD (not fitted: only the cryocooler's
+    # amplitude is)
+    assert set(list(swir_events)[:4]) == {"VNIR pointing", "SWIR cryocooler", "CERES scan",
+                                          "SAD"}
 
 
 @pytest.fixture(scope="module")
@@ -284,13 +337,46 @@ def _verdict(res, target):
     return next(v for v in res["verdicts"] if v["target"] == target)
 
 
-def test_reproduces_fig9_roll_and_yaw(swir):
+#: Why Fig. 9's roll and yaw miss: the reduction depends on the ACS, and the paper's
+#: (EOS AM-1's, in PLATSIM) is not ours.  Measured on the experiment's linear model (equal
+#: to its co-simulation), quick run (jitterfmu reproduce swir-isolation --quick; the full
+#: run gives roll 16.9 %, yaw 50.1 %): SWIR roll / yaw reduction 16.9 / 42.1 % with the
+#: shipped 0.04 Hz ACS, 25.5 / 52.6 % at 0.05 Hz, 35.2 / 63.8 % at 0.07 Hz (same filters),
+#: 25.9 / 64.2 % with the earlier 0.1 Hz ACS, which was unstable on this plant.
+FIG9_ACS = ("with the shipped ACS (0.04 Hz, designed on the flexible plant) the leg "
+            "loops remove {} of SWIR {} in the quick run, against the paper's {}; the "
+            "reduction grows with the ACS bandwidth (docs/eos_experiments.md)")
+
+
+@pytest.mark.xfail(strict=True, reason=FIG9_ACS.format("16.9 %", "roll", "about 30 %"))
+def test_reproduces_fig9_roll(swir):
     # paper: roll reduced by only 30 % (rigid-body motion): "about 30 %" is 25-35 %
-    # (verdicts.ABOUT_PCT); yaw "significantly" (read: at least 50 %)
-    roll, yaw = _verdict(swir, "SWIR roll reduction"), _verdict(swir, "SWIR yaw reduction")
-    assert roll["band"] == [25.0, 35.0] and roll["reproduced"] is True
-    assert 25.0 <= swir["reduction_pct"]["roll"] <= 35.0
+    # (verdicts.ABOUT_PCT)
+    roll = _verdict(swir, "SWIR roll reduction")
+    assert roll["band"] == [25.0, 35.0]
+    assert roll["reproduced"] is True and 25.0 <= swir["reduction_pct"]["roll"] <= 35.0
+
+
+@pytest.mark.xfail(strict=True, reason=FIG9_ACS.format(
+    "42.1 % (50.1 % in the full 6 s run, whose worst yaw window ends after 3.5 s)", "yaw",
+    "at least 50 %"))
+def test_reproduces_fig9_yaw(swir):
+    # paper: yaw lowered "significantly" (read: at least 50 %)
+    yaw = _verdict(swir, "SWIR yaw reduction")
     assert yaw["reproduced"] is True and swir["reduction_pct"]["yaw"] >= 50.0
+
+
+def test_swir_isolation_regression_pin(swir):
+    """A regression pin, not a reproduction: today's SWIR jitter off (arcsec) and the leg
+    loops' reductions (%) in the quick run, measured with ``jitterfmu reproduce
+    swir-isolation --quick`` (the shipped 0.04 Hz ACS); to 0.01 arcsec and 0.5 points
+    (the co-simulation equals the linear model to 1e-9): a change of the ACS, the
+    structure or the law moves them."""
+    SWIR_OFF_PIN = {"roll": 0.628, "pitch": 0.599, "yaw": 0.615}
+    SWIR_REDUCTION_PIN = {"roll": 16.9, "pitch": 10.3, "yaw": 42.1}
+    for a in ("roll", "pitch", "yaw"):
+        assert swir["jitter_off_arcsec"][a] == pytest.approx(SWIR_OFF_PIN[a], abs=0.01)
+        assert swir["reduction_pct"][a] == pytest.approx(SWIR_REDUCTION_PIN[a], abs=0.5)
 
 
 @pytest.mark.xfail(strict=True, reason="SWIR pitch (10 %) rides on 70-125 Hz bus modes with "
@@ -303,9 +389,9 @@ def test_reproduces_fig9_pitch(swir):
     assert _verdict(swir, "SWIR pitch reduction")["reproduced"] is True
 
 
-@pytest.mark.xfail(strict=True, reason="MISR falls 34 % with the twelve leg loops, more "
-                   "than the paper's about 10 % (docs/eos_experiments.md; the cause is not "
-                   "measured yet)")
+@pytest.mark.xfail(strict=True, reason="MISR falls 39 % (46 % in the full run) with the "
+                   "twelve leg loops, more than the paper's about 10 % "
+                   "(docs/eos_experiments.md; the cause is not measured yet)")
 def test_reproduces_fig9_misr(swir):
     assert _verdict(swir, "MISR reduction")["reproduced"] is True
 
@@ -348,7 +434,9 @@ def test_swir_isolation_central(swir, swir_central, out):
     assert res["reproduced"] is False
     assert res["verdict"].startswith("reproduced or beaten on every target")
     # the least-squares inputs within the limits are not a bound: this law, within the
-    # same limits, removes more roll
-    assert red["roll"] > res["least_squares_within_limits_pct"]["roll"]
+    # same limits, removes more on some axis (yaw: 52.4 % against 28.5 %; roll, 59.4 %
+    # against 23.5 % with the earlier 0.1 Hz ACS, is 45.2 % against 56.5 % now)
+    ls = res["least_squares_within_limits_pct"]
+    assert any(red[a] > ls[a] for a in ("roll", "pitch", "yaw"))
     assert res["bounds"][1]["is_bound"] is False
     assert (out / "swir-isolation-central.png").is_file()

@@ -147,3 +147,36 @@ def test_controlled_decay_figure_shows_its_first_cycles_with_the_10_percent_leve
                   if ln.get_linestyle() == "--" and ln.get_color() == "crimson"]
         assert sorted(levels) == pytest.approx([-0.1 * ref * 1e6, 0.1 * ref * 1e6])
         assert any(ln.get_label().startswith("envelope") for ln in ax.get_lines())
+
+
+def test_experiments_acs_is_the_shipped_scenarios():
+    """``eos.acs_config`` (what the SWIR design's linear model steps) holds the ACS of
+    scenarios/eos_budget.toml: its parameters are the file's (read with tomllib), and
+    its gains and filter coefficients are those the ACS FMU's slave builds from the
+    file's parameters (an independent computation: the FMU's own configuration)."""
+    import tomllib
+
+    from acsfmu.slave import AcsSlave
+    from orchestrator.experiments import eos
+
+    for path in (eos.SCENARIO, eos.SCENARIO.with_name("eos_budget_all_legs.toml")):
+        params = tomllib.loads(path.read_text(encoding="utf-8"))["fmus"]["acs"]["parameters"]
+        assert {k: params[k] for k in eos.ACS_PARAMETERS} == eos.ACS_PARAMETERS, path.name
+        assert tuple(params[f"inertia_{a}"] for a in "xyz") == eos.ACS_INERTIA, path.name
+        assert set(params) == set(eos.ACS_PARAMETERS) | {f"inertia_{a}" for a in "xyz"}
+    slave = AcsSlave(instance_name="acs")
+    for name, value in params.items():
+        setattr(slave, name, value)
+    want, got = slave.config(), eos.acs_config()
+    assert got.sample_time == want.sample_time
+    for k in ("kp", "ki", "kd"):
+        np.testing.assert_allclose(getattr(got.gains, k), getattr(want.gains, k), rtol=1e-15)
+    for k in ("notch", "lowpass", "antialias"):
+        np.testing.assert_allclose(getattr(got.filters, k), getattr(want.filters, k),
+                                   rtol=1e-15, atol=0)
+    # the design is on: a notch on roll only, a low-pass on every axis
+    assert not np.allclose(got.filters.notch[0], [1, 0, 0, 0, 0])
+    np.testing.assert_array_equal(got.filters.notch[1:], [[1, 0, 0, 0, 0]] * 2)
+    assert all(not np.allclose(row, [1, 0, 0, 0, 0]) for row in got.filters.lowpass)
+    for k in ("torque_limit", "momentum_limit", "wheel_inertia", "anti_windup"):
+        np.testing.assert_array_equal(getattr(got, k), getattr(want, k))

@@ -178,9 +178,11 @@ def _build() -> dict[str, Preset]:
             # 22 Hz: the paper's "cryocooler-like" testbed disturbance, harmonics 30 %,
             # 10 % as MOPITT's.  Amplitude calibrated to one fact, the paper's ranking of
             # primary contributors (Fig. 8: VNIR pointing, the SWIR cryocooler, the CERES
-            # scan and the SAD): 4 N, the smallest of 1-N steps that makes it one of the
-            # four largest of the twelve events on SWIR (the worst axis of each,
-            # tests/orchestrator/test_eos_experiments.py); 0.5 N gave 0.11 arcsec, tenth.
+            # scan and the SAD): 4 N, the smallest of 1-N steps that made it one of the
+            # four largest of the twelve events on SWIR (the worst axis of each) with the
+            # earlier 0.1 Hz ACS; 0.5 N gave 0.11 arcsec, tenth.  With the shipped ACS it
+            # ranks fourth, and 3 N would too (tests/orchestrator/test_eos_experiments.py,
+            # docs/eos_experiments.md).
             Harmonic(frequency=22.0, amplitudes=(4.0, 1.2, 0.4),
                      direction=(0.0, 0.0, 1.0), kind="force"),
         ),

@@ -204,6 +204,12 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
     rays = [{name: d.values[name][s] for name in d.values} for s in order]
     rays += [_point(uset, d, c["frequency_factor"], 0 if c["damping"] == "low" else 1)
              for c in sorted(corners, key=lambda c: -c["abs_z"])[:worst]]
+    cert = ({"margin_guaranteed": None, "certificate": "not computed (not asked for)"}
+            if not certificate else _certificate(lin, uset, k_max, say))
+    # and through one mode alone at its corners, for the modes whose own loop the
+    # certificate found tightest (random points seldom put one mode at a corner)
+    for j in cert.get("tight_modes", []):
+        rays += _mode_corners(uset, d, j)
     found, point = math.inf, None
     for vals in rays:
         k = _ray_limit(lin, uset, vals, k_max, found, like)
@@ -214,8 +220,6 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
         r = _radius(loop_at(lin, uset, point), like)
         found_point = {"k": found * 1.001, "abs_z": r,
                        "factors": {n: np.atleast_1d(v).tolist() for n, v in point.items()}}
-    cert = ({"margin_guaranteed": None, "certificate": "not computed (not asked for)"}
-            if not certificate else _certificate(lin, uset, k_max, say))
     mg = cert["margin_guaranteed"]
     return {"samples": samples, "unstable": unstable,
             "unstable_p_upper": clopper_pearson_upper(unstable, samples),
@@ -244,6 +248,27 @@ def _certificate(lin, uset, k_max: float, say) -> dict:
             return certify(lin, uset, k_max=k_max, progress=say)
     except AnalysisError as exc:
         return {"margin_guaranteed": None, "certificate": f"not computed: {exc}"}
+
+
+def _mode_corners(uset, d, mode: int) -> list:
+    """Points with mode ``mode`` alone at its low damping bound and either frequency
+    bound (per-mode parameters only; none when a parameter is common to modes)."""
+    if not all(it.kind == "gain" or it.per_mode for it in uset.items):
+        return []
+    out = []
+    for side in (0, 1):
+        vals = {}
+        for it in uset.items:
+            v = np.ones(d.values[it.name].shape[1])
+            if it.kind != "gain":
+                where = np.flatnonzero(uset.modes[it.name] == mode)
+                if it.kind == "modal_frequency":
+                    v[where] = uset.bounds(it.name)[side]
+                else:
+                    v[where] = uset.bounds(it.name)[0]
+            vals[it.name] = v
+        out.append(vals)
+    return out
 
 
 def _point(uset, d, fw: float, side: int) -> dict:

@@ -18,9 +18,9 @@ SHIPPED = Path("scenarios/truss10_closed_loop.toml")
 
 
 @pytest.fixture(scope="module")
-def lin(suite_fmus, suite_fmu_dir, tmp_path_factory):
+def single_rate(suite_fmus, tmp_path_factory):
     """The ten-bay truss with its amplifiers at the laws' 250 Hz: one loop rate, so the
-    certificate covers the whole loop."""
+    certificate covers the whole loop (the scenario file's path)."""
     from orchestrator.experiments.truss_decay import FMUS
 
     suite_fmus(*FMUS)
@@ -33,7 +33,12 @@ def lin(suite_fmus, suite_fmu_dir, tmp_path_factory):
                 + text[j + len("period = 1e-3\n"):])
     path = tmp_path_factory.mktemp("truss") / "truss_single_rate.toml"
     path.write_text(text, encoding="utf-8")
-    return linearize(path, fmu_dir=suite_fmu_dir)
+    return path
+
+
+@pytest.fixture(scope="module")
+def lin(single_rate, suite_fmu_dir):
+    return linearize(single_rate, fmu_dir=suite_fmu_dir)
 
 
 def _one_mode(band, f=(0.95, 1.05), d=(0.5, 2.0)):
@@ -129,3 +134,59 @@ def test_gains_and_several_rates_are_not_certified(lin, suite_fmu_dir):
     res = certify(shipped, uncertain_set(shipped, _one_mode((40, 50))))
     assert res["margin_guaranteed"] is None and not res["complete"]
     assert "not for the whole loop" in res["certificate"]
+
+
+_SET = """[uncertainty]
+samples = 4
+seed = 3
+
+[[uncertainty.parameters]]
+name = "frequencies"
+kind = "modal_frequency"
+distribution = "uniform"
+low = 0.95
+high = 1.05
+per_mode = true
+band = [40.0, 50.0]
+
+[[uncertainty.parameters]]
+name = "damping"
+kind = "modal_damping"
+distribution = "uniform"
+low = {low}
+high = 2.0
+per_mode = true
+band = [40.0, 50.0]
+"""
+
+
+def test_analyze_prints_and_writes_the_bracket(single_rate, suite_fmu_dir, tmp_path, capsys):
+    import json
+
+    from orchestrator.cli import main
+
+    u = tmp_path / "u.toml"
+    u.write_text(_SET.format(low=0.5), encoding="utf-8")
+    out = tmp_path / "r.json"
+    assert main(["analyze", str(single_rate), "--fmu-dir", str(suite_fmu_dir),
+                 "--uncertainty", str(u), "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "margin guaranteed: 1.4" in text and "the whole set proven stable" in text
+    rob = json.loads(out.read_text(encoding="utf-8"))["robust"]
+    assert rob["margin_guaranteed"] <= rob["margin_found"]
+    assert rob["margin_gap"] == pytest.approx(rob["margin_found"] - rob["margin_guaranteed"])
+
+
+@pytest.mark.parametrize("low,words", [(-0.5, "low >= 0"), (0.0, "expected low > 0")])
+def test_a_set_reaching_zero_damping_is_refused_in_one_sentence(single_rate, suite_fmu_dir,
+                                                               tmp_path, capsys, low, words):
+    from orchestrator.cli import main
+
+    u = tmp_path / "u.toml"
+    u.write_text(_SET.format(low=low), encoding="utf-8")
+    assert main(["analyze", str(single_rate), "--fmu-dir", str(suite_fmu_dir),
+                 "--uncertainty", str(u)]) != 0
+    captured = capsys.readouterr()
+    err = [x for x in captured.err.strip().splitlines() if not x.startswith("(run with")]
+    assert len(err) == 1 and "damping" in err[0] and words in err[0]
+    assert "robust stability" not in captured.out       # refused before any computation

@@ -184,8 +184,10 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
     P = P_t * lin.base
     kin = np.where(model.is_accel, 2, np.where(model.is_rate, 1, 0))
     lowpass = model.accel_lowpass.siso() if model.accel_lowpass is not None else None
+    names = (", ".join(members) if len(members) <= 6 else
+             f"{len(members)} instances ({', '.join(members[:4])}, ...)")
     what = (f"modal frequency and damping factors of {U.size} modes of {S!r}; loops "
-            f"{', '.join(members) or 'none'} at {P:g} s")
+            f"{names or 'none'} at {P:g} s")
     if opened:
         what += f"; with {', '.join(opened)} opened (slower loops not covered)"
     if not members:

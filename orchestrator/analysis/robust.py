@@ -36,16 +36,24 @@ from .blocks import AnalysisError
 from .modalset import UncertainSet, _factors, loop_at, uncertain_set
 from .uncertainty import UncertaintyError, draw
 
-__all__ = ["UncertainSet", "uncertain_set", "robust_stability", "loop_at"]
+__all__ = ["UncertainSet", "uncertain_set", "robust_stability", "loop_at", "pole_radius"]
 
 _RIGID_TOL = 1e-6
 
 
-def _radius(lin, like=None) -> float:
+def pole_radius(lin, like=None) -> float:
     """Largest pole modulus over one hyperperiod, rigid-body poles at 1 left out.
 
-    ``like`` is the nominal loop compiled (:class:`~orchestrator.analysis.fast.
-    FastResponse`): a sample's loop shares its layout and its map is taken by doubling.
+    Parameters
+    ----------
+    lin : LinearScenario
+    like : FastResponse, optional
+        The nominal loop compiled (:class:`~orchestrator.analysis.fast.FastResponse`):
+        a sample's loop shares its layout and its map is taken by doubling.
+
+    Returns
+    -------
+    float
     """
     from scipy.linalg import matrix_balance
 
@@ -95,7 +103,7 @@ def _drivers(lin, lin_p, uset, groups) -> dict:
     loops = []
     for name, chans in groups.items():
         insts = sorted({c.split(".", 1)[0] for c in chans})
-        if _radius(lin_p.opened(insts)) < 1.0:
+        if pole_radius(lin_p.opened(insts)) < 1.0:
             loops.append(name)
     sx = lin.slots[uset.structure][0]
     n_m = lin.blocks[uset.structure].model.n_modes
@@ -167,13 +175,13 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
     from .fast import FastResponse
 
     like = FastResponse(lin, [], strict=False)
-    r0 = _radius(lin, like)
+    r0 = pole_radius(lin, like)
     tick()
     d = draw(list(uset.items), samples, seed, model.omega / (2 * math.pi))
     radii = np.empty(samples)
     for s in range(samples):
         vals = {name: d.values[name][s] for name in d.values}
-        radii[s] = _radius(loop_at(lin, uset, vals), like)
+        radii[s] = pole_radius(loop_at(lin, uset, vals), like)
         tick()
     unstable = int((radii >= 1.0).sum())
     # corners: every damping bound over a grid of common frequency factors
@@ -185,7 +193,7 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
     for fw in np.linspace(lo_w, hi_w, grid):
         for side in (0, 1):
             vals = _point(uset, d, fw, side)
-            r = _radius(loop_at(lin, uset, vals), like)
+            r = pole_radius(loop_at(lin, uset, vals), like)
             corners.append({"frequency_factor": float(fw),
                             "damping": "low" if side == 0 else "high",
                             "damping_factor": [uset.bounds(it.name)[side] for it in zt_items],
@@ -219,7 +227,7 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
             found, point = k, _scaled(uset, vals, k * 1.001)
     found_point = None
     if point is not None:
-        r = _radius(loop_at(lin, uset, point), like)
+        r = pole_radius(loop_at(lin, uset, point), like)
         found_point = {"k": found * 1.001, "abs_z": r,
                        "factors": {n: np.atleast_1d(v).tolist() for n, v in point.items()}}
     mg = cert["margin_guaranteed"]
@@ -298,11 +306,11 @@ def _ray_limit(lin, uset, vals, k_max: float, below: float, like=None,
         if any(np.any(v <= 0) for n, v in pt.items()
                if any(it.name == n and it.kind != "gain" for it in uset.items)):
             break    # a factor at zero: outside any physical set
-        if _radius(loop_at(lin, uset, pt), like) >= 1.0:
+        if pole_radius(loop_at(lin, uset, pt), like) >= 1.0:
             a, b = prev, k
             while b - a > tol * b:
                 m = 0.5 * (a + b)
-                rm = _radius(loop_at(lin, uset, _scaled(uset, vals, m)), like)
+                rm = pole_radius(loop_at(lin, uset, _scaled(uset, vals, m)), like)
                 a, b = (a, m) if rm >= 1.0 else (m, b)
             return b
         prev = k

@@ -39,10 +39,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .blocks import AnalysisError
+from .robust import pole_radius
 
 __all__ = ["RobustDesign", "tune_targets", "robust_design"]
 
-_RIGID_TOL = 1e-6
 _BOUND = 6.0            # factors searched within 2^-6 .. 2^6 of the start
 
 
@@ -180,17 +180,6 @@ def _start_gain(lin, name: str) -> float:
     return float(var.start) if var is not None and var.start is not None else 1.0
 
 
-def _radius(lin, like=None) -> float:
-    """Largest pole modulus over one hyperperiod, rigid-body poles at 1 left out."""
-    from .fast import FastResponse
-    from .steady import balance
-
-    fr = FastResponse(lin, [], strict=False, like=like)
-    ev = np.linalg.eigvals(balance(fr.period_map())[0])
-    moving = np.abs(ev - 1.0) > _RIGID_TOL
-    return float(np.abs(ev[moving]).max()) if moving.any() else 0.0
-
-
 class _Judge:
     """The constraints of one design problem, with the points of the set fixed."""
 
@@ -233,13 +222,13 @@ class _Judge:
         from .robust import loop_at
 
         like = FastResponse(lin, [], strict=False)
-        r = _radius(lin, like)
+        r = pole_radius(lin, like)
         if r >= 1.0:
             return f"unstable nominally (|z| {r:.6f})"
         for inst in gains:
             for k in (0.5, 1.0, -0.5, -1.0):
                 f = self.g ** k
-                if _radius(lin.with_gain(inst, f), like) >= 1.0:
+                if pole_radius(lin.with_gain(inst, f), like) >= 1.0:
                     return (f"{inst} unstable with its gain x{f:.3g} (gain margin below "
                             f"{20 * math.log10(self.g):g} dB)")
         if self.items is None:
@@ -248,7 +237,7 @@ class _Judge:
         order = self.hard + [i for i in range(len(self.points)) if i not in self.hard]
         for i in order:
             label, vals = self.points[i]
-            if _radius(loop_at(lin, self.uset, vals), like) >= 1.0:
+            if pole_radius(loop_at(lin, self.uset, vals), like) >= 1.0:
                 if i not in self.hard:
                     self.hard.insert(0, i)
                 return f"{label} of the uncertainty set unstable"

@@ -11,7 +11,7 @@ import pytest
 from orchestrator.analysis import linearize
 from orchestrator.analysis.certify import certify
 from orchestrator.analysis.certify_bounds import _rect, _ratio_min, dh_bound
-from orchestrator.analysis.robust import _radius, loop_at, robust_stability, uncertain_set
+from orchestrator.analysis.robust import loop_at, pole_radius, robust_stability, uncertain_set
 from orchestrator.analysis.uncertainty import Distribution, Uncertain
 
 SHIPPED = Path("scenarios/truss10_closed_loop.toml")
@@ -79,7 +79,7 @@ def _true_margin(lin, items, fw_span=0.1, steps=14):
     (lo_f, hi_f), (lo_d, hi_d) = uset.bounds("freq"), uset.bounds("damp")
 
     def unstable(fw, fz):
-        return _radius(loop_at(lin, uset, {"freq": np.array([fw]),
+        return pole_radius(loop_at(lin, uset, {"freq": np.array([fw]),
                                            "damp": np.array([fz])})) >= 1.0
 
     def k_at(fw):

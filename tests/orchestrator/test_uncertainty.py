@@ -850,3 +850,35 @@ def test_a_draw_on_an_instance_without_its_parameter_is_one_sentence(
         run_uncertainty(camp, tmp_path, runner, progress=False)
     assert not list(tmp_path.rglob("part-*.npz"))
     assert not (tmp_path / "uncertainty_cases").exists()
+
+
+def test_each_sample_perturbs_the_modes_by_its_own_draw():
+    """The perturbed model of a Monte Carlo sample, checked against its draw: every mode's
+    natural frequency and damping ratio, read from the eigenvalues of its block of the
+    state matrix (Eq. 9; ``|lambda| = omega``, ``-Re lambda / |lambda| = zeta``), are the
+    nominal ones times the factors drawn for that mode (per mode for the frequency, one
+    factor for the band for the damping); the modes outside the band keep their damping."""
+    from orchestrator.analysis.uncertainty import Uncertain
+    from orchestrator.campaign.montecarlo import _perturbed
+    from structfmu.models import truss10
+    from structfmu.statespace import first_order
+
+    model = truss10.reduced()
+    f0 = model.omega / (2 * np.pi)
+    zeta0 = model.modal_damping / (2 * model.omega)
+    items = (Uncertain("f", "modal_frequency", Distribution("uniform", 0.9, 1.1),
+                       per_mode=True),
+             Uncertain("z", "modal_damping", Distribution("uniform", 0.5, 2.0),
+                       band=(9.0, 1e4)))
+    d = draw(items, 5, 7, f0)
+    in_band = f0 >= 9.0
+    assert 0 < in_band.sum() < model.n_modes   # the band splits the modes
+    n = model.n_modes + model.n_ritz
+    for s in range(d.n):
+        A = first_order(_perturbed(model, d, items, s))[0]
+        for i in range(model.n_modes):
+            lam = np.linalg.eigvals(A[np.ix_([i, n + i], [i, n + i])])[0]
+            f_want = f0[i] * d.values["f"][s, i]
+            z_want = zeta0[i] * (d.values["z"][s, 0] if in_band[i] else 1.0)
+            np.testing.assert_allclose(abs(lam) / (2 * np.pi), f_want, rtol=1e-12)
+            np.testing.assert_allclose(-lam.real / abs(lam), z_want, rtol=1e-9)

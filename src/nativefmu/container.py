@@ -169,7 +169,21 @@ def _variables(plan, outputs, parameters) -> list[ContainerVariable]:
     return out
 
 
+def _refuse_overwriting_an_input(out: Path, inputs) -> None:
+    """Raise ContainerError when ``out`` names a file the export reads."""
+    target = out.resolve()
+    for p in inputs:
+        if target.exists() and Path(p).exists() and target.samefile(p):
+            raise ContainerError(f"{out} is a file the export reads, so writing the FMU "
+                                 "there would replace it; name the FMU differently (the file "
+                                 "is left as it was)")
+
+
 def _checked_plan(scenario: Scenario, outputs, fmu_dir):
+    bad = [o for o in outputs or () if not re.fullmatch(r"[^.\s]+\.\S+", o)]
+    if bad:
+        raise ContainerError(f"--output {bad[0]!r} is not INST.VAR (an instance name, a dot, "
+                             "a variable name); name an output like structure.los_tip_pitch")
     if outputs:
         scenario = replace(scenario, record=tuple(outputs))
     if not scenario.record:
@@ -232,10 +246,15 @@ def export_fmu(scenario: Scenario | str | Path, out: str | Path, *, outputs=None
         raise NativeBuildError("windows=True needs x86_64-w64-mingw32-gcc (Debian package "
                                "gcc-mingw-w64-x86-64); install it or pass windows=None")
     windows = mingw is not None if windows is None else windows
+    if out.is_dir():
+        raise ContainerError(f"{out} is a folder; name the FMU to write, like {out / 'scenario.fmu'}")
+    read = [] if isinstance(scenario, Scenario) else [Path(scenario)]
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     plan = _checked_plan(scenario, outputs, fmu_dir)
     sc = plan.scenario
+    _refuse_overwriting_an_input(out, [*read, Path(sc.source),
+                                       *(f.path for f in plan.fmus.values())])
     inner, refused = {}, []
     for inst in sc.instances:
         path = plan.fmus[inst.name].path

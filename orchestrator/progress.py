@@ -4,14 +4,17 @@ A run reports the fraction of its simulated time; a campaign counts its cases an
 failed ones.  On a terminal the report is a bar on stderr (tqdm) that appears after
 ``delay`` seconds and is erased when closed.  When stderr is not a terminal (a log, a
 CI job) it is a line at most every :data:`LOG_EVERY` seconds with what is done and an
-estimate of the time left, so a long command is never silent.  :func:`stage` prints one
-line when a stage of a long command starts.
+estimate of the time left, so a long command is never silent.  A clock thread keeps
+both alive while nothing finishes: the bar's elapsed time moves every second, and a line
+comes every ``every`` seconds even while one long case or sample is still running.
+:func:`stage` prints one line when a stage of a long command starts.
 """
 
 from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 
 from tqdm import tqdm
@@ -19,8 +22,19 @@ from tqdm import tqdm
 __all__ = ["LOG_EVERY", "ProgressBar", "stage"]
 
 #: Seconds between progress lines when stderr is not a terminal
-#: (env ``JITTERFMU_LOG_EVERY``).
+#: (env ``JITTERFMU_LOG_EVERY``, at most this).
 LOG_EVERY = 30.0
+#: Seconds between redraws of a terminal bar while nothing finishes.
+REDRAW_EVERY = 1.0
+
+
+def _every() -> float:
+    """The line interval: ``$JITTERFMU_LOG_EVERY`` when it is a number in (0, 30], else 30."""
+    try:
+        value = float(os.environ.get("JITTERFMU_LOG_EVERY", LOG_EVERY))
+    except ValueError:
+        return LOG_EVERY
+    return value if 0 < value <= LOG_EVERY else LOG_EVERY
 
 
 def _is_terminal(stream) -> bool:
@@ -67,52 +81,78 @@ class ProgressBar:
         self._stream, self._label, self._unit, self._total = stream, label, unit, total
         self._t0 = self._last = time.monotonic()
         self._done = 0.0
-        self._every = float(os.environ.get("JITTERFMU_LOG_EVERY", LOG_EVERY)) \
-            if every is None else every
+        self._every = _every() if every is None else every
+        self._lock = threading.Lock()
+        self._delay = delay
         self._bar = tqdm(total=total, desc=label or None, unit=unit or "it", file=stream,
                          disable=not enabled, delay=delay, leave=False, dynamic_ncols=True,
                          bar_format=("{desc} {bar} {percentage:5.1f}% eta {remaining}"
                                      if fraction else None))
+        self._stop = threading.Event()
+        self._clock = None
+        if self._lines or (enabled and total):
+            self._clock = threading.Thread(target=self._tick, daemon=True,
+                                           name=f"progress {label}")
+            self._clock.start()
 
     def __call__(self, fraction: float) -> None:
         """Move a fraction bar to ``fraction`` (0..1 of ``total``)."""
         n = fraction * self._bar.total
-        if n > self._bar.n:
-            self._bar.update(n - self._bar.n)
-        self._done = max(self._done, n)
-        self._log()
+        with self._lock:
+            if n > self._bar.n:
+                self._bar.update(n - self._bar.n)
+            self._done = max(self._done, n)
+            self._log()
 
     def update(self, status: str | None = None) -> None:
         """Count one unit done; ``status == "failed"`` counts it as failed too."""
-        if status == "failed":
-            self.failed += 1
-            self._bar.set_postfix_str(f"{self.failed} failed", refresh=False)
-        self._bar.update(1)
-        self._done += 1
-        self._log()
+        with self._lock:
+            if status == "failed":
+                self.failed += 1
+                self._bar.set_postfix_str(f"{self.failed} failed", refresh=False)
+            self._bar.update(1)
+            self._done += 1
+            self._log()
 
-    def _log(self) -> None:
-        """A line off a terminal, at most every ``every`` seconds."""
+    def _tick(self) -> None:
+        """The clock thread: a due line, or a redrawn bar, while nothing finishes."""
+        period = min(REDRAW_EVERY, self._every) if self._every > 0 else REDRAW_EVERY
+        while not self._stop.wait(period):
+            with self._lock:
+                if self._stop.is_set() or self._done >= self._total:
+                    return   # closed, or all done (a bar left open falls silent)
+                if self._lines:
+                    self._log(waiting=True)
+                elif time.monotonic() - self._t0 >= self._delay:
+                    self._bar.refresh()
+                    self._bar.last_print_t = self._bar._time()   # so close() erases it
+
+    def _log(self, waiting: bool = False) -> None:
+        """A line off a terminal, at most every ``every`` seconds (the clock thread's
+        ``waiting`` lines come also before the first unit is done)."""
         if not self._lines:
             return
         now = time.monotonic()
-        if now - self._last < self._every or not self._done:
+        if now - self._last < self._every or not (self._done or waiting):
             return
         self._last = now
         elapsed = now - self._t0
-        left = elapsed * (self._total - self._done) / self._done
         if self._unit:
             done = f"{int(self._done)}/{int(self._total)} {self._unit}s"
             if self.failed:
                 done += f", {self.failed} failed"
         else:
             done = f"{100 * self._done / self._total:.0f} %"
-        print(f"{self._label}: {done}, {_clock(elapsed)} elapsed, about {_clock(left)} left",
+        left = (f"about {_clock(elapsed * (self._total - self._done) / self._done)} left"
+                if self._done else f"time left known after the first {self._unit or 'step'}")
+        print(f"{self._label}: {done}, {_clock(elapsed)} elapsed, {left}",
               file=self._stream, flush=True)
 
     def close(self) -> None:
-        """Erase the bar."""
-        self._bar.close()
+        """Stop the clock and erase the bar."""
+        self._stop.set()
+        with self._lock:
+            self._bar.close()
 
 
 def stage(message: str, stream=None) -> None:

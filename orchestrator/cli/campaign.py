@@ -98,6 +98,7 @@ def run(args) -> int:
         write_summary,
     )
     from ..campaign.mcresults import command_lines, convergence_hint
+    from ..progress import stage
 
     camp = load_campaign(args.campaign, args.uncertainty, args.samples)
     engine = args.engine or camp.engine
@@ -116,6 +117,13 @@ def run(args) -> int:
     if camp.cases:
         _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args)
     out = args.out or Path("out") / slug(camp.name)
+    if camp.cases:
+        n_workers = 0 if engine == "linear" else (
+            args.workers if args.workers is not None else os.cpu_count() or 1)
+        where = f"on {args.scheduler}" if args.scheduler else (
+            f"{n_workers} worker{'s' * (n_workers != 1)}" if n_workers else "in this process")
+        stage(f"campaign {camp.name!r}: {len(camp.cases)} cases ({engine} engine, {where}) "
+              f"into {out}")
     try:
         res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                            progress=False if args.quiet else None)

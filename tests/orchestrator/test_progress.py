@@ -1,7 +1,15 @@
 """Long work is never silent: timed lines with the time left when stderr is a log."""
 
 import io
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
 
+import numpy as np
+
+from orchestrator import progress
 from orchestrator.progress import ProgressBar, stage
 
 
@@ -53,3 +61,61 @@ def test_stage_is_one_line():
     log = io.StringIO()
     stage("truss-decay: co-simulating 12 s", stream=log)
     assert log.getvalue() == "jitterfmu: truss-decay: co-simulating 12 s\n"
+
+
+def test_a_line_comes_while_nothing_finishes():
+    """The clock thread writes a line every interval even before the first case ends."""
+    log = io.StringIO()
+    bar = ProgressBar(3, "campaign", "case", stream=log, every=0.1)
+    time.sleep(0.45)
+    bar.close()
+    lines = log.getvalue().splitlines()
+    assert len(lines) >= 2
+    assert lines[0].startswith("campaign: 0/3 cases, ")
+    assert lines[0].endswith("time left known after the first case")
+
+
+def test_the_interval_from_the_environment_is_capped_at_30_s(monkeypatch):
+    monkeypatch.setenv("JITTERFMU_LOG_EVERY", "100")
+    assert progress._every() == progress.LOG_EVERY <= 30.0
+    monkeypatch.setenv("JITTERFMU_LOG_EVERY", "0.5")
+    assert progress._every() == 0.5
+    monkeypatch.setenv("JITTERFMU_LOG_EVERY", "soon")
+    assert progress._every() == progress.LOG_EVERY
+
+
+def test_a_long_campaign_logged_to_a_file_has_no_gap_longer_than_the_interval(tmp_path):
+    """Two cases of 2.5 s each, stderr to a file, lines due every 0.5 s: the file is
+    watched while the command runs and no two lines (nor the last line and the end) are
+    more than 1.5 s apart, which only the clock thread makes true (a case ends only
+    every 2.5 s).  The interval is the production one scaled down by the environment."""
+    import tomli_w
+
+    from tests.orchestrator.test_campaign import campaign_data
+
+    path = tmp_path / "c.toml"
+    path.write_text(tomli_w.dumps(campaign_data(sleep=2.5, n_events=1)))
+    err = tmp_path / "stderr.log"
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "JITTERFMU_LOG_EVERY": "0.5"}
+    with open(err, "w") as fh:
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "import sys; from orchestrator.cli import main; "
+             "sys.exit(main())", "campaign", str(path), "--out", str(tmp_path / "o"),
+             "--workers", "0", "--runner", "tests.orchestrator.test_campaign:synthetic_runner"],
+            stdout=subprocess.PIPE, stderr=fh, cwd=root, env=env)
+        stamps, seen = [], 0
+        while proc.poll() is None:
+            n = err.read_text().count("\n")
+            stamps += [time.monotonic()] * (n - seen)
+            seen = n
+            time.sleep(0.02)
+        end = time.monotonic()
+        out = proc.stdout.read().decode()
+    text = err.read_text()
+    assert proc.returncode == 0, text
+    assert text.startswith("jitterfmu: campaign 'synthetic': 2 cases"), text
+    assert "campaign: 0/2 cases" in text and "campaign: 1/2 cases" in text
+    gaps = np.diff(stamps + [end])
+    assert gaps.max() < 1.5, (gaps, text)
+    assert "budget (" in out        # it ends with the numbers the user came for

@@ -49,6 +49,8 @@ WINDOWLESS = ("rms", "ape")
 #: Event name of the summary rows holding the RSS over the events.
 RSS_EVENT = "RSS"
 # Valid keys of every table of a campaign file.
+#: The most cases a campaign expands to (each holds its scenario in memory and a folder).
+MAX_CASES = 100_000
 _KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metrics",
          "requirements", "wheel_sweeps", "uncertainty")
 _CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm",
@@ -209,6 +211,11 @@ def parse_spec(data: Mapping, base_dir=None, source: str = "campaign data") -> C
     metrics = _metrics(data.get("metrics", [{"kind": "peak_to_peak", "windows": [1.0]}]),
                        record if "metrics" in data else None, skip)
     requirements = _requirements(data.get("requirements", []), shorthand, instruments, metrics)
+    n_cases = len(events) * len(configurations) * math.prod(len(sw) for sw in sweeps)
+    if n_cases > MAX_CASES:
+        raise CampaignError(f"the campaign expands to {n_cases} cases (events x configurations "
+                            f"x sweep values), more than the {MAX_CASES} it holds; split it into "
+                            "campaigns of fewer values")
     events, configurations = _variants(events, configurations, sweeps, scenario["fmus"])
     wheel = _wheel_sweeps(data.get("wheel_sweeps", []), scenario["fmus"])
     if not configurations or not (events or wheel):
@@ -331,6 +338,11 @@ def _sweeps(items) -> tuple:
         if not inst or not var:
             raise CampaignError(f"sweep {i + 1} parameter {parameter!r} must have the form "
                                 "'instance.variable'")
+        first = next((j for j, sw in enumerate(sweeps) if sw[0][0] == parameter), None)
+        if first is not None:
+            raise CampaignError(f"sweeps {first + 1} and {i + 1} both sweep {parameter!r}, "
+                                "and a case takes one value of it; give one sweep all its "
+                                "values")
         sweeps.append(tuple((parameter, v) for v in s["values"]))
     return tuple(sweeps)
 
@@ -461,9 +473,19 @@ def _variants(events: list, configurations: list, sweeps: tuple, fmus: dict) -> 
                     f"not have (instances: {sorted(fmus)})"
                 )
 
+    def not_swept(ov, what):
+        both = [k for k in ov if k in swept]
+        if both:
+            raise CampaignError(f"{what} sets {both[0]!r}, which a [[sweeps]] entry sweeps, so "
+                                "its cases would run with the swept value under its name; "
+                                "drop the override or the sweep")
+        return ov
+
     for (i, ev), (j, cf) in itertools.product(enumerate(events), enumerate(configurations)):
-        ov_e = ov_events[i] = _overrides(ev, f"event {ev['name']!r}")
-        ov_c = ov_configurations[j] = _overrides(cf, f"configuration {cf['name']!r}")
+        ov_e = ov_events[i] = not_swept(_overrides(ev, f"event {ev['name']!r}"),
+                                        f"event {ev['name']!r}")
+        ov_c = ov_configurations[j] = not_swept(_overrides(cf, f"configuration {cf['name']!r}"),
+                                                f"configuration {cf['name']!r}")
         check({**ov_c, **ov_e, **swept})
     # without events the configurations still carry the wheel sweeps' overrides
     for j, cf in enumerate(configurations):

@@ -192,16 +192,24 @@ def run_campaign(
 
 
 def _check_overrides(campaign: Campaign, runner) -> None:
-    """Every variable the campaign sets must be settable in its FMU, and every value it
-    takes one of its type (checked before any case runs)."""
-    problem = getattr(runner, "override_problem", None)
-    if problem is None or not campaign.cases:
+    """Every variable the campaign sets must be settable in its FMU, every value it
+    takes one of its type, and every instrument axis a recorded variable of its FMU
+    (checked before any case runs)."""
+    if not campaign.cases:
         return
     base = campaign.cases[0].scenario     # cases differ in parameter values only
-    for where, ref, values in campaign.overrides:
+    problem = getattr(runner, "override_problem", None)
+    for where, ref, values in campaign.overrides if problem else ():
         why = problem(base, ref, values)
         if why:
             raise CampaignError(f"{campaign.source}: {where}: {why}")
+    output = getattr(runner, "output_problem", None)
+    for name, axes in campaign.instruments.items() if output else ():
+        for axis, ref in axes.items():
+            why = output(base, ref)
+            if why:
+                raise CampaignError(f"{campaign.source}: instrument {name!r} axis {axis!r}: "
+                                    f"{why}")
 
 
 @contextlib.contextmanager

@@ -100,6 +100,17 @@ class LinearRunner:
         """
         return self._master.override_problem(scenario, ref, values)
 
+    def output_problem(self, scenario: dict, ref: str) -> str | None:
+        """As :meth:`MasterRunner.output_problem` (an instrument's axis in the record).
+
+        Parameters
+        ----------
+        scenario, ref : dict, str
+            A case's scenario data and ``"instance.variable"``; returns one sentence,
+            or None when the record gives it.
+        """
+        return self._master.output_problem(scenario, ref)
+
     # ------------------------------------------------------------------ compiled loops
     def _config_key(self, scenario: dict, sources) -> str:
         data = json.loads(json.dumps(scenario, default=str))

@@ -166,6 +166,47 @@ class MasterRunner:
                 return str(exc)
         return None
 
+    def output_problem(self, scenario: dict, ref: str) -> str | None:
+        """Why a case's record cannot give ``ref`` (an instrument's axis); None if it can.
+
+        The instance must be in the scenario, the variable in its FMU and the reference
+        in ``[record] variables``, so a misspelt instrument variable fails before any
+        case runs, with the closest name, rather than in every case after its run.  An
+        FMU that cannot be found or read is left to the cases, which say so.
+
+        Parameters
+        ----------
+        scenario : dict
+            A case's scenario data (the TOML layout).
+        ref : str
+            ``"instance.variable"``.
+
+        Returns
+        -------
+        str or None
+            One sentence, or None.
+        """
+        sc = self._scenario(scenario)
+        inst, _, var = ref.partition(".")
+        names = [i.name for i in sc.instances]
+        if not var:
+            return f"{ref!r} must have the form 'instance.variable'"
+        if inst not in names:
+            return (f"{ref!r} names instance {inst!r}, which the base scenario does not "
+                    f"have{closest(inst, names)}")
+        fmu = next(i.fmu for i in sc.instances if i.name == inst)
+        try:
+            info = read_fmu_info(self._find_fmu(fmu, sc))
+        except (ScenarioError, ValueError, OSError):
+            return None
+        if var not in info.variables:
+            return (f"FMU {info.path.name} of instance {inst!r} has no variable {var!r}"
+                    f"{closest(var, info.variables)}")
+        if ref not in sc.record:
+            return (f"{ref} is not recorded; add it to [record] variables of the base "
+                    "scenario")
+        return None
+
     def __call__(self, scenario: dict, out_dir) -> RunResult:
         """Run a case's scenario into ``out_dir``.
 

@@ -26,9 +26,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     one.add_argument("--structure", metavar="MODEL.npz",
                      help="build only a structure FMU from a reduced model file (e.g. from "
                      "'jitterfmu import-nastran'), named <stem>_structure unless --model")
-    one.add_argument("--controller", metavar="LAW.npz",
-                     help="build only a controller FMU from a control law file (written by "
-                     "ctrlfmu.law.save_law), named controller_<law name> unless --model")
+    one.add_argument("--controller", metavar="LAW",
+                     help="build only a controller FMU from a state-space file (.mat, .npz "
+                     "or .csv holding A, B, C, D, Ts as MATLAB's ssdata gives them, with "
+                     "InputName/OutputName) or a law written by ctrlfmu.law.save_law; "
+                     "named controller_<law name> unless --model (docs/controllers.md)")
+    parser.add_argument("--period", type=float, metavar="SECONDS", default=None,
+                        help="with --controller: the FMU's period, at which a continuous "
+                        "state-space (Ts = 0) is discretised by a zero-order hold (default: "
+                        "none; a discrete law runs at its own Ts)")
     only = parser.add_mutually_exclusive_group()
     only.add_argument("--native", action="store_true",
                       help="only the native (C99) FMUs, into --out itself "
@@ -57,6 +63,9 @@ def run(args: argparse.Namespace) -> int:
         option = "--structure" if args.structure else "--controller"
         raise ValueError(f"{option} builds one FMU; give at most one --model")
     name = args.model[0] if (single and args.model) else None
+    if args.period is not None and not args.controller:
+        raise ValueError("--period is the period of a --controller state-space; give "
+                         "--controller LAW or drop --period")
     if args.controller:   # with --fmi 3 the Python twin stays in a temporary folder
         return _report(*_build_controller(args.controller, out, py_dir, name, args))
     problems, built, skipped = [], [], ()
@@ -115,11 +124,11 @@ def _build_controller(path, out: Path, py_dir: Path, name, args) -> tuple[list, 
     import tempfile
 
     from ctrlfmu.fmuspec import build_controller_fmu, controller_identifier, law_spec
-    from ctrlfmu.law import load_law
+    from ctrlfmu.statespace import read_controller
     from fmutools.validate import validate_fmu
     from nativefmu.build import build_native
 
-    law = load_law(Path(path))
+    law = read_controller(Path(path), args.period)
     ident = controller_identifier(law, name)
     problems, built = [], []
     with tempfile.TemporaryDirectory(prefix="jitterfmu_ctrl_") as tmp:

@@ -25,7 +25,7 @@ import pyarrow as pa
 from .. import metrics as M
 from ..cosim import find_fmu, read_fmu_info
 from ..cosim.plan import coerce
-from ..results import RunResult, read_table
+from ..results import RunResult, read_columns
 from ..run import run_scenario
 from ..scenario import ScenarioError, closest, scenario_from_dict
 from .cases import Case
@@ -392,7 +392,7 @@ def _run(runner: Callable, scenario: dict, folder: Path) -> dict:
         raise FileNotFoundError(f"runner returned {str(res)!r}, which is not a file")
     if res.parent.resolve() != folder.resolve() or res.name != RESULTS_FILE:
         shutil.copyfile(res, results)
-    return read_table(results)
+    return read_columns(results)
 
 
 def one_sentence(exc: BaseException) -> str:

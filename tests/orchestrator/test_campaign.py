@@ -28,7 +28,7 @@ from orchestrator.campaign import (
     run_campaign,
 )
 from orchestrator.cli import main as cli_main
-from orchestrator.results import RunResult, read_table
+from orchestrator.results import RunResult, read_columns
 
 ARCSEC = ANGLE_UNITS["arcsec"]
 DT = 0.001
@@ -342,7 +342,7 @@ def test_serial_summary_holds_analytic_jitter_rss_and_margins(tmp_path):
 def table_runner(scenario: dict, out_dir) -> RunResult:
     """The synthetic runner returning its table in memory, as the master's runner does."""
     path = synthetic_runner(scenario, out_dir)
-    return RunResult(read_table(path), {}, Path(out_dir))
+    return RunResult(read_columns(path), {}, Path(out_dir))
 
 
 def test_metrics_from_the_in_memory_table_equal_those_of_the_written_results(tmp_path):

@@ -34,10 +34,11 @@ def test_every_format_carries_the_units_and_reads_back(fmu_dir, tmp_path, fmt):
     res = run_scenario(scenario(), tmp_path / fmt, fmu_dir=fmu_dir, fmt=fmt)
     path = tmp_path / fmt / f"results.{fmt}"
     assert res.metadata["units"] == UNITS and res.metadata["format"] == fmt
-    back = read_table(path)
+    back = read_table(path)      # a pandas DataFrame with the FMUs' units
     assert list(back) == ["time", "i.x", "i.xm"]
     for k in back:
         np.testing.assert_array_equal(back[k], res.table[k])   # lossless in every format
+    assert back.attrs["units"] == UNITS
     if fmt == "parquet":
         import pyarrow.parquet as pq
 

@@ -18,7 +18,7 @@ from orchestrator import (
 )
 from orchestrator.cosim import Simulation
 from orchestrator.cosim.bus import RUNAWAY
-from orchestrator.results import read_table
+from orchestrator.results import read_columns, read_table
 from orchestrator.run import (
     PARTIAL_DIR,
     PREVIOUS_DIR,
@@ -193,7 +193,7 @@ def test_an_unstable_truss_loop_leaves_the_declared_strain_range(suite_fmus, tmp
         run_scenario(sc.with_experiment(stop=2.0), out, fmu_dir=folder)
     meta = json.loads((out / "run.json").read_text())
     assert meta["status"] == "diverged" and meta["diverged"]["time"] < 2.0
-    table = read_table(out / "results.parquet")
+    table = read_columns(out / "results.parquet")
     assert all(np.all(np.isfinite(v)) for v in table.values())
 
 

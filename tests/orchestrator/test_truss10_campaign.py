@@ -123,7 +123,7 @@ def test_python_and_native_fmus_give_the_same_cases(campaign_out, tmp_path, suit
     """Every case of the shipped quick campaign, run on the Python build of the FMUs
     (--python-fmus), records the same signals as on the native build, to 1e-12 of each
     signal's peak; the case keys differ (other FMU files)."""
-    from orchestrator import read_table
+    from orchestrator.results import read_columns
 
     camp, out, result = campaign_out
     suite_fmus(*FMUS, kind="python")
@@ -137,8 +137,8 @@ def test_python_and_native_fmus_give_the_same_cases(campaign_out, tmp_path, suit
     for nc in native_cases:
         pc = by_label[nc["case"]]
         assert pc["key"] != nc["key"]
-        a = read_table(out / "cases" / nc["key"] / "results.parquet")
-        b = read_table(tmp_path / "cases" / pc["key"] / "results.parquet")
+        a = read_columns(out / "cases" / nc["key"] / "results.parquet")
+        b = read_columns(tmp_path / "cases" / pc["key"] / "results.parquet")
         assert a.keys() == b.keys()
         for name in a:
             peak = np.max(np.abs(b[name]))

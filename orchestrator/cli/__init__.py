@@ -120,8 +120,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    from ._options import DefaultsFormatter
+
     for mod in _subcommand_modules():
-        p = sub.add_parser(mod.COMMAND, help=mod.HELP, description=mod.HELP)
+        p = sub.add_parser(mod.COMMAND, help=mod.HELP, description=mod.HELP,
+                           formatter_class=DefaultsFormatter)
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser

@@ -11,10 +11,12 @@ HELP = ("linear closed loop of a scenario: poles and damping, decay of a mode, g
 
 def add_arguments(parser) -> None:
     """Declare the options of ``jitterfmu analyze``."""
+    from ._options import add_fmu_dir, add_stop
+
     parser.add_argument("scenario", help="scenario file (.toml) or SSP archive (.ssp)")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="INST.VAR=VALUE", help="set a start value (repeatable)")
-    parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
+    add_fmu_dir(parser)
     parser.add_argument("--open", action="append", default=[], metavar="INST",
                         help="take an instance out of the loop (its outputs held at zero), "
                              "e.g. a slow ACS whose period hides faster poles (repeatable)")
@@ -51,9 +53,7 @@ def add_arguments(parser) -> None:
                              "and amplifiers, the controllers at their rates): what the "
                              "partition adds to each loop at its crossover, and the "
                              "co-simulated outputs against it")
-    parser.add_argument("--stop", type=float, default=None, metavar="S",
-                        help="with --reference: co-simulate this long (s; default the "
-                             "scenario's stop time)")
+    add_stop(parser, lead="with --reference: ")
     parser.add_argument("--output", action="append", default=[], metavar="INST.VAR",
                         help="with --reference or --transfer: output to compare or to "
                              "reach (repeatable; default the scenario's [record])")

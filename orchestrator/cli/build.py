@@ -12,7 +12,7 @@ HELP = "build every FMU of the project (or the named ones), native and Python, a
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``jitterfmu build``."""
-    parser.add_argument("--out", default=None,
+    parser.add_argument("--out", default=None, metavar="DIR",
                         help="FMU folder (default: fmus/, with --fmi 3 fmus/fmi3/): the "
                         "native FMUs in it, their Python twins in its python/ subfolder")
     parser.add_argument("--fmi", type=int, choices=(2, 3), default=2,

@@ -13,18 +13,19 @@ HELP = "run a campaign (events x configurations x sweeps) and summarise the jitt
 
 
 def add_arguments(parser) -> None:
+    """Declare the options of ``jitterfmu campaign``."""
+    from ._options import add_fmu_dir, add_out, add_workers
+
     parser.add_argument("campaign", type=Path, help="campaign TOML file")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="output folder (default: out/<campaign name>); reused to resume")
-    parser.add_argument("--workers", type=int, default=None,
-                        help="worker processes (default: number of CPUs; 0 = in this process)")
+    add_out(parser, "<campaign name>", "output folder, reused to resume", type=Path)
+    add_workers(parser, "; 0 = in this process; a Monte Carlo of fewer than 40 samples "
+                        "runs in this process unless given")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run on an existing Dask cluster (e.g. tcp://host:8786)")
     parser.add_argument("--runner", default=None, metavar="MODULE:FUNCTION",
                         help="case runner callable(scenario_dict, out_dir) -> results.parquet "
                              "(default: the co-simulation master)")
-    parser.add_argument("--fmu-dir", default=None,
-                        help="folder searched first for FMUs (master runner)")
+    add_fmu_dir(parser)
     parser.add_argument("--python-fmus", action="store_const", const="python",
                         dest="fmu_kind", default=None,
                         help="run the Python build of the suite's FMUs (FMU_DIR/python/) "
@@ -43,7 +44,8 @@ def add_arguments(parser) -> None:
                              "campaigns/eos_uncertainty.toml")
     parser.add_argument("--samples", type=int, default=None, metavar="N",
                         help="the Monte Carlo's sample count, in place of the table's (a "
-                             "larger count in the same --out keeps the samples run before)")
+                             "larger count in the same --out keeps the samples run before; "
+                             "default: the [uncertainty] table's samples)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

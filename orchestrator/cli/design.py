@@ -9,10 +9,12 @@ HELP = ("design the ACS on the flexible plant and tune controller gains for a ca
 
 def add_arguments(parser) -> None:
     """Declare the options of ``jitterfmu design``."""
+    from ._options import add_fmu_dir
+
     parser.add_argument("scenario", help="scenario file (.toml)")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="INST.VAR=VALUE", help="set a start value (repeatable)")
-    parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
+    add_fmu_dir(parser)
     parser.add_argument("--tune", action="append", default=[], metavar="LIST",
                         help="what to tune, comma separated (repeatable): 'acs', a "
                              "controller (ctrl_iso1 or ctrl_iso1.gain: its own factor), a "

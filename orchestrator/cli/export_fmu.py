@@ -18,7 +18,9 @@ def add_arguments(parser) -> None:
                              "[record] variables")
     parser.add_argument("--parameter", action="append", default=[], metavar="INST.NAME",
                         help="an inner parameter exposed as the FMU's (repeatable)")
-    parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
+    from ._options import add_fmu_dir
+
+    add_fmu_dir(parser)
     parser.add_argument("--fmi", type=int, choices=(2, 3), default=2,
                         help="FMI version of the FMU (default 2; the inner FMUs are the "
                              "FMI 2.0 native build either way)")

@@ -10,9 +10,11 @@ HELP = "export a scenario as an SSP 1.0 archive (FMUs, parameters, OSP rate anno
 
 def add_arguments(parser) -> None:
     """Declare the options of ``jitterfmu export-ssp``."""
+    from ._options import add_fmu_dir
+
     parser.add_argument("scenario", help="scenario file (.toml)")
     parser.add_argument("out", help="SSP archive to write (.ssp)")
-    parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
+    add_fmu_dir(parser)
 
 
 def run(args) -> int:

@@ -12,7 +12,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("dir", type=Path, help="campaign output folder")
     parser.add_argument("--format", choices=("html", "md"), default="html",
                         help="self-contained HTML (default) or Markdown with PNG files")
-    parser.add_argument("--out", type=Path, default=None,
+    parser.add_argument("--out", type=Path, default=None, metavar="FILE",
                         help="report file (default: DIR/report.html or DIR/report.md)")
 
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-
 COMMAND = "reproduce"
 HELP = "reproduce one of the paper's experiments (writes DIR/NAME.json and figures)"
 
@@ -13,14 +11,14 @@ def add_arguments(parser):
     # deferred: the parser imports every subcommand (orchestrator.cli)
     from orchestrator.experiments import EXPERIMENTS
 
+    from ._options import add_fmu_dir, add_out, add_workers
+
     parser.add_argument("name", help=f"experiment: {', '.join(EXPERIMENTS)}")
-    parser.add_argument("--out", default="out", help="output folder (default: out)")
+    add_out(parser, "<experiment name>", "output folder for NAME.json and the figures")
     parser.add_argument("--quick", action="store_true",
                         help="shorter runs (what the tests use)")
-    parser.add_argument("--fmu-dir", default=None,
-                        help="folder to build the FMUs into (default: fmus)")
-    parser.add_argument("--workers", type=int, default=None,
-                        help="worker processes (eos-budget; default 2)")
+    add_fmu_dir(parser, builds=True)
+    add_workers(parser, "; eos-budget's campaign")
     parser.add_argument("--campaign", default=None,
                         help="campaign file whose [[requirements]] the budget uses "
                              "(eos-budget; default: campaigns/eos_budget.toml)")
@@ -48,13 +46,19 @@ def run(args) -> int:
 
     from orchestrator.progress import stage
 
-    options = {k: v for k, v in (("workers", args.workers), ("campaign", args.campaign),
+    from ._options import cpu_workers
+
+    workers = args.workers
+    if workers is None and args.name == "eos-budget":
+        workers = cpu_workers()
+    options = {k: v for k, v in (("workers", workers), ("campaign", args.campaign),
                                  ("variant", args.variant), ("fmu_kind", args.fmu_kind))
                if v is not None}
+    out = args.out or f"out/{args.name}"
     t0 = time.monotonic()
     stage(f"reproduce {args.name} ({'quick' if args.quick else 'full length'}): FMUs in "
-          f"{args.fmu_dir or 'fmus'} (built if missing or stale), results into {args.out}")
-    result = run_experiment(args.name, args.out, quick=args.quick, fmu_dir=args.fmu_dir,
+          f"{args.fmu_dir or 'fmus'} (built if missing or stale), results into {out}")
+    result = run_experiment(args.name, out, quick=args.quick, fmu_dir=args.fmu_dir,
                             **options)
     stage(f"reproduce {args.name}: done in {time.monotonic() - t0:.0f} s")
     module = importlib.import_module(EXPERIMENTS[args.name])
@@ -63,14 +67,34 @@ def run(args) -> int:
     else:
         for line in verdict_lines(result):
             print(line)
-        shown = {k: v for k, v in result.items() if k != "note" and (
+        shown = {k: v for k, v in result.items() if k not in ("note", "verdict") and (
                  not isinstance(v, (list, dict)) or
                  k in ("jitter_reduction_pct", "reduction_pct", "jitter_off_arcsec",
                        "rigid_body_share_pct", "open_loop_damping",
-                       "closed_loop_cycles_to_90pct"))}
-        print(json.dumps(_clean(shown), indent=2))
-    print(f"wrote {args.out}/{args.name}.json")
+                       "closed_loop_cycles_to_90pct", "modes_hz"))}
+        for line in number_lines(_clean(shown)):
+            print(line)
+    print(f"wrote {out}/{args.name}.json")
     return 1 if result.get("n_failed") else 0
+
+
+def number_lines(numbers: dict) -> list:
+    """An experiment's main numbers as ``  name: value`` lines (4 significant digits).
+
+    Parameters
+    ----------
+    numbers : dict
+        Names to numbers, strings, lists of numbers or dicts of them (one level).
+    """
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.4g}"
+        if isinstance(v, list):
+            return ", ".join(fmt(x) for x in v)
+        if isinstance(v, dict):
+            return "; ".join(f"{k} {fmt(x)}" for k, x in v.items())
+        return str(v)
+    return [f"  {k}: {fmt(v)}" for k, v in numbers.items()]
 
 
 def verdict_lines(result: dict) -> list:

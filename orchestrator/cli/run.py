@@ -12,19 +12,26 @@ HELP = "co-simulate a scenario (.toml or .ssp) and write results.parquet and run
 
 def add_arguments(parser) -> None:
     """Declare the options of ``jitterfmu run``."""
+    from ._options import add_fmu_dir, add_out, add_stop
+
     parser.add_argument("scenario", help="scenario file (.toml) or SSP archive (.ssp)")
-    parser.add_argument("--out", default=None,
-                        help="output folder (default: out/<scenario name>, as campaign and reproduce)")
-    parser.add_argument("--stop-time", type=float, default=None, help="stop time (s)")
+    add_out(parser, "<scenario file name without .toml>",
+            "output folder for the results file and run.json")
+    add_stop(parser)
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="INST.VAR=VALUE", help="set a start value (repeatable)")
-    parser.add_argument("--algorithm", choices=["gauss-seidel", "jacobi"], default=None)
+    parser.add_argument("--algorithm", choices=["gauss-seidel", "jacobi"], default=None,
+                        help="order of the FMUs within a step: gauss-seidel (along the "
+                             "feedthrough graph, each FMU sees the outputs computed before "
+                             "it) or jacobi (every FMU sees the previous step's outputs) "
+                             "(default: the scenario's [experiment] algorithm, else "
+                             "gauss-seidel)")
     parser.add_argument("--format", choices=("parquet", "csv", "mat"), default=None,
                         dest="fmt", help="results file: results.parquet (default, units in "
                         "its metadata), results.csv (header 'name [unit]') or results.mat "
                         "(MATLAB: a struct per instance)")
     parser.add_argument("--csv", action="store_true", help="the same as --format csv")
-    parser.add_argument("--fmu-dir", default=None, help="folder searched first for FMUs")
+    add_fmu_dir(parser)
     parser.add_argument("--python-fmus", action="store_const", const="python",
                         dest="fmu_kind", default=None,
                         help="run the Python build of the suite's FMUs (FMU_DIR/python/) "
@@ -45,7 +52,7 @@ def run(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            result = run_scenario(args.scenario, out, stop_time=args.stop_time,
+            result = run_scenario(args.scenario, out, stop_time=args.stop,
                                   overrides=overrides, algorithm=args.algorithm,
                                   quiet=args.quiet, csv=args.csv, fmu_dir=args.fmu_dir,
                                   fmu_kind=args.fmu_kind, overwrite=args.overwrite,

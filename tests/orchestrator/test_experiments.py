@@ -85,7 +85,7 @@ def test_reproduce_runs_the_python_build_when_asked(tmp_path, fmu_dir, capsys):
         assert "jitterfmu: truss-decay: co-simulating the free decay and the controlled " \
                "decay" in err
         assert err[-1].startswith("jitterfmu: reproduce truss-decay: done in ")
-        assert '"closed_loop_cycles_to_90pct"' in captured.out
+        assert "  closed_loop_cycles_to_90pct: " in captured.out
     # the fitted damping is as good as the fit's termination: least_squares stops once
     # its step is below xtol = 1e-8 (its default) of the parameter vector's norm (about
     # 14: two frequencies near 9 Hz, two phases up to 2 pi, amplitudes below 1), up to

@@ -1,0 +1,111 @@
+"""One command-line vocabulary: the same option means the same thing in every command,
+every default is in --help, and an old spelling still works with a one-line note."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from orchestrator.cli import _options, build_parser, main
+
+
+def commands():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices
+
+
+def options(sub):
+    """The options of a command that take a value and may be left out."""
+    for a in sub._actions:
+        if (a.option_strings and a.nargs != 0 and not a.required
+                and a.help is not argparse.SUPPRESS):
+            yield a
+
+
+def rendered(sub, action) -> str:
+    return sub._get_formatter()._get_help_string(action) % {"default": action.default}
+
+
+def test_every_default_is_in_the_help():
+    missing = []
+    for name, sub in commands().items():
+        for a in options(sub):
+            named = a.option_strings[0] in _options.VOCABULARY
+            valued = a.default not in (None, [], argparse.SUPPRESS)
+            if (named or valued) and "default" not in rendered(sub, a):
+                missing.append(f"{name} {a.option_strings[0]}")
+    assert not missing, missing
+
+
+def test_a_value_default_is_shown_as_it_is():
+    sub = commands()["analyze"]
+    fmin = next(a for a in sub._actions if "--fmin" in a.option_strings)
+    assert rendered(sub, fmin).endswith("(default: 0.1)")
+    assert "(default: 0.1)" in " ".join(sub.format_help().split())
+
+
+@pytest.mark.parametrize("option, same", [
+    ("--stop", ("type", "metavar", "dest")),
+    ("--workers", ("type", "metavar", "dest", "default")),
+    ("--out", ("dest", "default")),
+    ("--fmu-dir", ("metavar", "dest", "default")),
+])
+def test_an_option_has_one_meaning_in_every_command(option, same):
+    found = {name: next(a for a in sub._actions if option in a.option_strings)
+             for name, sub in commands().items()
+             if any(option in a.option_strings for a in sub._actions)}
+    assert len(found) >= 2
+    for attr in same:
+        values = {name: getattr(a, attr) for name, a in found.items()
+                  if not a.required}
+        assert len(set(map(repr, values.values()))) <= 1, (attr, values)
+
+
+def test_fmu_dir_is_searched_first_everywhere():
+    for name, sub in commands().items():
+        for a in sub._actions:
+            if "--fmu-dir" in a.option_strings:
+                assert a.help.startswith("folder searched first for FMUs"), name
+
+
+def test_out_is_a_folder_but_where_a_command_writes_one_file():
+    one_file = ("report", "import-nastran")
+    for name, sub in commands().items():
+        for a in sub._actions:
+            if "--out" in a.option_strings and name not in one_file:
+                assert a.metavar == "DIR", name
+
+
+def test_the_output_folders_default_to_out_and_the_name():
+    for name in ("run", "campaign", "reproduce"):
+        sub = commands()[name]
+        out = next(a for a in sub._actions if "--out" in a.option_strings)
+        assert out.default is None and "(default: out/<" in out.help, name
+
+
+def test_the_old_spelling_of_stop_still_works_with_a_note(capsys):
+    args = build_parser().parse_args(["run", "x.toml", "--stop-time", "0.5"])
+    assert args.stop == 0.5
+    err = capsys.readouterr().err
+    assert err == ("jitterfmu: note: --stop-time is an old spelling of --stop, kept for one "
+                   "release; use --stop\n")
+    assert "--stop-time" not in commands()["run"].format_help()
+
+
+def test_workers_default_to_the_cpus_in_the_help():
+    import os
+
+    for name in ("campaign", "reproduce"):
+        sub = commands()[name]
+        workers = next(a for a in sub._actions if "--workers" in a.option_strings)
+        assert f"the number of CPUs, {os.cpu_count() or 1} here" in workers.help
+
+
+def test_reproduce_truss_frf_ends_with_a_verdict_not_a_json_dump(tmp_path, capsys):
+    assert main(["reproduce", "truss-frf", "--quick", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[0] == "verdict: reproduced"
+    assert "Fig. 4: FRF zero, 6 modes + 2 static Ritz vectors: 5.6 Hz" in out
+    assert "{" not in out and "  zero_hz_modal: " in out

@@ -35,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --controller: the FMU's period, at which a continuous "
                         "state-space (Ts = 0) is discretised by a zero-order hold (default: "
                         "none; a discrete law runs at its own Ts)")
+    parser.add_argument("--force", action="store_true",
+                        help="rebuild every FMU asked for (default: keep those in --out built "
+                        "from the same sources, content-keyed)")
     only = parser.add_mutually_exclusive_group()
     only.add_argument("--native", action="store_true",
                       help="only the native (C99) FMUs, into --out itself "
@@ -71,33 +74,81 @@ def run(args: argparse.Namespace) -> int:
     problems, built, skipped = [], [], ()
     if fmi == 3:
         return _report(*_build_fmi3(args, out, name))
+    todo_py, todo_native = (None, None) if args.structure else _stale(args, out, py_dir)
     if not args.native:
         if args.structure:
             report = build_structure_fmu(args.structure, py_dir, name)
             print(f"{report.fmus[0]} {'ok' if not report.problems else 'has problems'}")
-        else:
-            report = build_all(py_dir, args.model, progress=print)
-            if not report.fmus:
-                print("no FMU to build: no package provides an fmuspec module", file=sys.stderr)
-                return 1
+        elif todo_py:
+            report = build_all(py_dir, todo_py, progress=print)
             record_built(py_dir, [p.stem for p in report.fmus], "python")
-        problems += report.problems
-        built += report.fmus
+        if args.structure or todo_py:
+            problems += report.problems
+            built += report.fmus
+        else:
+            built.append(py_dir)      # every one kept
     if not args.python:
         if args.structure:
             report = build_native_structure(args.structure, out, name)
             print(f"{report.fmus[0]} (native) {'ok' if not report.problems else 'has problems'}")
-        else:
-            report = build_all_native(out, args.model, progress=print,
+        elif todo_native:
+            report = build_all_native(out, todo_native, progress=print,
                                       python_dir=None if args.native else py_dir)
             record_built(out, [p.stem for p in report.fmus], "native")
-        problems += report.problems
-        built += report.fmus
-        skipped = report.skipped
+        if args.structure or todo_native:
+            problems += report.problems
+            built += report.fmus
+            skipped = report.skipped
+        else:
+            built.append(out)         # every one kept
     if skipped:
         print(f"no native kernel for {', '.join(skipped)}; their Python FMUs are in "
               f"{py_dir}", file=sys.stderr)
     return _report(problems, built)
+
+
+def _names(args) -> list[str]:
+    """The registry FMUs ``build`` is asked for (``--model``, or all)."""
+    from fmutools.registry import collect_specs
+
+    return [s.model_identifier for s in collect_specs(args.model)]
+
+
+def _stale(args, out: Path, py_dir: Path) -> tuple[list, list]:
+    """The FMUs to build, Python and native: all with ``--force``, else those not already
+    in the folders from today's sources (content-keyed stamps); says what is kept."""
+    from fmutools.ensure import current_fmus
+    from nativefmu.build import mingw_compiler
+
+    names = _names(args)
+    if not names:
+        raise ValueError("no FMU to build: no package provides an fmuspec module")
+    if args.force:
+        return names, names
+    py_ok = [] if args.native else current_fmus(py_dir, names, "python")
+    native_ok = [] if args.python else [
+        n for n in current_fmus(out, names, "native") if _has_binaries(out / f"{n}.fmu",
+                                                                       mingw_compiler())]
+    kept = sorted(set(py_ok) | set(native_ok))
+    todo_py = [n for n in names if n not in py_ok]
+    todo_native = [n for n in names if n not in native_ok]
+    if kept:
+        print(f"kept {len(py_ok) + len(native_ok)} FMU(s) already built from these sources "
+              f"in {out} ({', '.join(kept)}); --force rebuilds them")
+    return todo_py, todo_native
+
+
+def _has_binaries(fmu: Path, mingw) -> bool:
+    """A native FMU holds the binaries this machine builds (win64 with a cross compiler)."""
+    import zipfile
+
+    if mingw is None:
+        return True
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            return any(n.startswith("binaries/win64/") for n in z.namelist())
+    except (OSError, zipfile.BadZipFile):
+        return False
 
 
 def _build_fmi3(args, out: Path, name) -> tuple[list, list]:

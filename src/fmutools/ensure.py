@@ -31,7 +31,7 @@ from fmutools.registry import SOURCE_PACKAGES, collect_specs, sources_hash
 from nativefmu.build import build_native
 from nativefmu.data import NativeUnsupportedError
 
-__all__ = ["ensure_fmus", "record_built"]
+__all__ = ["ensure_fmus", "record_built", "current_fmus"]
 
 
 
@@ -105,6 +105,34 @@ def record_built(folder, names: Iterable[str], kind: str) -> None:
     current = sources_hash(NATIVE_PACKAGES if kind == "native" else SOURCE_PACKAGES)
     with _locked(Path(folder)):   # two builds into one folder keep each other's stamps
         _write_stamps(Path(folder), {**_stamps(Path(folder)), **{n: current for n in names}})
+
+
+def current_fmus(folder, names: Iterable[str], kind: str) -> list[str]:
+    """The named FMUs in ``folder`` built from today's sources (nothing to rebuild).
+
+    The key is the content of the sources the FMUs are built from (:func:`sources_hash`
+    of the packages, kept per folder in ``.sources`` by :func:`ensure_fmus` and
+    :func:`record_built`); an FMU whose file is missing or whose sources changed since
+    is not current.
+
+    Parameters
+    ----------
+    folder : path-like
+        An FMU folder (or its ``python/`` for ``"python"``).
+    names : iterable of str
+        Model identifiers.
+    kind : {"native", "python"}
+        Which build the folder holds.
+
+    Returns
+    -------
+    list of str
+        The current ones, in the order of ``names``.
+    """
+    folder = Path(folder)
+    current = sources_hash(NATIVE_PACKAGES if kind == "native" else SOURCE_PACKAGES)
+    stamps = _stamps(folder)
+    return [n for n in names if (folder / f"{n}.fmu").is_file() and stamps.get(n) == current]
 
 
 def _stamps(folder: Path) -> dict:

@@ -1,0 +1,47 @@
+"""``jitterfmu build`` keeps the FMUs it already built from the same sources.
+
+The key is the content of the sources (``fmutools.registry.sources_hash``, stamped per
+folder in ``.sources``): an FMU whose sources changed since, or that is missing, is built
+again; ``--force`` rebuilds all.
+"""
+
+import json
+
+import pytest
+
+from orchestrator.cli import main
+
+
+def _bytes(folder):
+    return {p.relative_to(folder).as_posix(): p.stat().st_mtime_ns
+            for p in folder.rglob("*.fmu")}
+
+
+@pytest.mark.slow
+def test_build_twice_keeps_what_it_built(tmp_path, capsys):
+    args = ["build", "--model", "excitation", "--model", "acs", "--out", str(tmp_path)]
+    assert main(args) == 0
+    first = _bytes(tmp_path)
+    assert set(first) == {"excitation.fmu", "acs.fmu", "python/excitation.fmu",
+                          "python/acs.fmu"}
+    capsys.readouterr()
+    assert main(args) == 0                       # nothing to do: every FMU kept
+    out = capsys.readouterr().out
+    assert "kept 4 FMU(s) already built from these sources" in out and "[1/" not in out
+    assert _bytes(tmp_path) == first
+    # the sources of acs changed (its stamp no longer matches), and excitation is missing
+    for folder in (tmp_path, tmp_path / "python"):
+        stamps = json.loads((folder / ".sources").read_text())
+        stamps["acs"] = "0" * 64
+        (folder / ".sources").write_text(json.dumps(stamps))
+    (tmp_path / "excitation.fmu").unlink()
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    now = _bytes(tmp_path)
+    assert now["python/excitation.fmu"] == first["python/excitation.fmu"]   # kept
+    assert now["acs.fmu"] != first["acs.fmu"] and now["python/acs.fmu"] != first["python/acs.fmu"]
+    assert (tmp_path / "excitation.fmu").is_file() and "acs" in out
+    before = _bytes(tmp_path)
+    assert main(args + ["--force"]) == 0          # --force rebuilds every one
+    after = _bytes(tmp_path)
+    assert all(after[k] != before[k] for k in before)

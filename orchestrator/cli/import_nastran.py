@@ -56,6 +56,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k-name", default=None, help="OP4 stiffness matrix name")
     parser.add_argument("--m-name", default=None, help="OP4 mass matrix name")
     parser.add_argument("--name", default=None, help="model name (default: the BDF's stem)")
+    parser.add_argument("--include-dir", action="append", default=[], metavar="DIR",
+                        help="a folder besides the BDF's own that its INCLUDE statements may "
+                        "name (repeatable); any other INCLUDE is refused")
     parser.add_argument("--boundary", choices=["free", "fixed"], default=None,
                         help="Craig-Bampton model (a q-set in the BDF): boundary DOFs free "
                         "(default) or fixed (the fixed-interface modes)")
@@ -80,7 +83,8 @@ def run(args: argparse.Namespace) -> int:
             loads=[nastran.parse_point(s, "force") for s in args.load],
             los=[nastran.parse_los(s) for s in args.los], ritz=args.ritz, shift=args.shift,
             damping=Damping(zeta=args.zeta, zeta_ritz=args.zeta_ritz), zeta_bands=bands,
-            dof_map=args.dof_map, k_name=args.k_name, m_name=args.m_name, name=args.name)
+            dof_map=args.dof_map, k_name=args.k_name, m_name=args.m_name, name=args.name,
+            include_dirs=args.include_dir)
     report_warnings(caught)
     path = model.save(args.out)
     f = model.frequencies_hz

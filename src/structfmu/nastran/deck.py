@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from structfmu.nastran.pyn import QuietLog, pynastran, reason
+from structfmu.nastran.pyn import QuietLog, includes_inside, pynastran, reason
 from structfmu.nastran.rigid import Constraint, constraints
 from structfmu.nastran.spec import (ACTUATOR_ELEMENTS, NastranError, NastranWarning,
                                     UnitSystem, to_int, unit_system)
@@ -144,7 +144,7 @@ class Deck:
         return self.elements[eid]
 
 
-def read_deck(bdf_path, units) -> Deck:
+def read_deck(bdf_path, units, include_dirs=()) -> Deck:
     """Read the geometry, members, constraints and sets of a BDF (SI units).
 
     Warns (NastranWarning) once for the cards it does not interpret and when the deck
@@ -159,13 +159,16 @@ def read_deck(bdf_path, units) -> Deck:
         ``.pch`` NASTRAN wrote for an external superelement.
     units : str or UnitSystem
         The declared unit system.
+    include_dirs : sequence of path-like
+        Folders besides the deck's own that its INCLUDE statements may name; an INCLUDE
+        of any other file is refused.
     """
     u = unit_system(units)
     path = Path(bdf_path)
     if not path.is_file():
         raise NastranError(f"BDF file {str(path)!r} does not exist")
     text = path.read_text(errors="replace")
-    model, log = _read_bdf(path, text)
+    model, log = _read_bdf(path, text, include_dirs)
     _warn_unread(model, path)
     punch = path.suffix.lower() == ".pch" or re.search(r"(?im)^BEGIN\s+SUPER", text)
     if not punch and not re.search(r"(?im)^\s*ENDDATA", text) and not _includes_enddata(model):
@@ -220,7 +223,7 @@ def read_deck(bdf_path, units) -> Deck:
                 frozenset(shaped), tuple(rigid), refused, sets, wtmass, unread, eigrl)
 
 
-def _read_bdf(path: Path, text: str):
+def _read_bdf(path: Path, text: str, include_dirs=()):
     BDF = pynastran()[0]
     log = QuietLog()
     model = BDF(log=log.log)
@@ -232,9 +235,12 @@ def _read_bdf(path: Path, text: str):
         tmp.close()
         source = Path(tmp.name)
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), includes_inside(path, include_dirs) as outside:
             warnings.simplefilter("ignore")
             model.read_bdf(str(source), xref=True, punch=_is_punch(text))
+        model.jf_read_outside = bool(outside)
+    except NastranError:
+        raise
     except Exception as exc:  # pyNastran raises many kinds; one sentence here
         raise NastranError(f"cannot read BDF {str(path)!r}: {reason(exc, log)}; fix the deck "
                            "(or the INCLUDE it names) and import again") from None
@@ -286,13 +292,21 @@ def _set_dofs(cards, grids) -> set:
     return out
 
 
+#: A NASTRAN card name (up to eight characters, large-field ``*`` allowed); anything else
+#: in the deck's card counts is a line of text, counted but never echoed.
+_CARD_NAME = re.compile(r"[A-Z][A-Z0-9]{0,7}\*?")
+_NOT_CARDS = "lines that are not NASTRAN cards"
+
+
 def _unread(model) -> dict:
-    out = {k: int(v) for k, v in model.card_count.items()
-           if k not in INTERPRETED_CARDS and k not in REFUSED_RIGID}
+    counts = {k: int(v) for k, v in model.card_count.items()
+              if k not in INTERPRETED_CARDS and k not in REFUSED_RIGID}
     for k, v in (model.reject_count or {}).items():
         if k not in INTERPRETED_CARDS:  # EXTRN: a superelement's DOF list, read as ASET
-            out[k] = int(v)
-    return out
+            counts[k] = int(v)
+    out = {k: v for k, v in counts.items() if _CARD_NAME.fullmatch(str(k))}
+    other = sum(v for k, v in counts.items() if k not in out)
+    return {**out, _NOT_CARDS: other} if other else out
 
 
 def _warn_unread(model, path: Path) -> None:
@@ -300,8 +314,13 @@ def _warn_unread(model, path: Path) -> None:
     if not unread:
         return
     rejected = set(model.reject_count or {}) - INTERPRETED_CARDS
+    if getattr(model, "jf_read_outside", False):
+        # a file of the user's outside folder: its unknown first fields are not echoed
+        unknown = sum(unread.pop(k) for k in list(unread) if k in rejected)
+        if unknown:
+            unread[_NOT_CARDS] = unread.get(_NOT_CARDS, 0) + unknown
     items = ", ".join(f"{k} ({n}{', unknown to pyNastran' if k in rejected else ''})"
-                      for k, n in sorted(unread.items()))
+                      if k != _NOT_CARDS else f"{n} {k}" for k, n in sorted(unread.items()))
     warnings.warn(f"BDF {str(path)!r}: {sum(unread.values())} cards this import does not "
                   f"interpret: {items}; their stiffness and mass count only through the "
                   "OP4/OP2 matrices, and they carry no stack, load or constraint here",

@@ -135,7 +135,7 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
                    sensors=(), loads=(), los=(), inputs=(), outputs=(), ritz=None,
                    shift=None, damping: Damping | None = None, zeta_bands=(),
                    dof_map=None, k_name=None, m_name=None, boundary=None,
-                   name=None) -> ReducedModel:
+                   name=None, include_dirs=()) -> ReducedModel:
     """Reduced model from a NASTRAN BDF + OP4 or DMIG matrices, or a SOL 103 OP2.
 
     Parameters
@@ -189,6 +189,9 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
         fixed (the fixed-interface modes).
     name : str, optional
         Model name (default the BDF's file stem).
+    include_dirs : sequence of path-like
+        Folders besides the BDF's (and the DMIG file's) own that their INCLUDE
+        statements may name; any other INCLUDE is refused.
 
     Returns
     -------
@@ -204,7 +207,13 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
                            "of input names")
     if boundary is not None and boundary not in BOUNDARY:
         raise NastranError(f"boundary={boundary!r}; expected 'free' or 'fixed'")
-    deck = read_deck(bdf, u)
+    if damping is not None:
+        for label, z in (("zeta", damping.zeta), ("zeta_ritz", damping.zeta_ritz)):
+            bad = [float(x) for x in np.atleast_1d(np.asarray(z, float)) if not 0 <= x < 1]
+            if bad:
+                raise NastranError(f"damping ratio {label} = {bad[0]!r}; expected 0 <= zeta < 1 "
+                                   "(CLI --zeta, --zeta-ritz)")
+    deck = read_deck(bdf, u, include_dirs)
     name = name or Path(bdf).stem
     loaded, op2_mats = None, None
     if op2 is not None:
@@ -234,7 +243,7 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
     info = {}
     if op2 is None or op2_mats is not None:
         K, M, dofs, is_aset = _matrices(deck, u, op4, dmig, dof_map, k_name, m_name,
-                                        op2, op2_mats)
+                                        op2, op2_mats, include_dirs)
         index = {d: i for i, d in enumerate(dofs)}
         for a in acts:
             dK, dM = _actuator_update(deck, a, index, len(dofs))
@@ -438,10 +447,11 @@ def _op2_stiffness_mass(loaded, op2, k_name, m_name):
     return kn, mn, mats
 
 
-def _matrices(deck: Deck, u, op4, dmig, dof_map, k_name, m_name, op2=None, op2_mats=None):
+def _matrices(deck: Deck, u, op4, dmig, dof_map, k_name, m_name, op2=None, op2_mats=None,
+              include_dirs=()):
     """K, M (SI) on their DOF map, and whether that map is an a-set."""
     if dmig is not None:
-        K, M, dofs = read_dmig_matrices(dmig, u, k_name, m_name)
+        K, M, dofs = read_dmig_matrices(dmig, u, k_name, m_name, include_dirs)
         for g, _ in dofs:
             deck.check_grid(g, f"DMIG {str(dmig)!r}: ")
         return K, M, dofs, True

@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from structfmu.errors import DimensionError
 from structfmu.nastran.deck import dof_scale
-from structfmu.nastran.pyn import QuietLog, pynastran, reason
+from structfmu.nastran.pyn import QuietLog, includes_inside, pynastran, reason
 from structfmu.nastran.spec import NastranError, unit_system
 
 __all__ = ["read_matrices", "read_op4", "read_dmig", "read_dmig_matrices", "op4_precision",
@@ -117,13 +117,15 @@ class _Mats(dict):
         self.single: list = []
 
 
-def read_dmig(pch_path) -> dict:
+def read_dmig(pch_path, include_dirs=()) -> dict:
     """DMIG matrices of a punch file (``PARAM,EXTOUT,DMIGPCH``) with their DOF maps.
 
     Parameters
     ----------
     pch_path : path-like
         Bulk data holding DMIG cards.
+    include_dirs : sequence of path-like
+        Folders besides the file's own that its INCLUDE statements may name.
 
     Returns
     -------
@@ -140,8 +142,11 @@ def read_dmig(pch_path) -> dict:
     log = QuietLog()
     model = BDF(log=log.log)
     try:
-        model.read_bdf(str(path), xref=False,
-                       punch=not re.search(r"(?im)^\s*BEGIN\s+BULK", text))
+        with includes_inside(path, include_dirs):
+            model.read_bdf(str(path), xref=False,
+                           punch=not re.search(r"(?im)^\s*BEGIN\s+BULK", text))
+    except NastranError:
+        raise
     except Exception as exc:
         raise NastranError(f"cannot read DMIG file {str(path)!r}: {reason(exc, log)}") from None
     out = {}
@@ -209,7 +214,8 @@ def read_matrices(op4_path, dofs, units, k_name=None, m_name=None):
                                  "different models, or the matrices are an a-set; give the "
                                  "DOF map of the matrices (dof_map / --dof-map)")
         out.append(A.astype(float))
-    return tuple(to_si(A, dofs, u, label, path) for label, A in zip(("stiffness", "mass"), out))
+    return tuple(to_si(A, dofs, u, f"{label} matrix {name}", path)
+                 for label, name, A in zip(("stiffness", "mass"), (k_name, m_name), out))
 
 
 def to_si(A, dofs, units, what, path):
@@ -239,6 +245,14 @@ def to_si(A, dofs, units, what, path):
                              "matrices are an a-set; give the DOF map of the matrices "
                              "(dof_map / --dof-map)")
     A = A.astype(float).tocsc()
+    bad = ~np.isfinite(A.data)
+    if bad.any():
+        C = A.tocoo()
+        k = int(np.flatnonzero(~np.isfinite(C.data))[0])
+        raise NastranError(f"{what} in {str(path)!r} holds {float(C.data[k])!r} at row "
+                           f"{C.row[k] + 1}, column {C.col[k] + 1} (non-finite entries: "
+                           f"{int(bad.sum())}); "
+                           "write the matrix again from the model")
     big = abs(A).max() if A.nnz else 0.0
     D = (A - A.T).tocoo()
     if D.nnz and abs(D.data).max() > SYMMETRY * big:
@@ -282,14 +296,18 @@ def pick(mats, letter, path, kind="OP4"):
     standard = [n for n in cand if n.upper()[1:] in STANDARD_SETS]
     if len(standard) == 1:
         return standard[0]
+    what = "stiffness" if letter == "K" else "mass"
+    if not cand:
+        raise NastranError(f"{kind} {str(path)!r} has matrices {', '.join(names)}, none a "
+                           f"square {what} matrix named {letter}...; write the {what} matrix "
+                           "into it, or name it (k_name/m_name, CLI --k-name/--m-name)")
     if len(cand) != 1:
-        what = "stiffness" if letter == "K" else "mass"
         raise NastranError(f"{kind} {str(path)!r} has matrices {', '.join(names)}; name the "
                            f"{what} matrix (k_name/m_name, CLI --k-name/--m-name)")
     return cand[0]
 
 
-def read_dmig_matrices(pch_path, units, k_name=None, m_name=None):
+def read_dmig_matrices(pch_path, units, k_name=None, m_name=None, include_dirs=()):
     """Stiffness, mass and their DOF map from a DMIG punch file, in SI.
 
     Parameters
@@ -300,6 +318,8 @@ def read_dmig_matrices(pch_path, units, k_name=None, m_name=None):
         Declared unit system.
     k_name, m_name : str, optional
         DMIG names; default as :func:`pick`.
+    include_dirs : sequence of path-like
+        Folders besides the file's own that its INCLUDE statements may name.
 
     Returns
     -------
@@ -309,10 +329,10 @@ def read_dmig_matrices(pch_path, units, k_name=None, m_name=None):
         ``(id, component)`` of each row (the stiffness matrix's order).
     """
     u = unit_system(units)
-    mats = read_dmig(pch_path)
+    mats = read_dmig(pch_path, include_dirs)
     shaped = {k: v[0] for k, v in mats.items()}
-    k_name = k_name or pick(shaped, "K", pch_path)
-    m_name = m_name or pick(shaped, "M", pch_path)
+    k_name = k_name or pick(shaped, "K", pch_path, "DMIG file")
+    m_name = m_name or pick(shaped, "M", pch_path, "DMIG file")
     for name in (k_name, m_name):
         if name not in mats:
             raise NastranError(f"{str(pch_path)!r} has no DMIG {name!r}; it has "

@@ -7,11 +7,16 @@ log into a :class:`QuietLog` whose lines an error message can quote instead.
 
 from __future__ import annotations
 
+import os
 import re
+from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["pynastran", "QuietLog", "reason"]
+from structfmu.nastran.spec import NastranError
+
+__all__ = ["pynastran", "QuietLog", "reason", "includes_inside"]
 
 
 def pynastran():
@@ -37,6 +42,50 @@ def pynastran():
         if lent:
             del np.in1d
     return BDF, OP2, OP4
+
+
+@contextmanager
+def includes_inside(path, folders=()):
+    """While pyNastran reads ``path``, it opens an INCLUDE only inside allowed folders.
+
+    The allowed folders are ``path``'s own and ``folders``; a name is judged as pyNastran
+    opens it (joined to its include folder, links followed), so ``'../x'``, an absolute
+    path and a link out are refused alike.  The refusal names the INCLUDE, never a line
+    of the file it names.  Yields the list of the files read from an allowed folder
+    other than ``path``'s (filled as they are opened).
+
+    Parameters
+    ----------
+    path : path-like
+        The file being read (a BDF or a DMIG punch file).
+    folders : sequence of path-like
+        Further folders the user allows INCLUDEs from (CLI ``--include-dir``).
+    """
+    pynastran()
+    # deferred: optional dependency (the nastran extra)
+    from pyNastran.bdf.bdf_interface import pybdf
+
+    allowed = [Path(path).resolve().parent, *(Path(f).resolve() for f in folders)]
+    original = pybdf.BDFInputPy._open_file_checks
+    opened_outside = []
+
+    def checked(self, bdf_filename, basename=False):
+        name = os.path.basename(bdf_filename) if basename else bdf_filename
+        target = Path(os.path.join(self.include_dir, name)).resolve()
+        if not target.is_relative_to(allowed[0]):
+            opened_outside.append(target)
+        if not any(target.is_relative_to(a) for a in allowed):
+            shown = str(bdf_filename)[:200]
+            raise NastranError(f"{str(path)!r} has INCLUDE {shown!r}, a file outside the "
+                               f"folder {str(allowed[0])!r}; copy it into that folder, or "
+                               "allow its folder (include_dirs, CLI --include-dir)")
+        return original(self, bdf_filename, basename)
+
+    pybdf.BDFInputPy._open_file_checks = checked
+    try:
+        yield opened_outside
+    finally:
+        pybdf.BDFInputPy._open_file_checks = original
 
 
 class QuietLog:

@@ -1,0 +1,162 @@
+"""NASTRAN files a hostile or careless user hands the importer.
+
+A NaN or inf in an OP4 or DMIG matrix used to give other frequencies without a word;
+a BDF ``INCLUDE '/etc/passwd'`` (or ``'../../x'``) was read and its lines echoed as
+card names in the unread-cards warning; a DMIG without mass was called an "OP4";
+``--zeta -0.1`` passed.  Each is now one sentence naming the file and the entry, and
+an INCLUDE is followed only inside the deck's folder or a folder the user names.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+from orchestrator.cli import main
+from structfmu import nastran as nas
+from structfmu.reduce import Damping
+
+from .test_nastran_rigid import XYZ, write_model
+
+SECRET = "zzsecretzz:x:0:0:hidden:/home:/bin/sh"
+
+
+def _write_op4(path, K, M):
+    OP4 = nas.pynastran()[2]
+    OP4(log=nas.pyn.QuietLog().log).write_op4(str(path), {"KGG": (6, K), "MGG": (6, M)},
+                                              is_binary=False)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_non_finite_op4_entry_is_named_by_matrix_row_and_column(tmp_path, bad):
+    bdf, op4, K, M = write_model(tmp_path, rigid=False)
+    K = K.copy()
+    K[3, 3] = bad
+    _write_op4(op4, K, M)
+    with pytest.raises(nas.NastranError, match=r"stiffness matrix KGG in '.*rigid.op4' holds "
+                       r"-?(nan|inf) at row 4, column 4 \(non-finite entries: 1\)"):
+        nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none")
+
+
+def test_the_same_op4_without_the_nan_imports(tmp_path):
+    """The refusal is the NaN's: the file written the same way with finite values reads."""
+    bdf, op4, K, M = write_model(tmp_path, rigid=False)
+    _write_op4(op4, K, M)
+    model = nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none")
+    assert np.all(np.isfinite(model.omega)) and model.n_modes == 4
+
+
+def _write_dmig(tmp_path, K, M, names=("KAAX", "MAAX")):
+    BDF = nas.pynastran()[0]
+    d = BDF(log=nas.pyn.QuietLog().log)
+    dofs = [(g, c) for g in XYZ if g != 1 for c in range(1, 7)]
+    idx = [6 * (g - 1) + c - 1 for g, c in dofs]
+    for name, A in zip(names, (K, M)):
+        A = A[np.ix_(idx, idx)]
+        GCj, GCi, Real = [], [], []
+        for j, dj in enumerate(dofs):
+            for i, di in enumerate(dofs[:j + 1]):
+                if A[i, j] != 0:
+                    GCj.append(dj)
+                    GCi.append(di)
+                    Real.append(float(A[i, j]))
+        d.add_dmig(name, 6, 1, 2, 0, len(dofs), GCj, GCi, Real)
+    d.write_bdf(str(tmp_path / "m.pch"), size=16, is_double=True, enddata=False)
+    return tmp_path / "m.pch"
+
+
+def test_a_nan_in_a_dmig_is_named(tmp_path):
+    bdf, _, K, M = write_model(tmp_path, rigid=False)
+    pch = _write_dmig(tmp_path, K, M)
+    # the first value of KAAX's column of grid 2 component 1, written as text
+    text, n = re.subn(r"(DMIG\*\s+KAAX\s+2\s+1\n\*\s+2\s+)(\S+)",
+                      lambda m: m.group(1) + f"{'NaN':>{len(m.group(2))}}", pch.read_text(),
+                      count=1)
+    assert n == 1
+    pch.write_text(text)
+    with pytest.raises(nas.NastranError, match=r"DMIG KAAX in '.*m.pch' holds nan at row \d+, "
+                                               r"column \d+"):
+        nas.import_nastran(bdf, units="SI", dmig=pch, n_modes=4, ritz="none")
+
+
+def test_a_dmig_file_without_mass_is_called_a_dmig_file(tmp_path):
+    bdf, _, K, M = write_model(tmp_path, rigid=False)
+    pch = _write_dmig(tmp_path, K, K, names=("KAAX", "BAAX"))
+    with pytest.raises(nas.NastranError, match=r"^DMIG file '.*m.pch' has matrices BAAX, KAAX, none a "
+                                               r"square mass matrix named M"):
+        nas.import_nastran(bdf, units="SI", dmig=pch, n_modes=4, ritz="none")
+
+
+@pytest.mark.parametrize("zeta, ritz", [(-0.1, 0.02), (5.0, 0.02), (0.01, 1.0)])
+def test_a_damping_ratio_outside_0_1_is_refused(tmp_path, zeta, ritz):
+    bdf, op4, _, _ = write_model(tmp_path, rigid=False)
+    with pytest.raises(nas.NastranError, match=r"damping ratio zeta(_ritz)? = .*expected "
+                                               r"0 <= zeta < 1"):
+        nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none",
+                           damping=Damping(zeta=zeta, zeta_ritz=ritz))
+
+
+# ----------------------------------------------------------------------------- INCLUDE
+
+
+@pytest.fixture()
+def outside(tmp_path):
+    """A deck in deck/ and a file of secret lines beside that folder."""
+    (tmp_path / "deck").mkdir()
+    secret = tmp_path / "secret.txt"
+    secret.write_text(f"{SECRET}\nSECRET2,3,4\n")
+    bdf, op4, _, _ = write_model(tmp_path / "deck", rigid=False)
+    return bdf, op4, secret
+
+
+def _with_include(bdf, name):
+    text = bdf.read_text().replace("ENDDATA", f"INCLUDE '{name}'\nENDDATA")
+    bdf.write_text(text)
+
+
+@pytest.mark.parametrize("how", ["absolute", "dotdot", "link"])
+def test_an_include_outside_the_decks_folder_is_refused_without_its_lines(outside, how):
+    bdf, op4, secret = outside
+    if how == "link":
+        os.symlink(secret, bdf.parent / "inside.txt")
+    name = {"absolute": str(secret), "dotdot": "../secret.txt", "link": "inside.txt"}[how]
+    _with_include(bdf, name)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(nas.NastranError, match=r"has INCLUDE .* a file outside the folder "
+                                                   r".*--include-dir") as info:
+            nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none")
+    said = str(info.value) + "".join(str(w.message) for w in caught)
+    assert "ZZSECRETZZ" not in said.upper() and "SECRET2" not in said.upper()
+
+
+def test_an_include_in_an_allowed_folder_is_read_and_its_lines_never_echoed(outside, capsys):
+    bdf, op4, secret = outside
+    _with_include(bdf, str(secret))
+    out = bdf.parent / "m.npz"
+    argv = ["import-nastran", str(bdf), "--op4", str(op4), "--units", "SI", "--modes", "4",
+            "--ritz", "none", "--out", str(out)]
+    assert main(argv) == 2
+    assert "a file outside the folder" in capsys.readouterr().err
+    assert main([*argv, "--include-dir", str(secret.parent)]) == 0
+    said = capsys.readouterr()
+    assert out.exists()
+    assert "ZZSECRETZZ" not in (said.err + said.out).upper()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        nas.read_deck(bdf, "SI", include_dirs=[secret.parent])
+    text = " ".join(str(w.message) for w in caught)
+    assert "2 lines that are not NASTRAN cards" in text and "ZZSECRETZZ" not in text.upper()
+
+
+def test_an_include_inside_the_decks_folder_is_read(outside):
+    bdf, op4, _ = outside
+    grid = bdf.parent / "extra.bdf"
+    grid.write_text("GRID    99              0.0     0.0     0.0\n")
+    _with_include(bdf, "extra.bdf")
+    deck = nas.read_deck(bdf, "SI")
+    assert 99 in deck.grids

@@ -24,6 +24,11 @@ MAX_MESSAGE = 2000
 
 # Warnings printed by this process: text -> how many times it was raised.
 _SHOWN: dict[str, int] = {}
+#: Where the running command keeps the names of the scenario's unconnected inputs (it
+#: sets this before the run); the warning then gives their count and this place.
+UNCONNECTED_NAMES = {"where": "the list orchestrator.prepare(scenario).unconnected"}
+#: Unconnected inputs named in the warning itself; more are counted.
+UNCONNECTED_SHOWN = 3
 
 
 def clip(text: str, limit: int = MAX_MESSAGE) -> str:
@@ -41,8 +46,36 @@ def clip(text: str, limit: int = MAX_MESSAGE) -> str:
     return f"{text[:limit // 2]} [... {len(text) - limit} characters cut ...] {text[-limit // 2:]}"
 
 
+def unconnected_text(text: str) -> str:
+    """The unconnected-inputs warning as the command line says it: the count, at most
+    :data:`UNCONNECTED_SHOWN` names, and where all of them are.
+
+    Parameters
+    ----------
+    text : str
+        The library's warning (``"N input(s) are not connected and keep their start
+        values: a.u, b.v, ..."``); another text is returned as it is.
+    """
+    import re
+
+    m = re.fullmatch(r"(\d+) input\(s\) are not connected and keep their start values: "
+                     r"(.*)", text, flags=re.S)
+    if not m:
+        return text
+    n, names = int(m[1]), m[2].split(", ")
+    if n <= UNCONNECTED_SHOWN:
+        return (f"{n} input{'s are' if n > 1 else ' is'} not connected and keep"
+                f"{'' if n > 1 else 's'} {'their' if n > 1 else 'its'} start value"
+                f"{'s' * (n > 1)}: {', '.join(names)}")
+    return (f"{n} inputs are not connected and keep their start values (e.g. "
+            f"{', '.join(names[:UNCONNECTED_SHOWN])}); all {n} names: "
+            f"{UNCONNECTED_NAMES['where']}")
+
+
 def _print_warning(text: str, category, times: int = 1, file=None) -> None:
     """One line ``jitterfmu: warning: <text> (<category unless a UserWarning>, N times)``."""
+    if getattr(category, "__name__", "") == "UnconnectedInputWarning":
+        text = unconnected_text(text)
     notes = [] if issubclass(category, UserWarning) else [category.__name__]
     notes += [f"{times} times"] if times > 1 else []
     note = f" ({', '.join(notes)})" if notes else ""

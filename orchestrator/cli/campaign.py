@@ -59,8 +59,9 @@ def _import_runner(spec: str):
     return obj
 
 
-def _report_wiring(scenario: dict, folder: Path, args) -> None:
-    """Print the unconnected inputs of the campaign's scenario once for the whole run.
+def _report_wiring(scenario: dict, folder: Path, args, out: Path) -> None:
+    """Print the unconnected inputs of the campaign's scenario once for the whole run:
+    their count, and their names in ``out/unconnected_inputs.txt``.
 
     Every case has the same wiring; its workers keep the warning to themselves
     (:func:`orchestrator.cli.show_warning`), so it is printed here, once.
@@ -69,7 +70,8 @@ def _report_wiring(scenario: dict, folder: Path, args) -> None:
 
     from .. import load_scenario, prepare
     from ..cosim import UnconnectedInputWarning
-    from . import report_warnings
+    from ..files import write_text_atomic
+    from . import UNCONNECTED_NAMES, report_warnings
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -77,9 +79,14 @@ def _report_wiring(scenario: dict, folder: Path, args) -> None:
             sc = load_scenario(scenario, folder)
             if args.fmu_kind:
                 sc = sc.with_experiment(fmu_kind=args.fmu_kind)
-            prepare(sc, args.fmu_dir)
+            plan = prepare(sc, args.fmu_dir)
         except Exception:  # noqa: BLE001 - a scenario that fails fails in its cases
             return
+    if plan.unconnected and (out.is_dir() or not out.exists()):
+        names = out / "unconnected_inputs.txt"
+        out.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(names, "".join(f"{n}\n" for n in plan.unconnected))
+        UNCONNECTED_NAMES["where"] = str(names)
     report_warnings([w for w in caught if issubclass(w.category, UnconnectedInputWarning)])
 
 
@@ -116,9 +123,9 @@ def run(args) -> int:
     else:
         runner = MasterRunner(camp.scenario_dir, fmu_dir=args.fmu_dir, fmu_kind=args.fmu_kind)
     camp = dataclasses.replace(camp, engine=engine)
-    if camp.cases:
-        _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args)
     out = args.out or Path("out") / slug(camp.name)
+    if camp.cases:
+        _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args, out)
     if camp.cases:
         n_workers = 0 if engine == "linear" else (
             args.workers if args.workers is not None else os.cpu_count() or 1)

@@ -47,7 +47,10 @@ def run(args) -> int:
     from orchestrator import SimulationError, run_scenario
     from orchestrator.scenario import parse_override
 
+    from . import UNCONNECTED_NAMES
+
     out = Path(args.out) if args.out else Path("out") / Path(args.scenario).stem
+    UNCONNECTED_NAMES["where"] = f"{out / 'run.json'} (unconnected_inputs)"
     overrides = dict(parse_override(s) for s in args.overrides)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

@@ -109,3 +109,57 @@ def test_reproduce_truss_frf_ends_with_a_verdict_not_a_json_dump(tmp_path, capsy
     assert out.splitlines()[0] == "verdict: reproduced"
     assert "Fig. 4: FRF zero, 6 modes + 2 static Ritz vectors: 5.6 Hz" in out
     assert "{" not in out and "  zero_hz_modal: " in out
+
+
+def test_unconnected_inputs_are_counted_with_where_to_see_them(tmp_path, capsys, suite_fmus,
+                                                               suite_fmu_dir):
+    import json
+    import tomllib
+    from pathlib import Path
+
+    scen = Path(__file__).resolve().parents[2] / "scenarios" / "truss10_closed_loop.toml"
+    suite_fmus(*(s["fmu"] for s in tomllib.loads(scen.read_text())["fmus"].values()))
+    out = tmp_path / "run"
+    assert main(["run", str(scen), "--stop", "0.02", "--out", str(out), "--fmu-dir",
+                 str(suite_fmu_dir), "--quiet"]) == 0
+    names = json.loads((out / "run.json").read_text())["unconnected_inputs"]
+    assert len(names) == 4
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "not connected" in ln]
+    assert err == [f"jitterfmu: warning: 4 inputs are not connected and keep their start "
+                   f"values (e.g. {', '.join(names[:3])}); all 4 names: "
+                   f"{out / 'run.json'} (unconnected_inputs)"]
+
+
+def test_a_few_unconnected_inputs_are_named_in_the_line():
+    from orchestrator.cli import unconnected_text
+
+    text = "1 input(s) are not connected and keep their start values: sc.u"
+    assert unconnected_text(text) == "1 input is not connected and keeps its start value: sc.u"
+    assert unconnected_text("something else") == "something else"
+
+
+def test_a_campaign_says_its_unconnected_inputs_once_and_lists_them_in_a_file(
+        tmp_path, capsys, suite_fmus, suite_fmu_dir):
+    import tomllib
+    from pathlib import Path
+
+    import tomli_w
+
+    scen = Path(__file__).resolve().parents[2] / "scenarios" / "truss10_closed_loop.toml"
+    suite_fmus(*(s["fmu"] for s in tomllib.loads(scen.read_text())["fmus"].values()))
+    camp = tmp_path / "c.toml"
+    camp.write_text(tomli_w.dumps({
+        "campaign": {"name": "wiring", "scenario": str(scen), "stop": 0.1},
+        "events": [{"name": "a", "overrides": {"excitation.amp1": 1.0}},
+                   {"name": "b", "overrides": {"excitation.amp2": 1.0}}],
+        "instruments": [{"name": "tip", "axes": {"pitch": "structure.los_tip_pitch"}}],
+        "metrics": [{"kind": "rms"}]}))
+    out = tmp_path / "o"
+    assert main(["campaign", str(camp), "--out", str(out), "--workers", "0", "--fmu-dir",
+                 str(suite_fmu_dir), "--quiet"]) == 0
+    listed = (out / "unconnected_inputs.txt").read_text().split()
+    assert len(listed) == 4 and "structure.f_tip_x" in listed
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "not connected" in ln]
+    assert err == [f"jitterfmu: warning: 4 inputs are not connected and keep their start "
+                   f"values (e.g. {', '.join(listed[:3])}); all 4 names: "
+                   f"{out / 'unconnected_inputs.txt'}"]

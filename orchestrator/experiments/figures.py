@@ -62,7 +62,8 @@ def _frequency_axes(ax, ylabel, title):
 CONFIGURATION_NAMES = {"mount3": "mount #3", "all_mounts": "all three mounts"}
 
 
-def testbed_figure(data, out_dir, stem="testbed-isolation", *, freqs, t_on, highpass):
+def testbed_figure(data, out_dir, stem="testbed-isolation", *, freqs, t_on, highpass,
+                   record_t_on=None):
     """Figs. 13-16 style figure of the testbed isolation's data, written to ``<stem>.png``.
 
     Parameters
@@ -79,6 +80,10 @@ def testbed_figure(data, out_dir, stem="testbed-isolation", *, freqs, t_on, high
         Switch-on time of the isolation (s).
     highpass : callable
         ``highpass(t, x)``: the boresight above the band the figure shows.
+    record_t_on : float, optional
+        Switch-on time the time history shows (s): its time axis is shifted by
+        ``record_t_on - t_on`` (the paper's record starts on a settled response);
+        default ``t_on`` (no shift).
     """
     # deferred: plotting only
     import matplotlib
@@ -116,24 +121,34 @@ def testbed_figure(data, out_dir, stem="testbed-isolation", *, freqs, t_on, high
         return np.sqrt(ms) * ARCSEC_PER_RAD
 
     pitch3 = _highpassed(t, data["runs"]["mount3"]["structure.los_misr_pitch"]) * ARCSEC_PER_RAD
-    ax.plot(t, pitch3, lw=0.3, color="C1", alpha=0.5, label="pitch, mount #3")
-    ax.plot(t, moving_rms(data["off"]), color="0.3", label="RMS, isolation off")
+    shift = (T_ON if record_t_on is None else record_t_on) - T_ON
+    shown = t + shift >= 0.0
+    ts = t[shown] + shift
+    ax.plot(ts, pitch3[shown], lw=0.3, color="C1", alpha=0.5, label="pitch, mount #3")
+    ax.plot(ts, moving_rms(data["off"])[shown], color="0.3", label="RMS, isolation off")
     for k, c in (("mount3", "C1"), ("all_mounts", "C2")):
-        ax.plot(t, moving_rms(data["runs"][k]), color=c,
-                label=f"RMS, {CONFIGURATION_NAMES[k]} ({data['reduction'][k]:.0f} %)")
-    ax.axvline(T_ON, color="0.5", ls="--", lw=0.8)
-    ax.set_xlabel("time (s)")
+        ba = data["before_after"][k]["before_after_reduction_pct"]
+        ax.plot(ts, moving_rms(data["runs"][k])[shown], color=c,
+                label=f"RMS, {CONFIGURATION_NAMES[k]} ({ba:.0f} % before/after, "
+                      f"{data['reduction'][k]:.0f} % two runs)")
+    for edge in (w for win in data.get("windows", {}).values() for w in win):
+        ax.axvline(edge + shift, color="0.8", ls=":", lw=0.8)
+    ax.axvline(T_ON + shift, color="0.5", ls="--", lw=0.8)
+    ax.set_xlabel("time (s)" if shift == 0 else
+                  f"time of the record (s; the disturbance began {-shift:g} s before 0)")
     ax.set_ylabel("MISR boresight (arcsec, >5 Hz; RMS over 0.25 s)")
-    ax.set_title("Fig. 15 style: boresight, isolation on at 2.4 s (co-simulation)")
+    ax.set_title(f"Fig. 15 style: boresight, isolation on at {T_ON + shift:g} s "
+                 "(co-simulation)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax = axes[1, 1]
-    last = t >= data["stop"] - 1.2
+    a0, a1 = data.get("windows", {}).get("after", (data["stop"] - 1.2, data["stop"]))
+    last = (t >= a0) & (t < a1)
     for tab, label in ((data["off"], "without isolation"),
                        (data["runs"]["mount3"], "with isolation (mount #3)")):
         r = _highpassed(t, tab["structure.los_misr_roll"]) * ARCSEC_PER_RAD
         p = _highpassed(t, tab["structure.los_misr_pitch"]) * ARCSEC_PER_RAD
-        ax.plot(r[last], p[last], ".", ms=2, label=f"{label}, last 1.2 s")
+        ax.plot(r[last], p[last], ".", ms=2, label=f"{label}, after-window")
     ax.set_xlabel("roll (arcsec)")
     ax.set_ylabel("pitch (arcsec)")
     ax.xaxis.set_major_locator(plt.MaxNLocator(5))

@@ -23,7 +23,8 @@ from __future__ import annotations
 import math
 
 __all__ = ["ABOUT_PCT", "ABOUT_HZ", "about", "between", "at_least", "below", "all_reproduced",
-           "REPRODUCED", "BEATS", "MISSED", "NOT_MEASURED", "outcome_words", "overall"]
+           "REPRODUCED", "BEATS", "MISSED", "NOT_MEASURED", "outcome_words", "overall",
+           "inconsistencies"]
 
 #: Half-width of "about X %" (percentage points).
 ABOUT_PCT = 5.0
@@ -210,3 +211,38 @@ def overall(verdicts) -> str:
             "; ".join(beaten) + ")"
     return ("missed: " + "; ".join(missed)
             + (" (beats the paper on: " + "; ".join(beaten) + ")" if beaten else ""))
+
+
+def inconsistencies(result: dict) -> list:
+    """What an experiment's JSON claims that its own numbers do not say (empty: nothing).
+
+    Every verdict marked ``reproduced`` must have ``ours`` inside its ``band`` (an open
+    end is None), every verdict whose ``ours`` is inside its band must be marked so, and
+    the experiment's ``reproduced`` must be true exactly when every verdict is.
+
+    Parameters
+    ----------
+    result : dict
+        An experiment's result, as written to ``NAME.json`` (``verdicts`` and
+        ``reproduced``; an experiment without verdicts has nothing to check).
+
+    Returns
+    -------
+    list of str
+        One sentence per inconsistency.
+    """
+    out = []
+    verdicts = result.get("verdicts") or []
+    for v in verdicts:
+        lo, hi = v["band"]
+        ours = v["ours"]
+        inside = (ours is not None and math.isfinite(ours)
+                  and (lo is None or ours >= lo) and (hi is None or ours <= hi))
+        if bool(v["reproduced"]) != inside:
+            out.append(f"{v['target']}: ours {ours} is {'inside' if inside else 'outside'} "
+                       f"the band {v['band']} but reproduced is {v['reproduced']}")
+    if verdicts and "reproduced" in result and \
+            bool(result["reproduced"]) != all(v["reproduced"] for v in verdicts):
+        out.append(f"the experiment's reproduced is {result['reproduced']} but its verdicts "
+                   f"say {all(v['reproduced'] for v in verdicts)}")
+    return out

@@ -215,12 +215,14 @@ def test_testbed_isolation(testbed, out):
     # loops scaled together and each alone); strut voltages inside +-50 V
     assert min(res["gain_margin_db"].values()) >= 6.0
     assert 0.0 < res["max_voltage_v"] < 50.0
-    # the layout (docs/eos_testbed.md): mount #3 is in the dominant 22 Hz path, so the
-    # best strut forces at mount #3 alone could remove about the paper's 80 %, and
-    # holding its payload accelerometer at zero nearly as much
-    assert res["upper_bound_pct"]["mount3"] >= 70.0
-    assert res["upper_bound_pct"]["all_mounts"] >= 90.0
-    assert res["accel_null_pct"]["mount3"] >= 70.0
+    # the layout (docs/eos_testbed.md): the paper removed about 80 % with mount #3 alone
+    # and up to 80 % in its tests, so a model of the testbed must let these struts remove
+    # at least that (paper: a lower bound on the upper bound); holding the payload
+    # accelerometers at zero is one set of strut commands, so it cannot beat the bound
+    assert res["upper_bound_pct"]["mount3"] >= 80.0
+    assert res["upper_bound_pct"]["all_mounts"] >= 80.0
+    for k in ("mount3", "all_mounts"):
+        assert res["accel_null_pct"][k] <= res["upper_bound_pct"][k] + 1e-6
     # the bounds are listed true upper bound first, each saying what it bounds
     assert res["bounds"][0]["name"] == "upper bound" and res["bounds"][0]["is_bound"]
     assert res["bounds"][0]["pct"] == res["upper_bound_pct"]
@@ -233,10 +235,21 @@ def test_testbed_isolation(testbed, out):
     assert lin["mount3"] == pytest.approx(res["feedforward_best_gain_mount3_pct"], abs=2.0)
     # the margin is set by a pole that leaves the unit circle (a real instability)
     assert res["margin_limiting_poles"]["mount3"][0]["abs_z"] >= 1.0
-    # the co-simulation attenuates as the linear design says once settled; the quick run
-    # measures 2.4 s after switch-on, while the 0.5 %-damped 23 Hz bus mode still rings
-    # (the full run: 45.5 % against 46.8 %), so only the sign and the order are checked
-    assert red["mount3"] > 0.5 * lin["mount3"] and red["all_mounts"] > 0.5 * lin["all_mounts"]
+    # a settled before-window (docs/eos_experiments.md): with isolation off the boresight
+    # RMS changes by at most 2 % between the windows (the experiment moves the switch-on
+    # later until it does), the windows are where the JSON says, and each isolated run
+    # has settled in its after-window too (its own change over the last two windows)
+    assert abs(res["off_change_pct"]) <= res["settled_pct"] == 2.0
+    assert res["t_on_s"] >= 8.4 and res["windows_s"]["before"] == pytest.approx(
+        [res["t_on_s"] - 1.2, res["t_on_s"]])
+    assert res["windows_s"]["after"][0] >= res["t_on_s"] + 2.0
+    assert all(abs(c) <= 2.0 for c in res["after_change_pct"].values())
+    # on settled windows the co-simulation is the linear design's steady state (an
+    # independent computation: the closed loop's frequency response at the three
+    # harmonics), both ways: two runs and the paper's before/after in one run
+    for k in ("mount3", "all_mounts"):
+        assert red[k] == pytest.approx(lin[k], abs=1.0)
+        assert res["paper_way_reduction_pct"][k] == pytest.approx(lin[k], abs=1.0)
     assert (out / "testbed-isolation.png").is_file()
 
 
@@ -249,27 +262,43 @@ def test_testbed_regression_pin(testbed):
     assert lin["all_mounts"] == pytest.approx(48.3, abs=0.5)
 
 
-@pytest.mark.xfail(strict=True, reason="on the stiff struts the stated law at 6 dB removes "
-                   "47 % (linear), 50 % the paper's way in the quick run (59 % in the full "
-                   "run), against an upper bound of 82 %: it acts as a feedforward of the bus "
-                   "accelerometer whose phase at the harmonics allows 47 % "
-                   "(docs/eos_experiments.md)")
+#: Why the testbed misses (measured with ``jitterfmu reproduce testbed-isolation``, settled
+#: windows): the stated law at 6 dB removes 47.4 % from mount #3 and 48.8 % with all three
+#: the paper's way (47.1 / 48.5 % in the quick run), 46.9 / 48.4 % in two runs, 46.8 /
+#: 48.3 % on the linear model, against an upper bound of 82.2 % at mount #3; the law acts
+#: as a feedforward of the bus accelerometer whose phase at the harmonics allows 47 %
+#: (docs/eos_experiments.md).
+TESTBED_MISS = ("on the stiff struts the stated law at 6 dB removes 47 % from mount #3 and "
+                "49 % with all three on a settled response (upper bound 82 % at mount #3): "
+                "a bus-accelerometer feedforward whose phase at the harmonics allows 47 % "
+                "(docs/eos_experiments.md)")
+
+
+def _paper_way(res, k):
+    """The before/after reduction (%) recomputed from the JSON's boresight RMS (arcsec)."""
+    b = res["boresight_rms"][k]
+    return 100.0 * (1.0 - b["after_arcsec_rms"] / b["before_arcsec_rms"])
+
+
+@pytest.mark.xfail(strict=True, reason=TESTBED_MISS)
 def test_reproduces_fig15_mount3(testbed):
     # paper: about 80 % with mount #3 alone, read the paper's way (before and after the
-    # switch-on at 2.4 s in one run); "about" is +-5 points (verdicts.ABOUT_PCT)
+    # switch-on in one run, on a settled response); "about" is +-5 points
+    # (verdicts.ABOUT_PCT)
     v = testbed["verdicts"][0]
     assert v["target"].startswith("Fig. 15") and v["band"] == [75.0, 85.0]
+    assert v["ours"] == pytest.approx(_paper_way(testbed, "mount3"), rel=1e-9)
     assert v["reproduced"] is True
 
 
+@pytest.mark.xfail(strict=True, reason=TESTBED_MISS)
 def test_reproduces_tests_overall_all_mounts(testbed):
     # paper: "Payload isolation tests have confirmed 50 to 80 percent reduction", read
-    # the paper's way (51 % in the quick run, 60 % in the full one)
+    # the paper's way on a settled response
     v = testbed["verdicts"][1]
     assert v["band"] == [50.0, 80.0]
+    assert v["ours"] == pytest.approx(_paper_way(testbed, "all_mounts"), rel=1e-9)
     assert 50.0 <= v["ours"] <= 80.0 and v["reproduced"] is True
-    assert v["ours"] == pytest.approx(
-        testbed["paper_way_reduction_pct"]["all_mounts"], abs=1e-12)
 
 
 @pytest.mark.xfail(strict=True, reason="the isolation band of mount #3 ends at 27 Hz, not "
@@ -282,8 +311,7 @@ def test_reproduces_fig13_bandwidth(testbed):
 def testbed_hybrid(out, suite_fmu_dir):
     from orchestrator.experiments import testbed_isolation
 
-    # the full 9.6 s run: the quick one measures 2.4 s after switch-on,
-    # while the switch-on transient still rings
+    # the full run: its after-window ends 7.2 s after the switch-on
     return testbed_isolation.run(out, quick=False, fmu_dir=suite_fmu_dir, variant="hybrid")
 
 
@@ -291,11 +319,13 @@ def test_testbed_isolation_hybrid(testbed_hybrid, out):
     # mount #3 a hybrid isolator (stack + elastomer, eos_testbed.build(iso3="hybrid")).
     # Its elastomer was calibrated to give the paper's 80 % on the earlier coupling, so
     # nothing here asserts the paper's number; what was not fitted: the loops keep 6 dB,
-    # the voltages stay inside +-50 V, the co-simulation settles where the linear model
-    # says (two runs, 9.6 s), and no result beats the least-squares bound
+    # the voltages stay inside +-50 V, the isolation-off run is settled between the
+    # windows, the co-simulation settles where the linear model says (two runs), and no
+    # result beats the least-squares bound
     res = testbed_hybrid
     red, lin = res["jitter_reduction_pct"], res["linear_reduction_pct"]
     assert res["variant"] == "hybrid"
+    assert abs(res["off_change_pct"]) <= 2.0
     assert min(res["gain_margin_db"].values()) >= 6.0
     assert 0.0 < res["max_voltage_v"] < 50.0
     for k in ("mount3", "all_mounts"):
@@ -440,3 +470,28 @@ def test_swir_isolation_central(swir, swir_central, out):
     assert any(red[a] > ls[a] for a in ("roll", "pitch", "yaw"))
     assert res["bounds"][1]["is_bound"] is False
     assert (out / "swir-isolation-central.png").is_file()
+
+
+def test_every_reproduced_verdict_is_inside_its_band(out, testbed, testbed_hybrid, swir,
+                                                     swir_central):
+    """Over every experiment JSON written here (eos-budget, testbed-isolation and its
+    hybrid variant, swir-isolation and its central variant): a verdict marked reproduced
+    has its number inside its stated band, one inside its band is marked so, and the
+    experiment's ``reproduced`` is true exactly when every verdict is
+    (:func:`orchestrator.experiments.verdicts.inconsistencies`)."""
+    import json
+
+    from orchestrator.experiments import verdicts as vd
+
+    files = sorted(out.glob("*.json"))
+    assert {f.stem for f in files} >= {"testbed-isolation", "swir-isolation"}
+    checked = 0
+    for f in files:
+        res = json.loads(f.read_text(encoding="utf-8"))
+        assert vd.inconsistencies(res) == [], f.name
+        checked += len(res.get("verdicts") or [])
+    # the fixtures' results too (a variant run writes no JSON of its own here)
+    for res in (testbed, testbed_hybrid, swir, swir_central):
+        assert vd.inconsistencies(res) == []
+        checked += len(res["verdicts"])
+    assert checked >= 10

@@ -49,3 +49,18 @@ def test_overall_line():
 def test_an_unknown_side_is_refused():
     with pytest.raises(ValueError, match="better='up'"):
         vd.about("roll", 30, 31.0, better="up")
+
+
+def test_inconsistencies_name_a_reproduced_flag_its_number_contradicts():
+    ok = [vd.between("all", 50, 80, 60.4, better="higher"),
+          vd.at_least("pitch", 50, 10.3), vd.below("stroke", 5, 0.04, "um")]
+    assert vd.inconsistencies({"verdicts": ok, "reproduced": False}) == []
+    # a flag set by hand against the number, and the experiment's flag against its verdicts
+    forged = dict(ok[1], reproduced=True)
+    msgs = vd.inconsistencies({"verdicts": [ok[0], forged], "reproduced": True})
+    assert len(msgs) == 1 and msgs[0].startswith("pitch: ours 10.3 is outside")
+    msgs = vd.inconsistencies({"verdicts": [ok[0], ok[2]], "reproduced": False})
+    assert msgs == ["the experiment's reproduced is False but its verdicts say True"]
+    # an open end is None in the JSON; a number on the open side is inside
+    assert vd.inconsistencies({"verdicts": [vd.at_least("p", 50, 1e6)], "reproduced": True}) == []
+    assert vd.inconsistencies({"note": "no verdicts"}) == []

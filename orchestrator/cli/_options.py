@@ -13,7 +13,7 @@ import os
 import sys
 
 __all__ = ["DefaultsFormatter", "Deprecated", "add_fmu_dir", "add_out", "add_stop",
-           "add_workers", "cpu_workers"]
+           "add_workers", "cpu_workers", "shown"]
 
 #: Option names whose help must say their default in words when it is not a value
 #: (tests/orchestrator/test_cli_vocabulary.py holds every command to it).
@@ -52,6 +52,19 @@ class Deprecated(argparse.Action):
         print(f"jitterfmu: note: {option_string} is an old spelling of {self.new}, kept "
               f"for one release; use {self.new}", file=sys.stderr)
         setattr(namespace, self.dest, values)
+
+
+def shown(path) -> str:
+    """A path from the command line as a start line echoes it: quoted, and cut in the
+    middle when longer than about 80 characters.
+
+    Parameters
+    ----------
+    path : path-like or str
+    """
+    from fmutools.archive import short_repr
+
+    return short_repr(str(path))
 
 
 def cpu_workers() -> int:

@@ -83,7 +83,13 @@ def run(args) -> int:
     from orchestrator.analysis.loops import scenario_margins
     from orchestrator.scenario import parse_override
 
+    from orchestrator.progress import stage
+
     overrides = dict(parse_override(s) for s in args.overrides)
+    from ._options import shown
+
+    stage(f"analyze {shown(args.scenario)}: linearising the closed loop"
+          + (" and co-simulating it" if args.reference else ""))
     if args.reference:
         from orchestrator import reference
 

@@ -46,6 +46,11 @@ def add_arguments(parser) -> None:
                         help="the Monte Carlo's sample count, in place of the table's (a "
                              "larger count in the same --out keeps the samples run before; "
                              "default: the [uncertainty] table's samples)")
+    parser.add_argument("--format", choices=("parquet", "csv", "mat"), default="parquet",
+                        help="also write the results as CSV or MATLAB files beside the "
+                        "Parquet ones: each case's time histories, and with mat the "
+                        "summary, budget, cases and Monte Carlo samples in campaign.mat "
+                        "(default: %(default)s)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -108,6 +113,7 @@ def run(args) -> int:
     )
     from ..campaign.mcresults import command_lines, convergence_hint
     from ..progress import stage
+    from ._options import shown
 
     camp = load_campaign(args.campaign, args.uncertainty, args.samples)
     engine = args.engine or camp.engine
@@ -132,7 +138,7 @@ def run(args) -> int:
         where = f"on {args.scheduler}" if args.scheduler else (
             f"{n_workers} worker{'s' * (n_workers != 1)}" if n_workers else "in this process")
         stage(f"campaign {camp.name!r}: {len(camp.cases)} cases ({engine} engine, {where}) "
-              f"into {out}")
+              f"into {shown(out)}")
     try:
         res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                            progress=False if args.quiet else None)
@@ -149,13 +155,14 @@ def run(args) -> int:
     for label, err in res.failures.items():
         print(f"  failed: {label}: {err}", file=sys.stderr)
     n_verify = args.verify if args.verify is not None else camp.verify
-    if engine == "linear" and n_verify > 0:
+    if engine == "linear" and n_verify > 0 and camp.cases:
         from ..campaign import keyed
         camp = keyed(camp, runner)
         rep = verify_campaign(camp, out, n_verify, fmu_dir=args.fmu_dir,
                               fmu_kind=args.fmu_kind)
         write_summary(camp, out)   # the summary records the cross-check
-        print(f"verified {rep['n']} case(s) by co-simulation ({out / 'verify.json'}):")
+        print(f"verified {rep['n']} case(s) by co-simulation ({out / 'verify.json'})"
+              + (":" if rep["largest_difference"] else ": no case finished to compare"))
         for ia, d in sorted(rep["largest_difference"].items()):
             print(f"  {ia:<16} signal {d['signal']:.2e} of its peak, metric {d['metric']:.2e}")
         for item in rep["nonlinear"]:
@@ -200,6 +207,13 @@ def run(args) -> int:
         hint = convergence_hint(rep)
         if hint:
             print(f"  {hint}")
+    if args.format != "parquet":
+        from ..campaign.export import export_results
+
+        files = export_results(out, args.format)
+        print(f"results as {args.format}: {len(files)} file(s)"
+              + (f", {out / 'campaign.mat'} and cases/*/results.mat" if args.format == "mat"
+                 else ", cases/*/results.csv"))
     return min(res.n_failed, 100)
 
 

@@ -18,8 +18,12 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     # deferred: the parser imports every subcommand (orchestrator.cli)
+    from ..progress import stage
     from ..report import write_report
 
+    from ._options import shown
+
+    stage(f"report {shown(args.dir)}: reading the results and drawing the figures")
     path = write_report(args.dir, args.format, args.out)
     print(f"report written to {path}")
     return 0

@@ -46,7 +46,7 @@ def run(args) -> int:
 
     from orchestrator.progress import stage
 
-    from ._options import cpu_workers
+    from ._options import cpu_workers, shown
 
     workers = args.workers
     if workers is None and args.name == "eos-budget":
@@ -57,7 +57,8 @@ def run(args) -> int:
     out = args.out or f"out/{args.name}"
     t0 = time.monotonic()
     stage(f"reproduce {args.name} ({'quick' if args.quick else 'full length'}): FMUs in "
-          f"{args.fmu_dir or 'fmus'} (built if missing or stale), results into {out}")
+          f"{shown(args.fmu_dir or 'fmus')} (built if missing or stale), results into "
+          f"{shown(out)}")
     result = run_experiment(args.name, out, quick=args.quick, fmu_dir=args.fmu_dir,
                             **options)
     stage(f"reproduce {args.name}: done in {time.monotonic() - t0:.0f} s")

@@ -38,7 +38,8 @@ def add_arguments(parser) -> None:
                              "instead of the native ones")
     parser.add_argument("--overwrite", action="store_true",
                         help="discard the rows an unfinished (killed) run left in --out")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no start line and no progress bar or lines")
 
 
 def run(args) -> int:
@@ -51,6 +52,12 @@ def run(args) -> int:
 
     out = Path(args.out) if args.out else Path("out") / Path(args.scenario).stem
     UNCONNECTED_NAMES["where"] = f"{out / 'run.json'} (unconnected_inputs)"
+    if not args.quiet:
+        from orchestrator.progress import stage
+
+        from ._options import shown
+
+        stage(f"run {shown(args.scenario)}: co-simulating")
     overrides = dict(parse_override(s) for s in args.overrides)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

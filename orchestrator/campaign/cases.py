@@ -6,7 +6,10 @@ applied to the scenario's data rather than to a parsed :class:`~orchestrator.sce
 because the key hashes that data: :meth:`Scenario.digest
 <orchestrator.scenario.Scenario.digest>` hashes another form of it (exact times as strings),
 so keying by it would change every key and no existing campaign folder would resume.
-The runner's fingerprint of the FMUs then enters the key (:func:`keyed`).
+The runner's fingerprint of the FMUs then enters the key (:func:`keyed`).  A key, and
+the case's folder ``cases/KEY``, reads ``<label>-<digest>``: the case's label made
+file-name friendly (at most 48 characters) beside the first 16 hex digits of the SHA-256
+(:func:`case_key`), so that a folder says which case it holds.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .spec import CampaignError, CampaignSpec, parse_spec, read_spec
-from .store import canonical
+from .store import canonical, slug
 
 
 @dataclass(frozen=True)
@@ -31,7 +34,8 @@ class Case:
     Attributes
     ----------
     key : str
-        Hex SHA-256 of the case definition and the runner's fingerprint.
+        ``<label>-<digest>`` (:func:`case_key`): the SHA-256 of the case definition and
+        the runner's fingerprint, beside the label; the case's folder name.
     label : str
         Readable name, ``event | configuration | sweep``.
     event, configuration, sweep : str
@@ -159,14 +163,15 @@ def expand(spec: CampaignSpec) -> Campaign:
             scenario = _with_overrides(spec.scenario, overrides)
             definition = {"scenario": scenario, "instruments": spec.instruments,
                           "metrics": list(spec.metrics), "skip": spec.skip}
-            key = hashlib.sha256(canonical(definition).encode()).hexdigest()
+            digest = hashlib.sha256(canonical(definition).encode()).hexdigest()
             sweep = ", ".join(f"{p}={v}" for p, v in point)
             label = " | ".join(x for x in (ev.name, cf.name, sweep) if x)
-            cases.append(Case(key, label, ev.name, cf.name, sweep, scenario))
+            cases.append(Case(digest, label, ev.name, cf.name, sweep, scenario))
     keys = [c.key for c in cases]
     if len(set(keys)) != len(keys):
         dup = [c.label for c in cases if keys.count(c.key) > 1]
         raise CampaignError(f"cases {dup} have identical definitions; make their overrides differ")
+    cases = [dataclasses.replace(c, key=case_key(c.label, c.key)) for c in cases]
     wheel = tuple({"name": w.name, "configuration": cf.name, "instance": w.instance,
                    "rpm": w.rpm, "points": w.points, "open": w.open,
                    "scenario": _with_overrides(spec.scenario, {**cf.overrides,
@@ -240,9 +245,28 @@ def keyed(campaign: Campaign, runner) -> Campaign:
     cases = []
     for c in campaign.cases:
         extra = fp(c.scenario)
-        key = hashlib.sha256(f"{c.key}\n{extra}".encode()).hexdigest()
-        cases.append(dataclasses.replace(c, key=key))
+        digest = hashlib.sha256(f"{c.key}\n{extra}".encode()).hexdigest()
+        cases.append(dataclasses.replace(c, key=case_key(c.label, digest)))
     return dataclasses.replace(campaign, cases=tuple(cases))
+
+
+def case_key(label: str, digest: str) -> str:
+    """A case's key and folder name: its label beside its digest.
+
+    Parameters
+    ----------
+    label : str
+        ``event | configuration | sweep``.
+    digest : str
+        Hex SHA-256 of the case's definition (and the runner's fingerprint).
+
+    Returns
+    -------
+    str
+        ``<label, file-name friendly, at most 48 characters>-<16 hex digits>``, e.g.
+        ``ceres_scan_isolation_off-3fa2c1d09be47a15``.
+    """
+    return f"{slug(label)[:48].rstrip('_')}-{digest[:16]}"
 
 
 def _with_overrides(scenario: dict, overrides: dict) -> dict:

@@ -58,11 +58,15 @@ Output folder::
     DIR/summary.parquet        the jitter table, every row (see :func:`summarize`)
     DIR/summary.csv            its case rows; a swept parameter is a numeric column
     DIR/budget.csv             its RSS rows: the budget against the requirements
+    with --format csv / mat    cases/KEY/results.csv or .mat (units), campaign.mat
+                               (summary, budget, cases, Monte Carlo samples; export.py)
 
 Resuming
 --------
 A case is keyed by the SHA-256 of its definition (scenario after overrides, instruments,
-metrics, skip) and of the runner's fingerprint of the FMUs it uses.  A case runs in a
+metrics, skip) and of the runner's fingerprint of the FMUs it uses; the key, and so the
+folder's name, is the case's label beside 16 digits of that digest
+(``ceres_scan_isolation_off-3fa2c1d09be47a15``).  A case runs in a
 temporary folder which is renamed to ``cases/KEY`` (``os.replace``) only when complete, so
 a killed campaign loses only the cases in flight; running the campaign again skips every
 case whose folder says "ok" and retries failed ones.  A folder is trusted only when it is

@@ -5,6 +5,8 @@ any sampling period, so the reference at 1 ms and at 0.25 ms agree at their comm
 instants), the co-simulation converging to it as the piezo/structure step shrinks, and
 the coupling that holds the force one step late, which the reference must show as about
 the hold of a late sample (half a step of delay on average) at each loop's crossover.
+The check itself runs the scenario as shipped (controllers switching on at 4.5 s), and
+its residual there is stated with its measured cause (SHIPPED_RESIDUAL).
 """
 
 import tomllib
@@ -95,14 +97,128 @@ def test_step_mean_coupling_adds_no_delay_and_the_old_one_adds_a_step(fmus):
         assert old.delay_s > 300e-6 and old.phase_deg < -1.0
 
 
-def test_check_reports_the_linear_model_to_round_off(fmus):
-    res = check(SCENARIO, OUTS, stop_time=2.0, fmu_dir=fmus)
-    for o in res.outputs:
+@pytest.fixture(scope="module")
+def shipped(fmus):
+    """:func:`check` on the scenario as shipped: the controllers switch on at 4.5 s."""
+    return check(SCENARIO, OUTS, stop_time=6.0, fmu_dir=fmus)
+
+
+def test_check_runs_the_shipped_switch_on(shipped):
+    # the co-simulation runs its controllers from t_on = 4.5 s; the linear models switch
+    # them on at the same tick (ctrlfmu.law: from rest) and equal it to round-off, which
+    # they could not if either ran the loops from the start
+    for o in shipped.outputs:
         assert o.peak > 0 and o.linear < 1e-9
-    text = report(res)
-    assert "ctrl_diag" in text and "structure.los_tip_pitch" in text
-    loops, outputs = res
+        assert o.reference_on is not None
+    text = report(shipped)
+    assert "ctrl_diag" in text and "structure.los_tip_pitch" in text and "after switch-on" in text
+    loops, outputs = shipped
     assert len(loops) == 2 and len(outputs) == len(OUTS)
+
+
+def test_switch_on_ticks_are_the_laws_first_active_sample(fmus):
+    from orchestrator.reference import switch_on_ticks
+    from orchestrator.scenario import load_scenario
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lin = linearize(SCENARIO, fmu_dir=fmus)
+    # 4.5 s on the 1 ms base is tick 4500, a sample of the 4 ms laws
+    assert switch_on_ticks(lin, load_scenario(SCENARIO)) == {"ctrl_diag": 4500, "ctrl_long": 4500}
+    # 4.501 s is not a 4 ms sample: the first one after it, 4.504 s
+    sc = load_scenario(SCENARIO).with_overrides({"ctrl_long.t_on": 4.501, "ctrl_diag.t_on": 0.0})
+    assert switch_on_ticks(lin, sc) == {"ctrl_long": 4504}
+
+
+#: The shipped scenario's residual against the reference, measured with ``jitterfmu
+#: analyze scenarios/truss10_closed_loop.toml --reference --stop 6``: tip line of sight
+#: 1.148 % of its peak (2.63 % of the peak after the switch-on), strains 5.40 / 3.89 %.
+#: Its cause, measured (docs/coupling.md): the active members' stiff local modes (1.41 and
+#: 1.50 kHz, 2 % damped) ring under the 1 ms staircase of held forces where the hardware's
+#: force is smooth, the strain gauges read that ringing and the 250 Hz laws feed it back:
+#: the closed-loop poles at 6.4 and 11.9 Hz move by 1.7 and 2.1 % (a loop-gain error of
+#: the in-band size, 3e-4, moves them 1e-4); at 0.25 ms it falls to 0.04 %, with those
+#: two modes damped to 10 % to 0.11 %.
+SHIPPED_RESIDUAL = ("the tip line of sight of the shipped scenario is 1.15 % of its peak "
+                    "from the reference: the members' 1.4-1.5 kHz local modes ringing under "
+                    "the 1 ms held forces, fed back by the strain loops (docs/coupling.md)")
+
+
+@pytest.mark.xfail(strict=True, reason=SHIPPED_RESIDUAL)
+def test_shipped_line_of_sight_within_one_percent_of_the_reference(shipped):
+    los = next(o for o in shipped.outputs if o.output == "structure.los_tip_pitch")
+    assert los.reference < 0.01
+
+
+def test_shipped_reference_residual_regression_pin(shipped):
+    """A regression pin, not a reference check: today's residuals of the shipped scenario
+    against the sampled-data reference (%, of the run's peak; SHIPPED_RESIDUAL), to 5 %
+    of their values; a change of the coupling, the laws or the structure moves them."""
+    got = {o.output: 100 * o.reference for o in shipped.outputs}
+    assert got["structure.los_tip_pitch"] == pytest.approx(1.148, rel=0.05)
+    assert got["structure.strain_diag"] == pytest.approx(5.40, rel=0.05)
+    assert got["structure.strain_long"] == pytest.approx(3.89, rel=0.05)
+
+
+@pytest.mark.slow
+@pytest.mark.paper
+def test_the_shipped_residual_is_the_partition_step(fmus):
+    """The cause of SHIPPED_RESIDUAL, tested: the same scenario, switch-on included, with
+    structure and amplifiers at 0.25 ms is within 0.1 % of its reference on the line of
+    sight (the hold of a 1.4 kHz ringing shrinks with the step), and at 1 ms with the
+    members' two local modes (above 1 kHz) damped to 10 % it is within 0.2 %."""
+    import dataclasses
+
+    import scipy.linalg as la
+
+    from orchestrator.analysis.scenario import LinearScenario
+    from orchestrator.reference import simulate_switched, switch_on_ticks
+    from orchestrator.scenario import load_scenario
+
+    sc = _scenario("2.5e-4", stop=6.0)
+    for m in ("diag", "long"):
+        sc["fmus"][f"ctrl_{m}"]["parameters"] = {"t_on": 4.5}
+    fine = check(sc, OUTS, fmu_dir=fmus, loops=False)
+    los = {o.output: o for o in fine.outputs}["structure.los_tip_pitch"]
+    assert los.reference < 1e-3
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lin = linearize(SCENARIO, fmu_dir=fmus)
+    st = lin.blocks["structure"]
+    A, B, C, D = st.continuous
+    n = A.shape[0] // 2
+    ev = np.linalg.eigvals(A)
+    local = np.abs(ev) / (2 * np.pi) > 1000.0
+    assert local.sum() == 4            # two modes, each a complex pair
+    # the structure's second-order form (A = [[0, I], [-K, -D]]): raise the damping of
+    # the block of the stiff modes (the Ritz block, where K is largest) to 10 % of critical
+    stiff = np.flatnonzero(np.diag(-A[n:, :n]) > (2 * np.pi * 1000.0) ** 2)
+    Kb = -A[n:, :n][np.ix_(stiff, stiff)]
+    A2 = A.copy()
+    A2[np.ix_(n + stiff, n + stiff)] -= 2 * 0.08 * np.real(la.sqrtm(Kb))
+    zeta = -np.linalg.eigvals(A2)[np.abs(np.linalg.eigvals(A2)) / (2 * np.pi) > 1000.0]
+    assert np.all(zeta.real / np.abs(zeta) > 0.09)
+    h = st.period * lin.base
+    M = np.zeros((A.shape[0] + B.shape[1],) * 2)
+    M[:A.shape[0], :A.shape[0]], M[:A.shape[0], A.shape[0]:] = A2 * h, B * h
+    E = la.expm(M)
+    blocks = dict(lin.blocks)
+    blocks["structure"] = dataclasses.replace(st, A=E[:A.shape[0], :A.shape[0]],
+                                              B=E[:A.shape[0], A.shape[0]:], C=C, D=D,
+                                              continuous=(A2, B, C, D))
+    damped = LinearScenario(lin.plan, blocks, lin.order)
+    ticks = switch_on_ticks(lin, load_scenario(SCENARIO))
+
+    def w(name, k):
+        t = k * lin.base
+        return np.array([10 * np.sin(2 * np.pi * 8.4 * t) * (t < 4.5),
+                         10 * np.sin(2 * np.pi * 9.5 * t) * (t < 4.5)])
+
+    out = ["structure.los_tip_pitch"]
+    y = simulate_switched(damped, 6000, w, out, ticks)[:, 0]
+    y_ref = simulate_switched(sampled_data(damped), 6000, w, out, ticks)[:, 0]
+    assert np.abs(y - y_ref).max() < 2e-3 * np.abs(y).max()
 
 
 def test_cli_analyze_reference(fmus, capsys):

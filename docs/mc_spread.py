@@ -79,12 +79,13 @@ def split(camp, events, out, runner, configuration=None) -> dict:
                              "the split needs exactly one per event")
         source[ev.name] = found[0]
     ctx = mcm._setup(camp, runner)
-    folder = Path(out) / mcm.PARTS_DIR / mcm._identity(camp, runner, ctx)[:24]
+    identity = mcm._identity(camp, runner, ctx)
+    folder = Path(out) / mcm.PARTS_DIR / identity[:24]
     n = unc.get("max_samples") or unc["samples"]   # the most a run of this file keeps
     v = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]),
                  len(camp.metrics)), np.nan)
     st = np.zeros((n, len(ctx["configs"])), int)
-    done = mcm._load_parts(folder, v, st)   # checked as a resumed run checks them
+    done = mcm.load_parts(folder, v, st, identity)   # checked as a resumed run does
     if not done.any():
         raise ValueError(f"no kept samples of this campaign under {folder}: run `jitterfmu "
                          "campaign` of the same file into that folder first")

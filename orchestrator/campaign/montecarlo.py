@@ -35,8 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import atomic_write
 from ..progress import ProgressBar
+from .mcparts import PARTS_DIR, PARTS_FORMAT, load_parts, save_part
 from .mcresults import (DIVERGING, LIMIT, SAMPLES_FILE, UNCERTAINTY_FILE, UNSTABLE,
                         _convergence, _lines, _report, write_results)
 from .store import canonical
@@ -112,7 +112,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     :func:`.mcresults._counted`), 4 so unstable that it more than doubles over the
     record."""
     from ..analysis.blocks import structure_block
-    from ..analysis.fast import FastResponse
+    from ..analysis.structured import respond
     from ..analysis.sweep import unstable_poles
     from ..metrics import metric_values
 
@@ -145,7 +145,9 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                     if it.kind == "gain":
                         for j, inst in enumerate(it.instances):
                             lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
-                fr = FastResponse(lin, ctx["refs"], like=ctx["base"][cf][2])
+                # the nominal loop's modal blocks patched (the dense one where that
+                # form does not apply or pay): the same records, to round-off
+                fr = respond(lin, ctx["refs"], ctx["base"][cf][2])
                 bad = unstable_poles(fr)
                 if bad:   # reported; the record is what the co-simulation would give
                     growth = abs(bad[0]) ** (record_ticks / fr.P)
@@ -206,8 +208,6 @@ def _chunk(campaign, scenario_dir, fmu_dir, draws, samples) -> tuple:
     return _evaluate(campaign, _WORKER["runner"], _WORKER["ctx"], draws, samples)
 
 
-PARTS_DIR = "uncertainty_parts"
-_PARTS_FORMAT = 1
 
 
 def _identity(campaign, runner, ctx) -> str:
@@ -216,50 +216,12 @@ def _identity(campaign, runner, ctx) -> str:
     unc = campaign.uncertainty
     fp = getattr(runner, "fingerprint", None)
     cases = [(c.key, fp(c.scenario) if fp else "") for c in campaign.cases if not c.sweep]
-    data = {"format": _PARTS_FORMAT, "cases": cases, "pairs": ctx["pairs"],
+    data = {"format": PARTS_FORMAT, "cases": cases, "pairs": ctx["pairs"],
             "configs": ctx["configs"], "events": ctx["events"],
             "metrics": [list(m) for m in campaign.metrics], "skip": campaign.skip,
             "seed": unc["seed"], "engine": unc.get("engine", "linear"),
             "parameters": [repr(it) for it in unc["parameters"]]}
     return hashlib.sha256(canonical(data).encode()).hexdigest()
-
-
-def _load_parts(folder: Path, values, status) -> np.ndarray:
-    """Fill ``values`` and ``status`` with the samples kept in ``folder``; which ones.
-
-    A part is data (``numpy.load`` without pickles) and is checked against the shapes
-    of this run; one that does not fit is named on stderr and its samples run again."""
-    done = np.zeros(values.shape[0], bool)
-    for f in sorted(folder.glob("part-*.npz")):
-        try:
-            with np.load(f, allow_pickle=False) as z:
-                idx, v, st = z["samples"], z["values"], z["status"]
-            ok = (idx.ndim == 1 and idx.dtype.kind == "i" and v.dtype == float
-                  and v.shape == (idx.size,) + values.shape[1:]
-                  and st.shape == (idx.size,) + status.shape[1:] and st.dtype.kind == "i"
-                  and (idx >= 0).all())
-        except Exception as exc:   # unreadable: a part cut short, or not ours
-            ok, why = False, f"{type(exc).__name__}: {exc}"
-        else:
-            why = "its arrays do not have the shapes of this campaign's samples"
-        if not ok:
-            print(f"jitterfmu: ignoring kept samples {str(f)!r} ({why}); they run again",
-                  file=sys.stderr)
-            continue
-        keep = idx < values.shape[0]      # a run of fewer samples uses the first ones
-        values[idx[keep]], status[idx[keep]] = v[keep], st[keep]
-        done[idx[keep]] = True
-    return done
-
-
-def _save_part(folder: Path, samples, v, st) -> None:
-    """Keep finished samples (:func:`orchestrator.files.atomic_write`)."""
-    def write(tmp):
-        with open(tmp, "wb") as fh:   # a file object: savez adds no suffix to it
-            np.savez(fh, samples=np.asarray(samples, np.int64),
-                     values=np.asarray(v, float), status=np.asarray(st, np.int64))
-
-    atomic_write(folder / f"part-{samples[0]:07d}-{samples[-1]:07d}.npz", write)
 
 
 def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None, *,
@@ -303,16 +265,16 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
         lin0, structs, _ = ctx["base"][ctx["configs"][0]]
         freqs = lin0.blocks[structs[0]].model.frequencies_hz if structs else None
     cosim = unc.get("engine") == "cosim"   # its cases keep themselves (run_campaign)
-    folder = None if cosim else Path(out_dir) / PARTS_DIR / _identity(campaign, runner,
-                                                                       ctx)[:24]
+    identity = None if cosim else _identity(campaign, runner, ctx)
+    folder = None if cosim else Path(out_dir) / PARTS_DIR / identity[:24]
     n, top = unc["samples"], unc.get("max_samples") or unc["samples"]
     rounds = []
     _check_parameters(campaign, runner)
     while True:
         draws = draw(items, n, unc["seed"], freqs)
         _check_sources(campaign, runner, draws)
-        values, status, resumed = _samples(campaign, out_dir, runner, ctx, draws, folder,
-                                           workers, scheduler, progress,
+        values, status, resumed = _samples(campaign, out_dir, runner, ctx, draws,
+                                           (folder, identity), workers, scheduler, progress,
                                            f" (round {len(rounds) + 1})" if top > n or
                                            rounds else "")
         lines, summary = _lines(campaign, ctx, draws, values, status)
@@ -326,16 +288,18 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
                                  rounds, wall))
 
 
-def _samples(campaign, out_dir, runner, ctx, draws, folder, workers, scheduler, progress,
+def _samples(campaign, out_dir, runner, ctx, draws, kept, workers, scheduler, progress,
              round_label: str) -> tuple:
     """``(values, status, resumed)`` of every sample of ``draws``: the kept ones read
-    back, the others evaluated (and kept as they finish)."""
+    back, the others evaluated (and kept as they finish).  ``kept`` is ``(folder,
+    identity)`` of the parts, ``(None, None)`` for a co-simulated run."""
+    folder, identity = kept
     n, m = draws.n, len(campaign.metrics)
     values = np.full((n, len(ctx["configs"]), len(ctx["events"]), len(ctx["pairs"]), m),
                      np.nan)
     status = np.zeros((n, len(ctx["configs"])), int)
     cosim = folder is None
-    done = np.zeros(n, bool) if cosim else _load_parts(folder, values, status)
+    done = np.zeros(n, bool) if cosim else load_parts(folder, values, status, identity)
     todo = np.flatnonzero(~done)
     resumed = int(done.sum())
     bar = ProgressBar(todo.size, "uncertainty" + round_label, "sample", enabled=progress)
@@ -357,7 +321,7 @@ def _samples(campaign, out_dir, runner, ctx, draws, folder, workers, scheduler, 
                     for c, (v, st) in _results(campaign, runner, ctx, draws, chunks,
                                                workers, scheduler):
                         values[c], status[c] = v, st
-                        _save_part(folder, c, v, st)
+                        save_part(folder, c, v, st, identity)
                         done[c] = True
                         for _ in c:
                             bar.update("ok")

@@ -14,11 +14,15 @@ file with PNG figures next to it.  Contents, in reading order:
 2. Budget chart (Fig. 8 style, :mod:`orchestrator.report_budget`): RSS bars of every
    configuration against the requirements; a heat map of every event x instrument-axis
    in the first configuration and one of each further configuration's change against it.
-3. Time histories and spectra of the dominant event of each axis (axes sharing one
-   event in one figure), every configuration overlaid, with the worst window of the
+3. Time histories and spectra of the dominant event of each axis (the verdict's: one
+   source, :attr:`~orchestrator.report_verdict.AxisVerdict.lead`), one figure per event
+   with a panel per axis it dominates (of several instruments, the one nearest failing;
+   the caption names every axis the event dominates, so no figure is drawn twice), every
+   configuration overlaid in its own colour and line style, with the worst window of the
    budget metric and the requirement drawn (:mod:`orchestrator.report_figures`).
-4. Boresight image plane (Fig. 16 style): roll against pitch when both exist, with the
-   requirement box.
+4. Boresight image plane (Fig. 16 style): roll against pitch when both exist, over each
+   configuration's worst window with the requirement's box centred there; one per
+   event, for the instrument nearest failing.
 5. Frequency responses found in ``DIR/frf/*.parquet`` or ``*.csv`` (a ``frequency``
    column in Hz and magnitude columns, or complex ones as ``NAME.re``/``NAME.im``),
    sweeps and the uncertainty distribution when the campaign has them.
@@ -47,6 +51,7 @@ from .campaign import ANGLE_UNITS, RSS_EVENT, slug
 from .report_budget import BudgetGrid, _budget_figure, _group_label, _groups, budget_grid
 from .report_figures import (
     Marking,
+    Panel,
     ReportError,
     frf_figure,
     history_figure,
@@ -54,8 +59,8 @@ from .report_figures import (
     scatter_figure,
 )
 from .report_sweeps import WORST_HEAD, spectrum_figure, sweep_sections, uncertainty_sections
-from .report_verdict import (axes_by_event, dominant_by_axis, metric_words, montecarlo_lines,
-                             verdict_table, verdicts)
+from .report_verdict import (fold_by_event, metric_words, montecarlo_lines, verdict_table,
+                             verdicts)
 from .report_verdict import same_window as _same_window
 
 UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
@@ -132,39 +137,71 @@ def _frf_files(out_dir: Path):
     return sorted(p for p in d.iterdir() if p.suffix in (".parquet", ".csv"))
 
 
-def _time_figures(out_dir, camp, summary, lines, metric, window, unit, scale):
-    """Per instrument: the history and spectrum of the dominant event of each axis (axes
-    sharing one event in one figure) and the boresight scatter of the image plane."""
+_ORDER = {"roll": 0, "pitch": 1, "yaw": 2}
+
+
+def _share_note(v, configs) -> str:
+    """A panel's note: the lead event's share of the RSS² in each configuration."""
+    shares = " | ".join("–" if x != x else f"{100 * x:.0f} %" for x in v.lead_shares)
+    return f"{v.lead} {shares} of the RSS²" + (f" ({' | '.join(configs)})"
+                                                if len(configs) > 1 else "")
+
+
+def _time_figures(out_dir, camp, configs, lines, metric, window, unit, scale):
+    """The history and spectrum of each dominant event (a panel per axis it dominates,
+    the instrument nearest failing drawn) and one boresight scatter per event."""
     figures, cache = [], {}
-    req = {(v.instrument, v.axis): v.requirement for v in lines}
-    for inst in dict.fromkeys(v.instrument for v in lines):
-        axes = camp["instruments"].get(inst, {})
-        dom = {a: d for a, d in dominant_by_axis(summary, metric, window, inst).items()
-               if a in axes}
-        marking = Marking(metric, window, {a: req.get((inst, a)) for a in axes},
-                          float(camp.get("skip", 0.0)))
-        for event, ev_axes in axes_by_event(dom).items():
-            series = _case_series(out_dir, camp, event, {a: axes[a] for a in ev_axes}, cache)
-            if not series:
-                continue
-            share = sum(dom[a][1] for a in ev_axes) / len(ev_axes)
-            what = ", ".join(ev_axes)
-            figures.append(("history", f"{inst} {what}: time history of {event}",
-                            history_figure(series, inst, event, ev_axes, unit, scale,
-                                           marking, share)))
-            figures.append(("spectrum", f"{inst} {what}: PSD and cumulative RMS, {event}",
-                            spectrum_figure(series, inst, event, unit, scale,
-                                            marking.skip)))
-        if len(axes) >= 2 and dom:
-            pair = scatter_axes(axes)
-            event = max((dom[a] for a in pair if a in dom), key=lambda d: d[1])[0]
-            series = _case_series(out_dir, camp, event, {a: axes[a] for a in pair}, cache)
+    skip = float(camp.get("skip", 0.0))
+    marking = Marking(metric, window, {}, skip)
+    for event, members in fold_by_event(lines).items():
+        drawn: dict = {}
+        for v in members:
+            if v.axis not in drawn or v.severity > drawn[v.axis].severity:
+                drawn[v.axis] = v
+        panels = []
+        for v in sorted(drawn.values(), key=lambda v: _ORDER.get(v.axis, 3)):
+            var = camp["instruments"].get(v.instrument, {}).get(v.axis)
+            series = [(label, t, cols[v.axis]) for label, t, cols in
+                      _case_series(out_dir, camp, event, {v.axis: var}, cache)]
             if series:
-                figures.append(("scatter", f"{inst}: boresight {pair[0]}–{pair[1]}, {event}",
-                                scatter_figure(series, inst, event, unit, scale, pair,
-                                               marking)))
+                panels.append(Panel(v.instrument, v.axis, series, v.requirement,
+                                    _share_note(v, configs)))
+        if not panels:
+            continue
+        covered = ", ".join(f"{v.instrument} {v.axis}" for v in members)
+        figures.append(("history", f"Time history of {event}, the dominant event of "
+                        f"{covered}", history_figure(panels, event, unit, scale, marking)))
+        figures.append(("spectrum", f"PSD and cumulative RMS of {event}, the dominant event "
+                        f"of {covered}", spectrum_figure(panels, event, unit, scale, skip)))
+    by_axis = {(v.instrument, v.axis): v for v in lines}
+    groups: dict = {}
+    for inst, axes in camp["instruments"].items():
+        if len(axes) < 2:
+            continue
+        pair = scatter_axes(axes)
+        mine = [by_axis[(inst, a)] for a in pair if (inst, a) in by_axis]
+        if not mine or all(v.lead is None for v in mine):
+            continue
+        worst = max((v for v in mine if v.lead), key=lambda v: v.severity)
+        groups.setdefault((worst.lead, pair), []).append((max(v.severity for v in mine),
+                                                          inst))
+    for (event, pair), members in groups.items():
+        members.sort(key=lambda m: -m[0])
+        inst = members[0][1]
+        axes = camp["instruments"][inst]
+        series = _case_series(out_dir, camp, event, {a: axes[a] for a in pair}, cache)
+        if not series:
+            continue
+        reqs = {a: by_axis[(inst, a)].requirement for a in pair if (inst, a) in by_axis}
+        others = [m[1] for m in members[1:]]
+        also = f" (also the lead of {', '.join(others)}: not drawn again)" if others else ""
+        where = (f" over the worst {window:g} s window" if marking.windowed else "")
+        figures.append(("scatter", f"{inst}: boresight {pair[0]}–{pair[1]}{where}, "
+                        f"{event}{also}",
+                        scatter_figure(series, inst, event, unit, scale, pair,
+                                       Marking(metric, window, reqs, skip))))
     order = ("history", "spectrum", "scatter")
-    return sorted(figures, key=lambda f: order.index(f[0]))   # stable: instrument order
+    return sorted(figures, key=lambda f: order.index(f[0]))   # stable: event order
 
 
 # ----------------------------------------------------------------------------- tables
@@ -315,7 +352,7 @@ def _contents(out_dir: Path):
     if budget_rows:
         figures.append(("budget", "Jitter budget",
                         _budget_figure(budget_rows, instruments, unit, metric, window)))
-    figures += _time_figures(out_dir, camp, summary, lines, metric, window, unit, scale)
+    figures += _time_figures(out_dir, camp, configs, lines, metric, window, unit, scale)
     for p in _frf_files(out_dir):
         figures.append(("frf", f"Frequency response: {p.stem}", frf_figure(p)))
     sweep_figs, worst = sweep_sections(out_dir, summary, instruments, metric, window, unit,

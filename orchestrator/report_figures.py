@@ -1,10 +1,13 @@
 """Time-domain figures of a campaign report: line-of-sight histories, boresight scatter, FRFs.
 
-The histories follow what dominates each axis: one figure per instrument and dominant
-event, a panel per axis it dominates, every configuration overlaid, the worst window of
-the budget metric shaded and the requirement drawn over it (a peak-to-peak requirement
-is a band of its height centred on the worst window's mid-range: the trace leaves the
-band where the window fails).
+The histories follow what dominates each axis: one figure per dominant event, a panel
+per axis it dominates (of several instruments whose axis it dominates, the one nearest
+failing: the others move alike and are named in the caption, not drawn again), every
+configuration overlaid in its own colour and line style (equal traces stay visible), the
+worst window of the budget metric shaded and the requirement drawn over it (a
+peak-to-peak requirement is a band of its height centred on the worst window's
+mid-range: the trace leaves the band where the window fails).  The boresight is drawn
+over each configuration's worst window, inside the requirement's box centred there.
 """
 
 from __future__ import annotations
@@ -22,12 +25,16 @@ from . import metrics as M
 
 __all__ = [
     "Marking",
+    "Panel",
+    "STYLES",
     "ReportError",
     "frf_figure",
     "history_figure",
     "legend_above",
     "scatter_axes",
+    "joint_worst_window",
     "scatter_figure",
+    "style",
     "worst_window",
 ]
 
@@ -38,6 +45,15 @@ class ReportError(ValueError):
 
 _ORDER = {"roll": 0, "pitch": 1, "yaw": 2}
 _REQ = "crimson"
+#: Line style of each configuration, in campaign order (colours C0, C1, ... beside them):
+#: the first wide and solid underneath, the others dashed or dotted over it.
+STYLES = ("-", "--", ":", "-.")
+
+
+def style(k: int) -> dict:
+    """Colour, line style and width of configuration ``k`` (plot keywords)."""
+    return {"color": f"C{k % 10}", "ls": STYLES[k % len(STYLES)],
+            "lw": 1.6 if k == 0 else 1.0}
 _OFF_SCALE = 4.0   # a requirement this many times the trace's range is written, not drawn
 
 
@@ -69,6 +85,34 @@ class Marking:
     def req(self, axis) -> float:
         v = self.requirement.get(axis)
         return float("nan") if v is None else float(v)
+
+
+@dataclass(frozen=True)
+class Panel:
+    """One panel of a figure: an instrument axis in every configuration.
+
+    Parameters
+    ----------
+    instrument, axis : str
+        The line of sight drawn.
+    series : list of (str, ndarray, ndarray)
+        Configuration label, times (s) and values (rad) per case.
+    requirement : float
+        In the report unit (NaN: none).
+    note : str
+        What the panel's title adds (the event's share of the RSS²).
+    """
+
+    instrument: str
+    axis: str
+    series: list
+    requirement: float = float("nan")
+    note: str = ""
+
+    @property
+    def name(self) -> str:
+        """``instrument axis``."""
+        return f"{self.instrument} {self.axis}"
 
 
 def worst_window(t, x, window: float, skip: float = 0.0):
@@ -131,25 +175,21 @@ def _off_scale_note(ax, req, unit):
             va="top", transform=ax.transAxes, fontsize=7, color=_REQ)
 
 
-def history_figure(series, inst, event, axes, unit, scale, marking: Marking, share=None):
+def history_figure(panels, event, unit, scale, marking: Marking):
     """Line of sight of one event on the axes it dominates, configurations overlaid.
 
     Parameters
     ----------
-    series : list of (str, ndarray, dict)
-        Configuration label, times (s) and ``{axis: values (rad)}`` per case.
-    inst, event : str
-        Instrument and event (campaign names).
-    axes : list of str
-        Axes drawn, one panel each.
+    panels : list of Panel
+        One per axis drawn.
+    event : str
+        The dominant event (campaign name).
     unit : str
         Report unit.
     scale : float
         Factor from rad to ``unit``.
     marking : Marking
-        Metric, window, requirements and skip.
-    share : float, optional
-        The event's mean share of the RSS² of these axes (for the title).
+        Metric, window and skip (the requirements are the panels').
 
     Returns
     -------
@@ -159,28 +199,27 @@ def history_figure(series, inst, event, axes, unit, scale, marking: Marking, sha
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    fig = Figure(figsize=(9, 1.9 * len(axes) + 1.3), layout="constrained")
-    axs = fig.subplots(len(axes), 1, squeeze=False, sharex=True)[:, 0]
-    t_end = max(float(t[-1]) for _, t, _ in series)
-    t_start = min(float(t[0]) for _, t, _ in series)
-    handles = [Line2D([], [], color=f"C{k}", lw=1.2, label=label)
-               for k, (label, _, _) in enumerate(series)]
+    fig = Figure(figsize=(9, 2.0 * len(panels) + 1.3), layout="constrained")
+    axs = fig.subplots(len(panels), 1, squeeze=False, sharex=True)[:, 0]
+    everything = [s for p in panels for s in p.series]
+    t_end = max(float(t[-1]) for _, t, _ in everything)
+    t_start = min(float(t[0]) for _, t, _ in everything)
+    labels = list(dict.fromkeys(label for label, _, _ in everything))
+    handles = [Line2D([], [], label=label, **style(k)) for k, label in enumerate(labels)]
     drawn_req, shaded = set(), False
-    for ax, axis in zip(axs, axes):
-        req = marking.req(axis)
+    for ax, panel in zip(axs, panels):
+        req = panel.requirement
         spans, lo_hi = [], []
-        for k, (label, t, cols) in enumerate(series):
-            if axis not in cols:
-                continue
-            y = cols[axis] * scale
-            # the first configuration underneath and wider: equal traces show both
-            ax.plot(t, y, lw=1.6 if k == 0 else 0.8, color=f"C{k}")
+        for label, t, y in panel.series:
+            k = labels.index(label)
+            y = np.asarray(y, float) * scale
+            ax.plot(t, y, **style(k))
             keep = t >= t[0] + marking.skip
             lo_hi += [float(y[keep].min()), float(y[keep].max())]
             if marking.windowed:
                 w = worst_window(t, y, marking.window, marking.skip)
                 if w is not None:
-                    spans.append((label, f"C{k}", w))
+                    spans.append((label, f"C{k % 10}", w))
         data_range = (max(lo_hi) - min(lo_hi)) if lo_hi else 0.0
         draw_req = bool(np.isfinite(req)) and req <= _OFF_SCALE * max(data_range, 1e-300)
         for _, color, (t0, t1, mid, _) in spans:
@@ -193,13 +232,14 @@ def history_figure(series, inst, event, axes, unit, scale, marking: Marking, sha
             drawn_req.add(req)
         if np.isfinite(req) and not draw_req:
             _off_scale_note(ax, req, unit)
+        title = f"{panel.name}: {panel.note}" if panel.note else panel.name
         if spans:
-            ax.set_title(f"worst {marking.window:g} s window, peak-to-peak: " + ", ".join(
-                f"{label} {w[3]:.3g}" for label, _, w in spans) + f" {unit}", fontsize=8,
-                loc="left")
+            title += (f"\nworst {marking.window:g} s window, peak-to-peak: " + ", ".join(
+                f"{label} {w[3]:.3g}" for label, _, w in spans) + f" {unit}")
+        ax.set_title(title, fontsize=8, loc="left")
         if marking.skip > 0:
             ax.axvspan(t_start, t_start + marking.skip, color="0.85", alpha=0.5, lw=0)
-        ax.set_ylabel(f"{axis} ({unit})")
+        ax.set_ylabel(f"{panel.name} ({unit})")
         ax.grid(alpha=0.3)
         ax.set_xlim(t_start, t_end)
     if shaded:
@@ -214,9 +254,8 @@ def history_figure(series, inst, event, axes, unit, scale, marking: Marking, sha
     fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 3),
                fontsize=7.5, frameon=False)
     axs[-1].set_xlabel("time (s)")
-    what = " and ".join(axes)
-    dom = "" if share is None else f" ({100 * share:.0f} % of the RSS²)"
-    fig.suptitle(f"{inst} {what}: dominant event {event}{dom}", fontsize=11)
+    fig.suptitle(f"Dominant event {event}: " + ", ".join(p.name for p in panels),
+                 fontsize=11)
     return fig
 
 
@@ -230,16 +269,58 @@ def scatter_axes(axes):
     return names[0], names[1]
 
 
-def scatter_figure(series, inst, event, unit, scale, pair, marking: Marking):
-    """Boresight in the image plane (two axes), configurations overlaid, requirement box.
+def joint_worst_window(t, xy, reqs, window: float, skip: float = 0.0):
+    """The window in which a boresight's two axes come nearest their requirements.
 
-    The box is a peak-to-peak requirement of each axis, centred on the mid-ranges of
-    the first configuration's worst windows.
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s), uniform.
+    xy : (ndarray, ndarray)
+        The two axes, shape (n,) each (report unit).
+    reqs : (float, float)
+        Their peak-to-peak requirements (NaN: rank by the range itself).
+    window : float
+        Window duration (s).
+    skip : float
+        Transient dropped from the start (s).
+
+    Returns
+    -------
+    slice or None
+        The samples of the window whose larger ratio ``range / requirement`` is the
+        largest; None when the record is shorter than the window.
+    """
+    t = np.asarray(t, float)
+    if t.size < 3:
+        return None
+    dt = float(np.median(np.diff(t)))
+    first = int(np.searchsorted(t, M.skip_start(t[0], skip, dt)))
+    n = M.window_samples(window, dt)
+    if t.size - first < n:
+        return None
+    score = None
+    for v, req in zip(xy, reqs):
+        r = M.peak_to_peak_series(np.asarray(v, float)[first:], dt, window)
+        r = r / req if np.isfinite(req) and req > 0 else r
+        score = r if score is None else np.maximum(score, r)
+    i = first + int(np.argmax(score))
+    return slice(i, i + n)
+
+
+def scatter_figure(series, inst, event, unit, scale, pair, marking: Marking):
+    """Boresight in the image plane (two axes) over each configuration's worst window.
+
+    The budget metric's window in which either axis comes nearest its requirement, for
+    each configuration, with the requirement's box (each axis's peak-to-peak
+    requirement) centred on the trace's mid-ranges in that window: the trace leaves
+    the box exactly when the window fails.  Without a windowed metric, the whole record
+    after the transient, the box centred on it.
 
     Parameters
     ----------
     series : list of (str, ndarray, dict)
-        As :func:`history_figure`.
+        Configuration label, times (s) and ``{axis: values (rad)}`` per case.
     inst, event : str
     unit : str
     scale : float
@@ -251,26 +332,33 @@ def scatter_figure(series, inst, event, unit, scale, pair, marking: Marking):
     -------
     Figure
     """
-    fig = Figure(figsize=(6, 5.6), layout="constrained")
+    fig = Figure(figsize=(6, 5.8), layout="constrained")
     ax = fig.subplots()
-    centre, extent = [], []
+    reqs = [marking.req(a) for a in pair]
+    boxes, extent = [], []
     for k, (label, t, cols) in enumerate(series):
         if pair[0] not in cols or pair[1] not in cols:
             continue
-        keep = t >= t[0] + marking.skip
-        xy = [cols[a][keep] * scale for a in pair]
-        ax.plot(xy[0], xy[1], ".", ms=1.5, alpha=0.6, label=label, color=f"C{k}")
+        xy = [np.asarray(cols[a], float) * scale for a in pair]
+        win = (joint_worst_window(t, xy, reqs, marking.window, marking.skip)
+               if marking.windowed else None)
+        if win is None:
+            win = t >= t[0] + marking.skip
+        xy = [v[win] for v in xy]
+        st = style(k)
+        ax.plot(xy[0], xy[1], color=st["color"], ls=st["ls"], lw=0.9, alpha=0.9,
+                label=label + (f", worst {marking.window:g} s window" if marking.windowed
+                               else ""))
         extent.append(max(float(np.ptp(v)) for v in xy))
-        if not centre:
-            for a, v in zip(pair, xy):
-                w = (worst_window(t[keep], v, marking.window) if marking.windowed else None)
-                centre.append(w[2] if w else float((v.max() + v.min()) / 2))
-    reqs = [marking.req(a) for a in pair]
-    if centre and all(np.isfinite(reqs)):
+        boxes.append((st["color"], [float((v.max() + v.min()) / 2) for v in xy]))
+    if boxes and all(np.isfinite(reqs)):
         if max(reqs) <= _OFF_SCALE * max(max(extent), 1e-300):
-            ax.add_patch(Rectangle((centre[0] - reqs[0] / 2, centre[1] - reqs[1] / 2),
-                                   reqs[0], reqs[1], fill=False, ec=_REQ, lw=1.2, ls="--",
-                                   label=f"requirement {reqs[0]:g} × {reqs[1]:g} {unit} p-p"))
+            for j, (color, centre) in enumerate(boxes):
+                ax.add_patch(Rectangle((centre[0] - reqs[0] / 2, centre[1] - reqs[1] / 2),
+                                       reqs[0], reqs[1], fill=False, ec=color, lw=1.2,
+                                       ls="--", label=(f"requirement {reqs[0]:g} × "
+                                                       f"{reqs[1]:g} {unit} p-p, centred "
+                                                       "on each window" if j == 0 else None)))
         else:
             _off_scale_note(ax, max(reqs), unit)
     ax.set_xlabel(f"{pair[0]} ({unit})")
@@ -279,8 +367,8 @@ def scatter_figure(series, inst, event, unit, scale, pair, marking: Marking):
     ax.grid(alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
     if handles:
-        ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=2,
-                  fontsize=7.5, frameon=False, markerscale=6)
+        ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=1,
+                  fontsize=7.5, frameon=False)
     fig.suptitle(f"{inst} boresight, {pair[0]}–{pair[1]} plane: {event}", fontsize=10)
     return fig
 

@@ -223,20 +223,21 @@ def transfer_figure(tr, psd=None, cum=None) -> Figure:
     return fig
 
 
-def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
-    """One-sided PSD and cumulative RMS of each axis of a recorded line of sight.
+def spectrum_figure(panels, event, unit, scale, skip: float) -> Figure:
+    """One-sided PSD and cumulative RMS of recorded lines of sight.
 
-    ``series`` as the report's time histories: ``(label, t, {axis: values})``; the
-    record after ``skip`` s, Welch's estimate over four Hann segments
+    The record after ``skip`` s, Welch's estimate over four Hann segments
     (:func:`orchestrator.metrics.one_sided_psd`), the cumulative RMS its running integral
-    (its end is about the record's RMS).
+    (its end is about the record's RMS).  The frequency axis ends at twice the highest
+    frequency where a curve's cumulative RMS reaches 99.9 % of its end (at most the
+    Nyquist frequency): what holds the content spans the axis, not a flat line.
 
     Parameters
     ----------
-    series : list of (str, ndarray, dict)
-        Label, times (s) and ``{axis: values (rad)}`` per case.
-    inst, event : str
-        Instrument and event named in the title.
+    panels : list of Panel
+        One row per instrument axis (:class:`orchestrator.report_figures.Panel`).
+    event : str
+        The event named in the title.
     unit : str
         Unit of the axes.
     scale : float
@@ -248,34 +249,42 @@ def spectrum_figure(series, inst, event, unit, scale, skip: float) -> Figure:
     -------
     Figure
     """
-    axes = sorted(series[0][2], key=lambda a: _ORDER.get(a, 3))
-    fig = Figure(figsize=(9, 2.2 * len(axes) + 1.1), layout="constrained")
-    axs = fig.subplots(len(axes), 2, squeeze=False, sharex=True)
-    for i, axis in enumerate(axes):
-        for k, (label, t, cols) in enumerate(series):
-            if axis not in cols or t.size < 8:
+    from .report_figures import style
+
+    fig = Figure(figsize=(9, 2.2 * len(panels) + 1.1), layout="constrained")
+    axs = fig.subplots(len(panels), 2, squeeze=False, sharex=True)
+    labels = list(dict.fromkeys(label for p in panels for label, _, _ in p.series))
+    f_lo, f_hi, nyquist = math.inf, 0.0, 0.0
+    for i, panel in enumerate(panels):
+        for label, t, y in panel.series:
+            if t.size < 8:
                 continue
-            wide = 1.6 if k == 0 else 1.0   # the first underneath: equal curves show both
+            st = style(labels.index(label))
             keep = t >= t[0] + skip - 1e-9
-            x = np.asarray(cols[axis], float)[keep] * scale
+            x = np.asarray(y, float)[keep] * scale
             dt = float(np.median(np.diff(t)))
             f, psd = one_sided_psd(x, dt, max(x.size * dt / 4, 10 * dt))   # Welch
             cum = cumulative_rms(f, psd)
-            axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), lw=0.7 * wide, label=label,
-                             color=f"C{k}")
-            axs[i][1].semilogx(f[1:], cum[1:], lw=0.9 * wide, label=label, color=f"C{k}")
+            axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), label=label,
+                             color=st["color"], ls=st["ls"], lw=0.7 * st["lw"])
+            axs[i][1].semilogx(f[1:], cum[1:], label=label, **st)
+            f_lo, nyquist = min(f_lo, float(f[1])), max(nyquist, float(f[-1]))
+            if cum[-1] > 0:
+                f_hi = max(f_hi, float(f[int(np.searchsorted(cum, 0.999 * cum[-1]))]))
         axs[i][1].set_ylim(bottom=0.0)   # the share of each band reads off a zero base
-        axs[i][0].set_ylabel(f"{axis} ({unit}^2/Hz)")
-        axs[i][1].set_ylabel(f"{axis} cum. RMS ({unit})")
+        axs[i][0].set_ylabel(f"{panel.name} ({unit}²/Hz)")
+        axs[i][1].set_ylabel(f"cum. RMS ({unit})")
         for a in axs[i]:
             a.grid(alpha=0.3, which="both")
-    handles, labels = axs[0][1].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 4),
+    if math.isfinite(f_lo) and f_hi > 0:
+        axs[0][0].set_xlim(f_lo, min(max(2 * f_hi, 4 * f_lo), nyquist))
+    handles, names = axs[0][1].get_legend_handles_labels()
+    fig.legend(handles, names, loc="outside lower center", ncol=min(len(names), 4),
                fontsize=7.5, frameon=False)   # below the panels: never over a curve
     for a in axs[-1]:
         a.set_xlabel("frequency (Hz)")
-    fig.suptitle(f"{inst} {' and '.join(axes)}: PSD and cumulative RMS, {event}",
-                 fontsize=11)
+    fig.suptitle(f"Dominant event {event}: PSD and cumulative RMS of "
+                 + ", ".join(p.name for p in panels), fontsize=11)
     return fig
 
 

@@ -2,8 +2,10 @@
 
 :func:`verdicts` reads the RSS rows of the budget metric and gives, per instrument and
 axis, the RSS of every configuration side by side (with sweeps: its worst point), the
-requirement, the margins, pass or fail and the dominant event.  :func:`dominant_by_axis`
-names the event that dominates each axis, which the report's time histories follow.
+requirement, the margins, pass or fail and the dominant event.  An axis's dominant event
+has one source, :attr:`AxisVerdict.lead`: the event with the largest share of the RSS² in
+the configuration of largest RSS (the one nearest failing).  The table names it first and
+the report's figures follow it (:func:`fold_by_event`).
 :func:`montecarlo_lines` opens the verdict of a campaign with a Monte Carlo: per
 configuration, its stability and its weakest line.
 """
@@ -17,8 +19,7 @@ from .campaign import RSS_EVENT
 
 __all__ = [
     "AxisVerdict",
-    "axes_by_event",
-    "dominant_by_axis",
+    "fold_by_event",
     "metric_words",
     "montecarlo_lines",
     "verdict_table",
@@ -87,6 +88,10 @@ class AxisVerdict:
         one already above it fails).
     dominant : tuple of (str, float) or None
         Event with the largest share of the RSS² and that share, per configuration.
+    lead : str or None
+        The axis's dominant event: that of the configuration of largest RSS.
+    lead_shares : tuple of float
+        The lead event's share of the RSS² in each configuration (NaN where missing).
     """
 
     instrument: str
@@ -96,6 +101,16 @@ class AxisVerdict:
     requirement: float
     passed: tuple
     dominant: tuple
+    lead: str | None = None
+    lead_shares: tuple = ()
+
+    @property
+    def severity(self) -> float:
+        """Largest RSS over the configurations, relative to the requirement when there
+        is one (-inf without any finite RSS)."""
+        worst = max((v for v in self.rss if _finite(v)), default=-math.inf)
+        req = self.requirement
+        return worst / req if _finite(req) and req > 0 and math.isfinite(worst) else worst
 
     @property
     def margin(self) -> tuple:
@@ -138,7 +153,7 @@ def verdicts(rows, metric, window):
             events.setdefault(key, []).append(r)
     out = []
     for inst, axis in lines:
-        vals, sweeps, passed, dom, req = [], [], [], [], math.nan
+        vals, sweeps, passed, dom, req, shares = [], [], [], [], math.nan, []
         for cf in configs:
             mine = [r for r in rss if (r["instrument"], r["axis"], r["configuration"])
                     == (inst, axis, cf)]
@@ -146,7 +161,7 @@ def verdicts(rows, metric, window):
                         default=None)
             if worst is None:
                 vals.append(math.nan), sweeps.append(""), passed.append(None)
-                dom.append(None)
+                dom.append(None), shares.append({})
                 continue
             vals.append(worst["value"] if _finite(worst["value"]) else math.nan)
             sweeps.append(worst["sweep"] or "")
@@ -159,8 +174,15 @@ def verdicts(rows, metric, window):
             contrib = events.get((inst, axis, cf, worst["sweep"]), [])
             top = max(contrib, key=lambda r: r.get("share") or 0.0, default=None)
             dom.append(None if top is None else (top["event"], top.get("share") or 0.0))
+            shares.append({r["event"]: r.get("share") or 0.0 for r in contrib})
+        known = [k for k, d in enumerate(dom) if d is not None]
+        lead = None
+        if known:   # the configuration of largest RSS decides (NaN ranks last)
+            k = max(known, key=lambda k: vals[k] if _finite(vals[k]) else -math.inf)
+            lead = dom[k][0]
         out.append(AxisVerdict(inst, axis, tuple(vals), tuple(sweeps), req, tuple(passed),
-                               tuple(dom)))
+                               tuple(dom), lead,
+                               tuple(sh.get(lead, math.nan) for sh in shares)))
     return configs, out
 
 
@@ -168,14 +190,15 @@ def _num(v, digits=4):
     return "" if not _finite(v) else f"{v:.{digits}g}"
 
 
-def _dominant_text(dom) -> str:
-    known = [d for d in dom if d is not None]
-    if not known:
+def _dominant_text(v: AxisVerdict, configs) -> str:
+    """The lead event first with its share in every configuration, then any
+    configuration that another event leads."""
+    if v.lead is None:
         return ""
-    shares = " | ".join("–" if d is None else f"{100 * d[1]:.0f} %" for d in dom)
-    if len({d[0] for d in known}) == 1:
-        return f"{known[0][0]} ({shares})"
-    return " | ".join("–" if d is None else f"{d[0]} ({100 * d[1]:.0f} %)" for d in dom)
+    shares = " | ".join("–" if not _finite(x) else f"{100 * x:.0f} %" for x in v.lead_shares)
+    others = [f"{d[0]} leads {cf or 'all cases'} ({100 * d[1]:.0f} %)"
+              for cf, d in zip(configs, v.dominant) if d is not None and d[0] != v.lead]
+    return f"{v.lead} ({shares})" + "".join(f"; {o}" for o in others)
 
 
 def verdict_table(configs, lines):
@@ -202,6 +225,8 @@ def verdict_table(configs, lines):
     head = (["instrument", "axis"] + [f"RSS {n}" for n in names]
             + (["change"] if many else []) + ["requirement"]
             + [f"margin {n}" for n in names] + [f"verdict {n}" for n in names]
+            + (["worst at" + (" (per configuration)" if many else "")]
+               if any(v.sweep for v in lines) else [])
             + ["dominant event (share" + (" per configuration)" if many else ")")])
     rows = []
     for v in lines:
@@ -214,53 +239,30 @@ def verdict_table(configs, lines):
         row += [_num(m) for m in v.margin]
         row += [{None: "", "incomplete": "incomplete", True: "pass", False: "FAIL"}[p]
                 for p in v.passed]
-        row.append(_dominant_text(v.dominant))
+        if any(v.sweep for v in lines):
+            row.append(" | ".join(v.sweep))
+        row.append(_dominant_text(v, configs))
         rows.append(row)
     return head, rows
 
 
-def dominant_by_axis(rows, metric, window, instrument):
-    """The event that dominates each axis of an instrument.
-
-    The event whose share of the RSS² summed over the configurations (and sweep
-    points) is the largest.
+def fold_by_event(lines) -> dict:
+    """The instrument axes grouped by their dominant event (:attr:`AxisVerdict.lead`).
 
     Parameters
     ----------
-    rows : list of dict
-        Summary rows.
-    metric : str
-        Budget metric kind.
-    window : float or None
-        Its window (s).
-    instrument : str
+    lines : list of AxisVerdict
 
     Returns
     -------
     dict
-        ``{axis: (event, mean share)}`` in campaign order.
+        ``{event: [AxisVerdict]}``, events in the order of their first axis, axes
+        without a dominant event left out.
     """
-    score: dict = {}
-    groups: dict = {}
-    for r in _budget(rows, metric, window):
-        if r["instrument"] != instrument or r["event"] == RSS_EVENT:
-            continue
-        s = score.setdefault(r["axis"], {})
-        s[r["event"]] = s.get(r["event"], 0.0) + (r.get("share") or 0.0)
-        groups.setdefault(r["axis"], set()).add((r["configuration"], r["sweep"]))
-    out = {}
-    for axis, s in score.items():
-        event = max(s, key=s.get)
-        out[axis] = (event, s[event] / len(groups[axis]))
-    return out
-
-
-def axes_by_event(dominant):
-    """``{event: [axes]}`` from :func:`dominant_by_axis`: the axes sharing a dominant
-    event, events in the order of their first axis."""
     out: dict = {}
-    for axis, (event, _) in dominant.items():
-        out.setdefault(event, []).append(axis)
+    for v in lines:
+        if v.lead is not None:
+            out.setdefault(v.lead, []).append(v)
     return out
 
 

@@ -238,16 +238,18 @@ def test_markdown_has_the_verdict_first_and_the_long_tables_at_the_end(campaign_
 
 def test_figures_follow_the_dominant_event_of_each_axis(tmp_path):
     """SAD dominates pitch, VNIR pointing yaw: one history per event, each with its worst
-    window shaded and the requirement band (1.2 arcsec p-p) over that window."""
+    window shaded and the requirement band (1.2 arcsec p-p) over that window; the
+    configurations in distinct colours and line styles, the legend's the same."""
     from orchestrator.report import _contents
     from orchestrator.report_figures import scatter_axes
 
     out = make_campaign(tmp_path, with_frf=False, sad_pitch=True)
     figures = {title: fig for sec, title, fig in _contents(out)["figures"]}
-    assert "SWIR pitch: time history of SAD" in figures
-    assert "SWIR yaw: time history of VNIR pointing" in figures
-    assert not any("pitch, yaw" in t for t in figures)
-    (ax,) = figures["SWIR pitch: time history of SAD"].axes
+    sad = "Time history of SAD, the dominant event of SWIR pitch"
+    assert sad in figures
+    assert "Time history of VNIR pointing, the dominant event of SWIR yaw" in figures
+    assert not any("pitch, SWIR yaw" in t for t in figures)
+    (ax,) = figures[sad].axes
     boxes = [p for p in ax.patches if not p.get_fill()]
     shaded = [p for p in ax.patches if p.get_fill()]
     assert len(boxes) == 2 and len(shaded) == 2          # one per configuration
@@ -257,19 +259,33 @@ def test_figures_follow_the_dominant_event_of_each_axis(tmp_path):
         assert box.get_width() == pytest.approx(0.2)      # the metric's window
         # centred on the window's mid-range: 0 for a sine over whole periods
         assert box.get_y() + box.get_height() / 2 == pytest.approx(0.0, abs=1e-3 * arcsec)
-    # the legend below the panels, inside the figure
-    _drawn(figures["SWIR pitch: time history of SAD"])
-    (legend,) = figures["SWIR pitch: time history of SAD"].legends
-    assert {"isolation off", "isolation on"} <= {t.get_text() for t in legend.get_texts()}
-    fig_box = figures["SWIR pitch: time history of SAD"].bbox
+    # off and on in their own colour and line style: equal traces stay distinct
+    traces = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 2]
+    assert len({(ln.get_color(), ln.get_linestyle()) for ln in traces}) == 2
+    assert len({ln.get_linestyle() for ln in traces}) == 2
+    # the legend below the panels, inside the figure, each entry drawn as its trace
+    _drawn(figures[sad])
+    (legend,) = figures[sad].legends
+    entries = {t.get_text(): h for t, h in zip(legend.get_texts(), legend.legend_handles)}
+    assert {"isolation off", "isolation on"} <= set(entries)
+    for trace, name in zip(traces, ("isolation off", "isolation on")):
+        assert (entries[name].get_color(), entries[name].get_linestyle()) == \
+            (trace.get_color(), trace.get_linestyle())
+    fig_box = figures[sad].bbox
     lb = legend.get_window_extent()
     assert lb.x0 >= fig_box.x0 and lb.x1 <= fig_box.x1 and lb.y0 >= fig_box.y0
-    # the scatter: the image plane with the requirement box
-    scatter = next(f for t, f in figures.items() if "boresight" in t)
+    # the scatter: the image plane over each configuration's worst 0.2 s window, in the
+    # requirement's box centred there
+    title, scatter = next((t, f) for t, f in figures.items() if "boresight" in t)
+    assert "over the worst 0.2 s window" in title
     (sax,) = scatter.axes
     assert (sax.get_xlabel(), sax.get_ylabel()) == ("pitch (arcsec)", "yaw (arcsec)")
-    (box,) = [p for p in sax.patches if not p.get_fill()]
-    assert (box.get_width(), box.get_height()) == pytest.approx((1.2, 1.2))
+    boxes = [p for p in sax.patches if not p.get_fill()]
+    assert len(boxes) == 2
+    for box in boxes:
+        assert (box.get_width(), box.get_height()) == pytest.approx((1.2, 1.2))
+    for trace in sax.get_lines():        # 0.2 s at 1 ms: the window's 201 samples only
+        assert len(trace.get_xdata()) == 201
     assert scatter_axes({"yaw": 0, "pitch": 0, "roll": 0}) == ("roll", "pitch")  # Fig. 16
 
 

@@ -20,6 +20,7 @@ from fmukit.units import ARCSEC_PER_RAD, DEG_PER_RAD
 from fmutools.archive import PATH_CHARS, short_repr
 
 from ..scenario import closest, load_toml_file
+from ..schema import keys
 from .spec_base import ENGINES, CampaignError, check_table_keys
 from .spec_uncertainty import parse_uncertainty
 
@@ -48,22 +49,14 @@ METRIC_KINDS = {
 WINDOWLESS = ("rms", "ape")
 #: Event name of the summary rows holding the RSS over the events.
 RSS_EVENT = "RSS"
-# Valid keys of every table of a campaign file.
 #: The most cases a campaign expands to (each holds its scenario in memory and a folder).
 MAX_CASES = 100_000
-_KEYS = ("campaign", "events", "configurations", "sweeps", "instruments", "metrics",
-         "requirements", "wheel_sweeps", "uncertainty")
-_CAMPAIGN_KEYS = ("name", "scenario", "unit", "skip", "stop", "output_interval", "algorithm",
-                  "engine", "verify")
-_ITEM_KEYS = {
-    "events": ("name", "overrides"),
-    "configurations": ("name", "overrides"),
-    "sweeps": ("parameter", "values"),
-    "instruments": ("name", "axes", "requirement"),
-    "metrics": ("kind", "windows", "window"),
-    "requirements": ("instrument", "value", "axis", "metric", "window"),
-    "wheel_sweeps": ("name", "instance", "overrides", "rpm", "points", "open"),
-}
+# Valid keys of every table of a campaign file: the key reference's (orchestrator.schema).
+_KEYS = keys("campaign")
+_CAMPAIGN_KEYS = keys("[campaign]")
+_ITEM_KEYS = {name: keys(f"[[{name}]]") for name in (
+    "events", "configurations", "sweeps", "instruments", "metrics", "requirements",
+    "wheel_sweeps")}
 
 
 @dataclass(frozen=True)

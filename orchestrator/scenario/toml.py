@@ -9,6 +9,7 @@ from pathlib import Path
 
 from fmutools.archive import PATH_CHARS, short_repr
 
+from ..schema import keys
 from .model import (
     _NAME,
     Action,
@@ -38,7 +39,7 @@ def _parse_instance(name: str, spec) -> Instance:
     if not _NAME.match(name):
         raise ScenarioError(f"instance name {name!r} is not an identifier (letters, digits, _)")
     spec = _expect_table(spec, what)
-    check_keys(spec, ("fmu", "period", "rate_hz", "parameters"), what)
+    check_keys(spec, keys("[fmus.NAME]"), what)
     if "fmu" not in spec:
         raise ScenarioError(f"{what} has no 'fmu' (an FMU name in fmus/ or a path)")
     if ("period" in spec) == ("rate_hz" in spec):
@@ -72,7 +73,7 @@ def _finite(x) -> bool:
 def _parse_connection(i: int, spec, names) -> Connection:
     what = f"connection {i + 1}"
     spec = _expect_table(spec, what)
-    check_keys(spec, ("from", "to", "gain", "offset"), what)
+    check_keys(spec, keys("[[connections]]"), what)
     for key in ("from", "to"):
         if key not in spec:
             raise ScenarioError(f"{what} has no '{key}' ('instance.variable')")
@@ -94,7 +95,7 @@ def _parse_connection(i: int, spec, names) -> Connection:
 def _parse_action(i: int, spec, names) -> Action:
     what = f"action {i + 1}"
     spec = _expect_table(spec, what)
-    check_keys(spec, ("time", "set"), what)
+    check_keys(spec, keys("[[actions]]"), what)
     if "time" not in spec or "set" not in spec:
         raise ScenarioError(f"{what} needs 'time' (s) and 'set' (a table of values)")
     t = _time(spec["time"], f"{what} time")
@@ -125,10 +126,9 @@ def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Sce
     Scenario
     """
     data = _expect_table(data, "scenario")
-    check_keys(data, ("experiment", "fmus", "connections", "actions", "record"), source)
+    check_keys(data, keys("scenario"), source)
     exp = _expect_table(data.get("experiment", {}), "[experiment]")
-    check_keys(exp, ("start", "stop", "output_interval", "algorithm", "fmu_kind"),
-               "[experiment]")
+    check_keys(exp, keys("[experiment]"), "[experiment]")
     for key in ("stop", "output_interval"):
         if key not in exp:
             raise ScenarioError(f"[experiment] has no '{key}' (s)")
@@ -155,7 +155,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str = "<dict>") -> Sce
     actions = tuple(sorted((_parse_action(i, a, names) for i, a in enumerate(acts)),
                            key=lambda a: a.time))
     rec = _expect_table(data.get("record", {}), "[record]")
-    check_keys(rec, ("variables",), "[record]")
+    check_keys(rec, keys("[record]"), "[record]")
     variables = rec.get("variables", [])
     if not isinstance(variables, list):
         raise ScenarioError("record.variables must be an array of 'instance.variable' strings")

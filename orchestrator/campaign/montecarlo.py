@@ -148,7 +148,14 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                 # the nominal loop's modal blocks patched (the dense one where that
                 # form does not apply or pay): the same records, to round-off
                 fr = respond(lin, ctx["refs"], ctx["base"][cf][2])
-                bad = unstable_poles(fr)
+                try:
+                    bad = unstable_poles(fr)
+                except ValueError:   # a loop map past a float's range: no record to take
+                    if np.isfinite(fr.period_map()).all():
+                        raise
+                    values[row, ci] = np.inf
+                    status[row, ci] |= UNSTABLE | DIVERGING | LIMIT
+                    continue
                 if bad:   # reported; the record is what the co-simulation would give
                     growth = abs(bad[0]) ** (record_ticks / fr.P)
                     status[row, ci] |= UNSTABLE | (DIVERGING if growth > 2.0 else 0)
@@ -166,6 +173,10 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
                     status[row, ci] |= LIMIT
                     break
                 x = rec.values[::tb.output_ticks][-(-first // tb.output_ticks):]
+                if not np.isfinite(x).all():   # overflowed: past every limit there is
+                    values[row, ci] = np.inf
+                    status[row, ci] |= LIMIT
+                    break
                 values[row, ci, ei] = metric_values(x.T, dt, campaign.metrics)
     return values, status
 
@@ -498,6 +509,14 @@ def _check_sources(campaign, runner, draws) -> None:
     factor, so each source is tried at its smallest and largest draw."""
     from .spec_base import CampaignError
 
+    for it in campaign.uncertainty["parameters"]:
+        col = np.asarray(draws.values.get(it.name, ()), float)
+        if col.size and not np.isfinite(col).all():
+            s = int(np.flatnonzero(~np.isfinite(col).reshape(col.shape[0], -1).all(1))[0])
+            bad = float(col[s][~np.isfinite(col[s])].flat[0])
+            raise CampaignError(f"uncertain {it.name!r} draws {bad!r} for "
+                                f"sample {s}, beyond what a float holds; give its "
+                                "distribution bounds (low, high) or a smaller spread")
     items = [it for it in campaign.uncertainty["parameters"] if it.kind == "frequency"]
     seen = set()
     for case in (c for c in campaign.cases if not c.sweep):

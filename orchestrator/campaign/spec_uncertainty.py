@@ -93,12 +93,15 @@ def parse_uncertainty(table, fmus: dict):
             if dname not in DISTRIBUTIONS:
                 raise CampaignError(f"{what} has distribution {dname!r}; expected one of "
                                     f"{list(DISTRIBUTIONS)}")
-            args = {k: float(p[k]) for k in ("low", "high", "mean", "std", "median", "sigma")
-                    if k in p}
+            args = {k: _number(p[k], f"{what} {k}", bound=k in ("low", "high"))
+                    for k in ("low", "high", "mean", "std", "median", "sigma") if k in p}
             try:
                 dist = Distribution(dname, **args)
             except ValueError as exc:
                 raise CampaignError(f"{what}: {exc}") from None
+            if dname == "uniform" and not math.isfinite(dist.high - dist.low):
+                raise CampaignError(f"{what} is uniform on [{dist.low}, {dist.high}], wider "
+                                    "than a float holds; give bounds of the input's own size")
             if not dist.low >= 0 and kind in ("modal_frequency", "modal_damping"):
                 raise CampaignError(f"{what} ({kind}) is a factor on the modes and can reach "
                                     f"{dist.low}; give it bounds low >= 0 (negative damping "
@@ -108,9 +111,16 @@ def parse_uncertainty(table, fmus: dict):
                                     f"frequencies and can reach {dist.low}; give it bounds "
                                     "low > 0 (a line needs a positive frequency)")
         band = p.get("band", [0.0, math.inf])
-        if not (isinstance(band, list) and len(band) == 2 and band[0] < band[1]):
-            raise CampaignError(f"{what} band is {band!r}; expected [low, high] in Hz")
-        out.append(Uncertain(name, kind, dist, tuple(insts), bool(p.get("per_mode", False)),
+        if not (isinstance(band, list) and len(band) == 2
+                and all(_is_number(b) and not math.isnan(b) for b in band)
+                and 0 <= band[0] < band[1]):
+            raise CampaignError(f"{what} band is {band!r}; expected [low, high] in Hz with "
+                                "0 <= low < high, e.g. band = [0.0, 50.0]")
+        per_mode = p.get("per_mode", False)
+        if not isinstance(per_mode, bool):
+            raise CampaignError(f"{what} per_mode is {per_mode!r}; expected true or false "
+                                "(without quotes)")
+        out.append(Uncertain(name, kind, dist, tuple(insts), per_mode,
                              (float(band[0]), float(band[1]))))
     names = [u.name for u in out]
     if len(set(names)) != len(names):
@@ -125,3 +135,15 @@ def parse_uncertainty(table, fmus: dict):
             "confidence": tuple(float(c) for c in conf), "assurance": float(assurance),
             "parameters": tuple(out),
             "engine": engine}
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _number(x, what: str, bound: bool = False) -> float:
+    """A distribution's number: finite (a bound may be +-inf: no bound)."""
+    if not _is_number(x) or math.isnan(x) or (not bound and math.isinf(x)):
+        raise CampaignError(f"{what} is {x!r}; expected a {'' if bound else 'finite '}number "
+                            "(without quotes), e.g. 0.9")
+    return float(x)

@@ -57,3 +57,62 @@ def test_a_campaign_of_more_cases_than_the_limit_is_refused_at_once(tmp_path):
     data["sweeps"] = [{"parameter": "sc.mass", "values": [1.0 + i for i in range(MAX_CASES)]}]
     _refused(tmp_path, data, rf"expands to {2 * MAX_CASES} cases .* more than the "
                              rf"{MAX_CASES}")
+
+
+# ----------------------------------------------------------------------------- [uncertainty]
+
+
+def _unc(**item):
+    from .test_uncertainty import _campaign
+    p = {"name": "g", "kind": "gain", "instances": ["ctrl_diag"], "distribution": "uniform",
+         "low": 0.5, "high": 1.5, **item}
+    return _campaign({"samples": 8, "seed": 1, "parameters": [p]})
+
+
+@pytest.mark.parametrize("item, message", [
+    ({"kind": "modal_frequency", "per_mode": "false", "instances": []},
+     r"per_mode is 'false'; expected true or false \(without quotes\)"),
+    ({"low": True}, r"low is True; expected a number"),
+    ({"low": "abc"}, r"low is 'abc'; expected a number"),
+    ({"low": [1]}, r"low is \[1\]; expected a number"),
+    ({"low": -1e308, "high": 1e308}, r"is uniform on \[-1e\+308, 1e\+308\], wider than a float"),
+    ({"distribution": "normal", "mean": 1.0, "std": float("nan")},
+     r"std is nan; expected a finite number"),
+    ({"kind": "modal_frequency", "instances": [], "band": [0, "x"]},
+     r"band is \[0, 'x'\]; expected \[low, high\] in Hz"),
+])
+def test_ill_typed_uncertainty_values_are_one_sentence(tmp_path, item, message):
+    _refused(tmp_path, _unc(**item), r"uncertain parameter 1 " + message)
+
+
+def test_a_draw_beyond_a_float_is_refused_and_a_huge_one_counts_as_unstable(
+        tmp_path, suite_fmus, suite_fmu_dir):
+    """A lognormal gain of sigma 300 draws inf: one sentence before any sample runs.
+    Sigma 30 draws gains up to ~1e30 whose loop maps overflow: those samples count as
+    unstable (and past every limit) and the run finishes instead of aborting."""
+    import json
+
+    import numpy as np
+
+    from orchestrator.campaign import LinearRunner, campaign_from_dict, run_campaign
+    from orchestrator.campaign.montecarlo import run_uncertainty
+
+    from .test_truss10_campaign import FMUS
+    suite_fmus(*FMUS)
+
+    def run(sigma, name):
+        data = _unc(distribution="lognormal", median=1.0, sigma=sigma)
+        del data["uncertainty"]["parameters"][0]["low"], data["uncertainty"]["parameters"][0]["high"]
+        data["uncertainty"]["samples"] = 20
+        camp = campaign_from_dict(data)
+        runner = LinearRunner(camp.scenario_dir, fmu_dir=suite_fmu_dir)
+        run_campaign(camp, tmp_path / name, runner, progress=False)
+        with np.errstate(all="ignore"):
+            return run_uncertainty(camp, tmp_path / name, runner, progress=False)
+
+    with pytest.raises(CampaignError, match=r"uncertain 'g' draws inf for sample \d+, beyond "
+                                            r"what a float holds"):
+        run(300.0, "inf")
+    rep = json.loads(run(30.0, "huge").read_text())
+    # half the draws are gains above 1 (median 1): the loop (stable to 2.8) is unstable
+    assert 5 <= rep["unstable"]["on"] <= 15

@@ -174,9 +174,12 @@ def test_experiments_acs_is_the_shipped_scenarios():
     for k in ("notch", "lowpass", "antialias"):
         np.testing.assert_allclose(getattr(got.filters, k), getattr(want.filters, k),
                                    rtol=1e-15, atol=0)
-    # the design is on: a notch on roll only, a low-pass on every axis
+    # the design is on: a notch on roll only, low-passes on pitch and yaw only (roll
+    # phase-stabilises the array mode), the roll and pitch crossovers above yaw's
     assert not np.allclose(got.filters.notch[0], [1, 0, 0, 0, 0])
     np.testing.assert_array_equal(got.filters.notch[1:], [[1, 0, 0, 0, 0]] * 2)
-    assert all(not np.allclose(row, [1, 0, 0, 0, 0]) for row in got.filters.lowpass)
+    np.testing.assert_array_equal(got.filters.lowpass[0], [1, 0, 0, 0, 0])
+    assert all(not np.allclose(row, [1, 0, 0, 0, 0]) for row in got.filters.lowpass[1:])
+    assert got.gains.kp[0] / eos.ACS_INERTIA[0] > got.gains.kp[2] / eos.ACS_INERTIA[2]
     for k in ("torque_limit", "momentum_limit", "wheel_inertia", "anti_windup"):
         np.testing.assert_array_equal(getattr(got, k), getattr(want, k))

@@ -58,7 +58,8 @@ from .report_figures import (
     scatter_axes,
     scatter_figure,
 )
-from .report_sweeps import WORST_HEAD, spectrum_figure, sweep_sections, uncertainty_sections
+from .report_sweeps import (WORST_HEAD, spectrum_figure, sweep_sections, uncertainty_sections,
+                            wheel_verdicts)
 from .report_verdict import (fold_by_event, metric_words, montecarlo_lines, verdict_table,
                              verdicts)
 from .report_verdict import same_window as _same_window
@@ -365,20 +366,28 @@ def _contents(out_dir: Path):
     n_ok = sum(c["status"] == "ok" for c in cases)
     swept = any(v for line in lines for v in line.sweep)
     engine_text, check_rows, flagged = _cross_check(out_dir, camp)
-    vhead, vrows = verdict_table(configs, lines)
+    wheel = not lines
+    if wheel:   # a campaign of wheel sweeps alone: their worst speeds are the verdict
+        configs, lines = wheel_verdicts(out_dir, metric, window)
+    vhead, vrows = verdict_table(configs, lines, "worst" if wheel else "RSS")
     n_fail = sum(row.count("FAIL") > 0 for row in vrows)
     unc_path = out_dir / "uncertainty.json"
     mc = (montecarlo_lines(json.loads(unc_path.read_text(encoding="utf-8")), metric, window)
           if unc_path.is_file() else [])
     return {
         "title": f"Jitter report: {camp.get('name', out_dir.name)}",
-        "intro": (f"{metric_words(metric, window)} in {unit}, RSS over the events; "
-                  f"{len(cases)} cases "
-                  f"({n_ok} finished, {len(failed)} failed); {len(vrows)} instrument axes, "
+        "intro": ((f"{metric_words(metric, window)} in {unit}, steady state over the "
+                   "wheel sweeps: each configuration's worst speed; "
+                   if wheel and lines else
+                   f"{metric_words(metric, window)} in {unit}, RSS over the events; "
+                   f"{len(cases)} cases ({n_ok} finished, {len(failed)} failed); ")
+                  + f"{len(vrows)} instrument axes, "
                   f"{n_fail} failing in at least one configuration."
                   + (" With sweeps, each configuration's worst sweep point." if swept
-                     else "")),
+                     and not wheel else "")),
         "verdict": (vhead, vrows), "mc": mc,
+        "empty": ("" if vrows else "No verdict: the campaign finished no case, and has no "
+                  "wheel sweep, with the budget metric; see the failed cases below."),
         "key": ("RSS = root-sum-square over the events of a configuration; change = (last "
                 "configuration − first) / first; requirements are the campaign file's "
                 "inputs; margin = requirement − RSS; dominant event: the largest share of "
@@ -405,7 +414,8 @@ def _html(c) -> str:
             "<li>" + "".join(f"<span class='{cls}'>{html.escape(t)}</span>" if cls
                              else html.escape(t) for t, cls in pieces) + "</li>"
             for pieces in c["mc"]) + "</ul>")
-    parts += [f"<p>{html.escape(c['intro'])}</p>", _html_table(vhead, vrows, "verdict"),
+    parts += [f"<p>{html.escape(c['empty'] or c['intro'])}</p>",
+              _html_table(vhead, vrows, "verdict"),
               f"<p class='key'>{html.escape(c['key'])}</p>"]
     if c["failed"]:
         parts += ["<h2>Failed cases</h2>",
@@ -449,7 +459,7 @@ def _markdown(c, fig_dir: Path) -> str:
     if c["mc"]:   # a failing piece in bold
         parts += ["- " + "".join(f"**{t}**" if cls else t for t, cls in pieces)
                   for pieces in c["mc"]] + [""]
-    parts += [c["intro"], "",
+    parts += [c["empty"] or c["intro"], "",
              _md_table(vhead, vrows), "", c["key"], ""]
     if c["failed"]:
         parts += ["## Failed cases", "", _md_table(["case", "error"], c["failed"]), ""]

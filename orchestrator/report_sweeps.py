@@ -46,8 +46,9 @@ def _fmt(v, digits=4):
 _ORDER = {"roll": 0, "pitch": 1, "yaw": 2}
 
 
-def _figure(curves, inst, axes, xlabel, unit, title):
-    """One panel per axis; ``curves[axis] = [(label, x, y, requirement)]``."""
+def _figure(curves, inst, axes, xlabel, unit, title, at="{:.4g}"):
+    """One panel per axis; ``curves[axis] = [(label, x, y, requirement)]``; ``at`` formats
+    the worst point's abscissa with its unit (``"{:.0f} rpm"``)."""
     axes = sorted(axes, key=lambda a: _ORDER.get(a, 3))
     fig = Figure(figsize=(10, 1.9 * len(axes) + 0.9), layout="constrained")
     axs = fig.subplots(len(axes), 1, squeeze=False, sharex=True)
@@ -57,7 +58,7 @@ def _figure(curves, inst, axes, xlabel, unit, title):
         for label, x, y, req in curves.get(axis, []):
             k = int(np.argmax(y))
             line, = ax.plot(x, y, lw=1.0,
-                            label=f"{label}: worst {y[k]:.3g} {unit} at {x[k]:.4g}")
+                            label=f"{label}: worst {y[k]:.3g} {unit} at {at.format(x[k])}")
             ax.plot(x[k], y[k], "o", color=line.get_color(), ms=5)
             if not math.isnan(req):
                 reqs.add(req)
@@ -109,7 +110,8 @@ def _wheel(out_dir: Path, instruments, metric, window, unit):
             if curves:
                 figures.append((f"{inst}: {sweep}, steady state",
                                 _figure(curves, inst, list(axes), "wheel speed (rpm)", unit,
-                                        f"{sweep} (steady state, {metric_words(metric, window)})")))
+                                        f"{sweep} (steady state, {metric_words(metric, window)})",
+                                        "{:.0f} rpm")))
     return figures, worst
 
 
@@ -150,8 +152,57 @@ def _parameter(summary, instruments, metric, window, unit, rss_event):
                 figures.append((f"{inst}: RSS against {param}",
                                 _figure(curves, inst, list(axes), param, unit,
                                         f"RSS over the events against {param} "
-                                        f"({metric_words(metric, window)})")))
+                                        f"({metric_words(metric, window)})",
+                                        f"{param} = {{:.4g}}")))
     return figures, worst
+
+
+def wheel_verdicts(out_dir, metric, window):
+    """The verdict of a campaign's wheel sweeps: per instrument axis, the worst speed.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        The campaign folder (``wheel_sweeps.parquet``).
+    metric : str
+        Budget metric kind.
+    window : float or None
+        Its window (s).
+
+    Returns
+    -------
+    configurations : list of str
+    lines : list of AxisVerdict
+        Per instrument and axis, each configuration's largest steady-state value over
+        every sweep and speed (``sweep`` says which, ``"RWA speed at 5255 rpm"``),
+        against the requirement; no dominant event (a sweep has one source).
+    """
+    from .report_verdict import AxisVerdict
+
+    path = Path(out_dir) / "wheel_sweeps.parquet"
+    if not path.is_file():
+        return [], []
+    rows = [r for r in pq.read_table(path).to_pylist() if r["metric"] == metric
+            and (window is None or r["window"] is None or math.isclose(r["window"], window))]
+    configs = list(dict.fromkeys(r["configuration"] for r in rows))
+    lines = []
+    for inst, axis in dict.fromkeys((r["instrument"], r["axis"]) for r in rows):
+        vals, where, passed, req = [], [], [], math.nan
+        for cf in configs:
+            mine = [r for r in rows if (r["instrument"], r["axis"], r["configuration"])
+                    == (inst, axis, cf) and r["value"] == r["value"]]
+            if not mine:
+                vals.append(math.nan), where.append(""), passed.append(None)
+                continue
+            worst = max(mine, key=lambda r: r["value"])
+            vals.append(worst["value"])
+            where.append(f"{worst['sweep']} at {worst['rpm']:.0f} rpm")
+            r_ = worst["requirement"]
+            req = r_ if r_ is not None and r_ == r_ else req
+            passed.append(None if req != req else bool(worst["value"] <= req))
+        lines.append(AxisVerdict(inst, axis, tuple(vals), tuple(where), req, tuple(passed),
+                                 (None,) * len(configs)))
+    return configs, lines
 
 
 def sweep_sections(out_dir, summary, instruments, metric, window, unit, rss_event):

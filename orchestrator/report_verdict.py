@@ -201,7 +201,7 @@ def _dominant_text(v: AxisVerdict, configs) -> str:
     return f"{v.lead} ({shares})" + "".join(f"; {o}" for o in others)
 
 
-def verdict_table(configs, lines):
+def verdict_table(configs, lines, value_name: str = "RSS"):
     """Header and rows of the verdict table (strings; pass cells "pass" or "FAIL").
 
     Columns: instrument, axis, the RSS of every configuration, the change of the last
@@ -214,6 +214,8 @@ def verdict_table(configs, lines):
     configs : list of str
         Configuration names (:func:`verdicts`).
     lines : list of AxisVerdict
+    value_name : str
+        What the values are, in the header (``"RSS"``; a wheel sweep's ``"worst"``).
 
     Returns
     -------
@@ -222,7 +224,7 @@ def verdict_table(configs, lines):
     """
     names = [c or "all cases" for c in configs]
     many = len(configs) > 1
-    head = (["instrument", "axis"] + [f"RSS {n}" for n in names]
+    head = (["instrument", "axis"] + [f"{value_name} {n}" for n in names]
             + (["change"] if many else []) + ["requirement"]
             + [f"margin {n}" for n in names] + [f"verdict {n}" for n in names]
             + (["worst at" + (" (per configuration)" if many else "")]

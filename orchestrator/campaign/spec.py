@@ -49,6 +49,8 @@ METRIC_KINDS = {
 WINDOWLESS = ("rms", "ape")
 #: Event name of the summary rows holding the RSS over the events.
 RSS_EVENT = "RSS"
+#: The lowest top speed of a wheel sweep (rpm): below it the wheel stands still.
+MIN_RPM = 1e-3
 #: The most cases a campaign expands to (each holds its scenario in memory and a folder).
 MAX_CASES = 100_000
 # Valid keys of every table of a campaign file: the key reference's (orchestrator.schema).
@@ -506,6 +508,13 @@ def _wheel_sweeps(items, fmus: dict) -> tuple:
                 and 0 <= rpm[0] < rpm[1] and math.isfinite(rpm[1])):
             raise CampaignError(f"{what} rpm is {rpm!r}; expected [low, high] with "
                                 "0 <= low < high (rpm)")
+        period = fmus[inst].get("period")
+        top = 30.0 / period if isinstance(period, (int, float)) and period > 0 else math.inf
+        if not MIN_RPM <= rpm[1] < top:
+            raise CampaignError(f"{what} rpm is {rpm!r}; the top speed must lie between "
+                                f"{MIN_RPM} rpm and {top:.6g} rpm, where the wheel's turn rate "
+                                f"reaches the Nyquist frequency of {inst}'s period; sweep a "
+                                "wheel's real speed range")
         points = w.get("points", 500)
         if isinstance(points, bool) or not isinstance(points, int) or points < 2:
             raise CampaignError(f"{what} points is {points!r}; expected a whole number >= 2")

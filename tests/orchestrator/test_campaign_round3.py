@@ -116,3 +116,28 @@ def test_a_draw_beyond_a_float_is_refused_and_a_huge_one_counts_as_unstable(
     rep = json.loads(run(30.0, "huge").read_text())
     # half the draws are gains above 1 (median 1): the loop (stable to 2.8) is unstable
     assert 5 <= rep["unstable"]["on"] <= 15
+
+
+# ----------------------------------------------------------------------------- wheel sweeps
+
+
+@pytest.mark.parametrize("rpm, message", [
+    ([0.0, 1e9], r"wheel sweep 1 rpm is \[0.0, 1000000000.0\]; the top speed must lie between "
+                 r"0.001 rpm and 30000 rpm"),
+    ([0.0, 1e300], r"the top speed must lie between"),
+    ([0.0, 1e-300], r"the top speed must lie between"),
+])
+def test_a_wheel_sweep_beyond_the_sources_nyquist_speed_or_standing_still_is_refused(
+        tmp_path, rpm, message):
+    """The synthetic campaign's source runs at 1 ms: 500 Hz is 30000 rpm of turn rate.
+    (1e9 rpm reported 1.24e9 arcsec: the line aliased to a low frequency.)"""
+    data = campaign_data(n_events=1)
+    data["wheel_sweeps"] = [{"instance": "dist", "rpm": rpm, "points": 3}]
+    _refused(tmp_path, data, message)
+
+
+def test_a_wheel_sweep_inside_the_range_is_read(tmp_path):
+    data = campaign_data(n_events=1)
+    data["wheel_sweeps"] = [{"instance": "dist", "rpm": [0.0, 6000.0], "points": 3}]
+    camp = load_campaign(_toml(tmp_path, data))
+    assert [w["rpm"] for w in camp.wheel_sweeps] == [(0.0, 6000.0)] * 2

@@ -7,11 +7,15 @@ CI job) it is a line at most every :data:`LOG_EVERY` seconds with what is done a
 estimate of the time left, so a long command is never silent.  A clock thread keeps
 both alive while nothing finishes: the bar's elapsed time moves every second, and a line
 comes every ``every`` seconds even while one long case or sample is still running.
-:func:`stage` prints one line when a stage of a long command starts.
+:func:`stage` prints one line when a stage of a long command starts; while a command
+holds :func:`heartbeat` open, a stage that runs longer than ``every`` seconds with no bar
+and no other line says it is still running, so even a stage without a count is never
+silent longer than that.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import threading
@@ -19,7 +23,7 @@ import time
 
 from tqdm import tqdm
 
-__all__ = ["LOG_EVERY", "ProgressBar", "stage"]
+__all__ = ["LOG_EVERY", "ProgressBar", "heartbeat", "stage"]
 
 #: Seconds between progress lines when stderr is not a terminal
 #: (env ``JITTERFMU_LOG_EVERY``, at most this).
@@ -93,6 +97,7 @@ class ProgressBar:
         if self._lines or (enabled and total):
             self._clock = threading.Thread(target=self._tick, daemon=True,
                                            name=f"progress {label}")
+            _BEAT.bar(+1)
             self._clock.start()
 
     def __call__(self, fraction: float) -> None:
@@ -117,15 +122,18 @@ class ProgressBar:
     def _tick(self) -> None:
         """The clock thread: a due line, or a redrawn bar, while nothing finishes."""
         period = min(REDRAW_EVERY, self._every) if self._every > 0 else REDRAW_EVERY
-        while not self._stop.wait(period):
-            with self._lock:
-                if self._stop.is_set() or self._done >= self._total:
-                    return   # closed, or all done (a bar left open falls silent)
-                if self._lines:
-                    self._log(waiting=True)
-                elif time.monotonic() - self._t0 >= self._delay:
-                    self._bar.refresh()
-                    self._bar.last_print_t = self._bar._time()   # so close() erases it
+        try:
+            while not self._stop.wait(period):
+                with self._lock:
+                    if self._stop.is_set() or self._done >= self._total:
+                        return   # closed, or all done (a bar left open falls silent)
+                    if self._lines:
+                        self._log(waiting=True)
+                    elif time.monotonic() - self._t0 >= self._delay:
+                        self._bar.refresh()
+                        self._bar.last_print_t = self._bar._time()   # so close() erases it
+        finally:
+            _BEAT.bar(-1)   # the heartbeat speaks again once no bar is alive
 
     def _log(self, waiting: bool = False) -> None:
         """A line off a terminal, at most every ``every`` seconds (the clock thread's
@@ -147,6 +155,7 @@ class ProgressBar:
                 if self._done else f"time left known after the first {self._unit or 'step'}")
         print(f"{self._label}: {done}, {_clock(elapsed)} elapsed, {left}",
               file=self._stream, flush=True)
+        _BEAT.said()
 
     def close(self) -> None:
         """Stop the clock and erase the bar."""
@@ -166,3 +175,71 @@ def stage(message: str, stream=None) -> None:
         Default ``sys.stderr``.
     """
     print(f"jitterfmu: {message}", file=stream or sys.stderr, flush=True)
+    _BEAT.stage(message)
+
+
+class _Heartbeat:
+    """The last stage said, and a thread that says it is still running (one per process)."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.message = None
+        self.t0 = self.last = time.monotonic()
+        self.bars = 0
+        self.stop = None
+
+    def stage(self, message: str) -> None:
+        with self.lock:
+            self.message, self.t0 = message, time.monotonic()
+            self.last = self.t0
+
+    def said(self) -> None:
+        with self.lock:
+            self.last = time.monotonic()
+
+    def bar(self, change: int) -> None:
+        with self.lock:
+            self.bars += change
+            self.last = time.monotonic()
+
+    def run(self, stop: threading.Event, stream, every: float) -> None:
+        while not stop.wait(min(REDRAW_EVERY, every)):
+            with self.lock:
+                now = time.monotonic()
+                if self.message is None or self.bars > 0 or now - self.last < every:
+                    continue
+                self.last = now
+                line = (f"jitterfmu: {self.message}: still running, "
+                        f"{_clock(now - self.t0)} elapsed")
+            print(line, file=stream, flush=True)
+
+
+_BEAT = _Heartbeat()
+
+
+@contextlib.contextmanager
+def heartbeat(stream=None, every: float | None = None):
+    """While open, a stage (:func:`stage`) that runs ``every`` seconds with no progress
+    bar alive and no line said says it is still running, with its time so far.
+
+    The command line holds it open for the length of a command.
+
+    Parameters
+    ----------
+    stream : file, optional
+        Default ``sys.stderr`` (as it is when the heartbeat starts).
+    every : float, optional
+        Seconds of silence before a line (default :data:`LOG_EVERY`, or
+        ``$JITTERFMU_LOG_EVERY`` up to it).
+    """
+    stop = threading.Event()
+    _BEAT.message = None
+    thread = threading.Thread(target=_BEAT.run, daemon=True, name="heartbeat",
+                              args=(stop, stream or sys.stderr,
+                                    _every() if every is None else every))
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()

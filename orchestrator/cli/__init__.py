@@ -169,8 +169,11 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
+    from ..progress import heartbeat
+
     try:
-        return int(args._run(args) or 0)
+        with heartbeat():
+            return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print("jitterfmu: interrupted", file=sys.stderr)
         return 130

@@ -208,7 +208,7 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", fmu_kind="native", *, work
     camp_dir = out_dir / ("eos-budget-campaign-quick" if quick else "eos-budget-campaign")
     camp, res = run_budget(camp_dir, workers=workers, quick=quick, fmu_dir=fmu_dir,
                            fmu_kind=fmu_kind,
-                           progress=False, campaign=campaign)
+                           progress=None, campaign=campaign)
     table = budget_table(res.summary)
     source = _requirements_source(campaign)
     (out_dir / "eos-budget-table.txt").write_text(format_table(table, source) + "\n")

@@ -2,6 +2,7 @@
 
 import io
 import os
+import re
 import subprocess
 import sys
 import time
@@ -35,6 +36,7 @@ def test_lines_are_spaced_by_the_interval():
     bar = ProgressBar(1.0, "jitterfmu run x.toml", stream=log, every=3600.0)
     for k in range(1, 11):
         bar(k / 10)
+    bar.close()
     assert log.getvalue() == ""   # none before the interval has passed
 
 
@@ -42,6 +44,7 @@ def test_a_fraction_reports_percent():
     log = io.StringIO()
     bar = ProgressBar(1.0, "run", stream=log, every=0.0)
     bar(0.25)
+    bar.close()
     assert log.getvalue().startswith("run: 25 %, ")
 
 
@@ -119,3 +122,28 @@ def test_a_long_campaign_logged_to_a_file_has_no_gap_longer_than_the_interval(tm
     gaps = np.diff(stamps + [end])
     assert gaps.max() < 1.5, (gaps, text)
     assert "budget (" in out        # it ends with the numbers the user came for
+
+
+def test_a_stage_without_a_bar_says_it_is_still_running():
+    log = io.StringIO()
+    with progress.heartbeat(stream=log, every=0.2):
+        stage("truss-decay: co-simulating 12 s", stream=log)
+        time.sleep(0.75)
+    lines = log.getvalue().splitlines()
+    assert lines[0] == "jitterfmu: truss-decay: co-simulating 12 s"
+    assert 2 <= len(lines) - 1 <= 4
+    assert all(re.fullmatch(r"jitterfmu: truss-decay: co-simulating 12 s: still running, "
+                            r"0:0[01] elapsed", ln) for ln in lines[1:]), lines
+    time.sleep(0.3)
+    assert len(log.getvalue().splitlines()) == len(lines)   # closed: silent
+
+
+def test_the_heartbeat_keeps_quiet_while_a_bar_speaks():
+    log, bars = io.StringIO(), io.StringIO()
+    with progress.heartbeat(stream=log, every=0.2):
+        stage("campaign 'x': 3 cases", stream=log)
+        bar = ProgressBar(3, "campaign", "case", stream=bars, every=0.2)
+        time.sleep(0.6)
+        bar.close()
+    assert log.getvalue() == "jitterfmu: campaign 'x': 3 cases\n"
+    assert "campaign: 0/3 cases" in bars.getvalue()

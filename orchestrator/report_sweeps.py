@@ -29,8 +29,10 @@ __all__ = [
     "WORST_HEAD",
     "spectrum_figure",
     "sweep_sections",
+    "plan_units",
     "transfer_figure",
     "uncertainty_sections",
+    "wheel_verdicts",
 ]
 
 WORST_HEAD = ["sweep", "configuration", "instrument", "axis", "metric", "worst at", "value",
@@ -236,7 +238,35 @@ def sweep_sections(out_dir, summary, instruments, metric, window, unit, rss_even
     return f1 + f2, w1 + w2
 
 
-def transfer_figure(tr, psd=None, cum=None) -> Figure:
+def plan_units(plan, names) -> dict:
+    """The units the FMUs declare for ``instance.variable`` names (``""`` for none).
+
+    Parameters
+    ----------
+    plan : orchestrator.cosim.Plan
+        A prepared scenario (``linearize(...).plan``).
+    names : iterable of str
+        ``instance.variable`` names.
+
+    Returns
+    -------
+    dict of str to str
+    """
+    out = {}
+    for name in names:
+        inst, _, var = name.partition(".")
+        v = plan.fmus[inst].variables.get(var) if inst in plan.fmus else None
+        out[name] = (v.unit or "") if v is not None else ""
+    return out
+
+
+def _ratio(num: str, den: str) -> str:
+    """A transfer's unit: ``rad/V``; ``1`` stands for no unit."""
+    num, den = num or "1", den or "1"
+    return num if den == "1" else f"{num}/{den}"
+
+
+def transfer_figure(tr, psd=None, cum=None, units=None) -> Figure:
     """Magnitudes of closed-loop transfers (and output PSD, cumulative RMS).
 
     Parameters
@@ -244,27 +274,37 @@ def transfer_figure(tr, psd=None, cum=None) -> Figure:
     tr : orchestrator.analysis.spectra.Transfer
     psd, cum : ndarray, shape (n_out, n_f), optional
         Output PSD and its cumulative RMS (:func:`~orchestrator.analysis.spectra.output_psd`).
+    units : dict of str to str, optional
+        Unit of each input and output as the FMUs declare it (:func:`plan_units`); the
+        axes and legends give them.
 
     Returns
     -------
     Figure
     """
+    units = units or {}
+    out_units = {units.get(o, "") or "1" for o in tr.outputs}
+    one = out_units.pop() if len(out_units) == 1 else None   # one unit for every output
+    pairs = {_ratio(units.get(o, ""), units.get(s, "")) for o in tr.outputs for s in tr.inputs}
     rows = 1 if psd is None else 3
     fig = Figure(figsize=(9, 2.6 * rows + 0.8))
     axs = fig.subplots(rows, 1, squeeze=False, sharex=True)
     ax = axs[0][0]
     for i, o in enumerate(tr.outputs):
         for j, src in enumerate(tr.inputs):
-            ax.loglog(tr.freqs, np.abs(tr.H[i, j]), lw=0.9, label=f"{src} -> {o}")
-    ax.set_ylabel("|H| (output / input)")
+            unit = "" if len(pairs) == 1 else f" ({_ratio(units.get(o, ''), units.get(src, ''))})"
+            ax.loglog(tr.freqs, np.abs(tr.H[i, j]), lw=0.9, label=f"{src} -> {o}{unit}")
+    ax.set_ylabel(f"|H| ({pairs.pop()})" if len(pairs) == 1 else "|H| (units in legend)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=6, loc="lower left", ncol=2)
     if psd is not None:
         for i, o in enumerate(tr.outputs):
-            axs[1][0].loglog(tr.freqs, np.maximum(psd[i], 1e-300), lw=0.9, label=o)
-            axs[2][0].semilogx(tr.freqs, cum[i], lw=0.9, label=o)
-        axs[1][0].set_ylabel("PSD (unit^2/Hz)")
-        axs[2][0].set_ylabel("cumulative RMS")
+            label = o if one else f"{o} ({units.get(o, '') or '1'})"
+            axs[1][0].loglog(tr.freqs, np.maximum(psd[i], 1e-300), lw=0.9, label=label)
+            axs[2][0].semilogx(tr.freqs, cum[i], lw=0.9, label=label)
+        axs[1][0].set_ylabel(f"PSD ({one}²/Hz)" if one else "PSD (unit²/Hz, in legend)")
+        axs[2][0].set_ylabel(f"cumulative RMS ({one})" if one else
+                             "cumulative RMS (unit in legend)")
         for a in (axs[1][0], axs[2][0]):
             a.grid(alpha=0.3, which="both")
         axs[2][0].legend(fontsize=6, loc="upper left")

@@ -192,8 +192,9 @@ def _spectra(lin, args) -> int:
     if args.plot:
         from orchestrator.files import atomic_write
         from orchestrator.report import png_bytes
-        from orchestrator.report_sweeps import transfer_figure
-        data = png_bytes(transfer_figure(tr, psd, cum))
+        from orchestrator.report_sweeps import plan_units, transfer_figure
+        units = plan_units(lin.plan, [*args.transfer, *outputs])   # as the FMUs declare
+        data = png_bytes(transfer_figure(tr, psd, cum, units))
         atomic_write(args.plot, lambda tmp: Path(tmp).write_bytes(data))
         print(f"figure: {args.plot}")
     return 0

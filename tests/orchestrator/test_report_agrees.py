@@ -169,3 +169,35 @@ def test_wheel_sweep_report_has_a_verdict_in_rpm(tmp_path):
     fig = figures["VNIR: RWA speed, steady state"]
     texts = [t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()]
     assert any(re.search(r"at \d+ rpm$", t) for t in texts), texts
+
+
+def test_transfer_figure_axes_carry_the_fmus_units(suite_fmus):
+    """analyze --plot: the units the FMUs declare (the excitation's V, the structure's
+    rad), not 'output / input' or 'unit^2/Hz'."""
+    from orchestrator import load_scenario, prepare
+    from orchestrator.analysis.spectra import Transfer
+    from orchestrator.report_sweeps import plan_units, transfer_figure
+
+    fmus = suite_fmus("truss10_structure", "piezo_p243_40", "piezo_p243_30",
+                      "controller_truss10_strain_diag", "controller_truss10_strain_long",
+                      "excitation")
+    plan = prepare(load_scenario("scenarios/truss10_closed_loop.toml"),
+                   next(iter(fmus.values())).parent)
+    names = ["excitation.v1", "structure.los_tip_roll", "structure.strain_diag"]
+    units = plan_units(plan, names)
+    assert units == {"excitation.v1": "V", "structure.los_tip_roll": "rad",
+                     "structure.strain_diag": "1"}
+    f = np.geomspace(1, 100, 20)
+    one = Transfer(np.ones((1, 1, f.size), complex), f, ("excitation.v1",),
+                   ("structure.los_tip_roll",), np.zeros((1, 1, f.size)))
+    fig = transfer_figure(one, np.ones((1, f.size)), np.ones((1, f.size)), units)
+    assert [ax.get_ylabel() for ax in fig.axes] == ["|H| (rad/V)", "PSD (rad²/Hz)",
+                                                    "cumulative RMS (rad)"]
+    two = Transfer(np.ones((2, 1, f.size), complex), f, ("excitation.v1",),
+                   ("structure.los_tip_roll", "structure.strain_diag"),
+                   np.zeros((2, 1, f.size)))
+    fig = transfer_figure(two, np.ones((2, f.size)), np.ones((2, f.size)), units)
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert legend == ["excitation.v1 -> structure.los_tip_roll (rad/V)",
+                      "excitation.v1 -> structure.strain_diag (1/V)"]
+    assert "unit in legend" in fig.axes[2].get_ylabel()

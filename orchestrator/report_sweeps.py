@@ -46,6 +46,8 @@ def _fmt(v, digits=4):
 
 
 _ORDER = {"roll": 0, "pitch": 1, "yaw": 2}
+#: Share of the cumulative RMS below the end of a spectrum's frequency axis (/1.5).
+_CONTENT = 0.995
 
 
 def _figure(curves, inst, axes, xlabel, unit, title, at="{:.4g}"):
@@ -317,11 +319,11 @@ def transfer_figure(tr, psd=None, cum=None, units=None) -> Figure:
 def spectrum_figure(panels, event, unit, scale, skip: float) -> Figure:
     """One-sided PSD and cumulative RMS of recorded lines of sight.
 
-    The record after ``skip`` s, Welch's estimate over four Hann segments
+    The record after ``skip`` s, Welch's estimate with one Hann segment over it
     (:func:`orchestrator.metrics.one_sided_psd`), the cumulative RMS its running integral
-    (its end is about the record's RMS).  The frequency axis ends at twice the highest
-    frequency where a curve's cumulative RMS reaches 99.9 % of its end (at most the
-    Nyquist frequency): what holds the content spans the axis, not a flat line.
+    (its end is about the record's RMS).  The frequency axis ends at 1.5 times the
+    highest frequency where a curve's cumulative RMS reaches 99.5 % of its end (at most
+    the Nyquist frequency): what holds the content spans the axis, not a flat line.
 
     Parameters
     ----------
@@ -345,7 +347,7 @@ def spectrum_figure(panels, event, unit, scale, skip: float) -> Figure:
     fig = Figure(figsize=(9, 2.2 * len(panels) + 1.1), layout="constrained")
     axs = fig.subplots(len(panels), 2, squeeze=False, sharex=True)
     labels = list(dict.fromkeys(label for p in panels for label, _, _ in p.series))
-    f_lo, f_hi, nyquist = math.inf, 0.0, 0.0
+    f_lo, f_hi, nyquist, spectra = math.inf, 0.0, 0.0, []
     for i, panel in enumerate(panels):
         for label, t, y in panel.series:
             if t.size < 8:
@@ -354,21 +356,32 @@ def spectrum_figure(panels, event, unit, scale, skip: float) -> Figure:
             keep = t >= t[0] + skip - 1e-9
             x = np.asarray(y, float)[keep] * scale
             dt = float(np.median(np.diff(t)))
-            f, psd = one_sided_psd(x, dt, max(x.size * dt / 4, 10 * dt))   # Welch
+            # one Hann segment over the record: the finest resolution it has (a jitter
+            # record is a few periods of its slowest motion; four segments lost them)
+            f, psd = one_sided_psd(x, dt, x.size * dt)
             cum = cumulative_rms(f, psd)
-            axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), label=label,
-                             color=st["color"], ls=st["ls"], lw=0.7 * st["lw"])
+            axs[i][0].loglog(f[1:], np.maximum(psd[1:], 1e-300), label=label, **st)
+            spectra.append((i, f, psd))
             axs[i][1].semilogx(f[1:], cum[1:], label=label, **st)
             f_lo, nyquist = min(f_lo, float(f[1])), max(nyquist, float(f[-1]))
             if cum[-1] > 0:
-                f_hi = max(f_hi, float(f[int(np.searchsorted(cum, 0.999 * cum[-1]))]))
+                f_hi = max(f_hi, float(f[int(np.searchsorted(cum, _CONTENT * cum[-1]))]))
         axs[i][1].set_ylim(bottom=0.0)   # the share of each band reads off a zero base
         axs[i][0].set_ylabel(f"{panel.name} ({unit}²/Hz)")
         axs[i][1].set_ylabel(f"cum. RMS ({unit})")
         for a in axs[i]:
             a.grid(alpha=0.3, which="both")
     if math.isfinite(f_lo) and f_hi > 0:
-        axs[0][0].set_xlim(f_lo, min(max(2 * f_hi, 4 * f_lo), nyquist))
+        f_top = min(max(1.5 * f_hi, 4 * f_lo), nyquist)
+        axs[0][0].set_xlim(f_lo, f_top)
+        for i in range(len(panels)):   # the PSD's scale from what the axis shows
+            seen = np.concatenate([p[(f >= f_lo) & (f <= f_top)] for j, f, p in spectra
+                                   if j == i] or [np.zeros(0)])
+            seen = seen[seen > 0]
+            if seen.size:
+                axs[i][0].set_ylim(max(seen.min(), seen.max() * 1e-8) / 2, seen.max() * 2)
+        for a in axs[-1]:
+            _plain_log_labels(a.xaxis, f_lo, f_top)
     handles, names = axs[0][1].get_legend_handles_labels()
     fig.legend(handles, names, loc="outside lower center", ncol=min(len(names), 4),
                fontsize=7.5, frameon=False)   # below the panels: never over a curve

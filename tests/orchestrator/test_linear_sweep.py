@@ -318,3 +318,21 @@ def test_time_invariant_steady_state_of_a_fed_through_output_is_its_phasor(rwa_s
     want = spin[:, :, None] * a[None, :, off:off + 3]
     np.testing.assert_allclose(Y[:, :, 1:], want, rtol=0, atol=1e-13 * np.abs(want).max())
     assert np.abs(Y[:, :, 0]).max() > 0                      # and the line of sight moves
+
+
+def test_shipped_wheel_sweep_report_has_its_verdict(rwa_sweep, tmp_path):
+    """The wheel-sweep campaign has no event case: its report's verdict is the worst
+    speed of every instrument axis (15), in rpm, not '0 cases' over an empty table."""
+    import html
+    import re
+
+    from orchestrator.report import write_report
+
+    _, out, _, _ = rwa_sweep
+    text = write_report(out, "html", tmp_path / "r.html").read_text(encoding="utf-8")
+    table = re.search(r'<table class="verdict">(.*?)</table>', text, re.S).group(1)
+    rows = re.findall(r"<tr>(.*?)</tr>", table, re.S)[1:]
+    assert len(rows) == 15 and "0 cases" not in text
+    cells = [html.unescape(c) for c in re.findall(r"<td[^>]*>(.*?)</td>", rows[0])]
+    assert re.fullmatch(r"RWA speed at \d+ rpm \| RWA speed at \d+ rpm", cells[-2]), cells
+    assert "15 instrument axes" in text

@@ -132,13 +132,15 @@ def run(args) -> int:
     out = args.out or Path("out") / slug(camp.name)
     if camp.cases:
         _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args, out)
-    if camp.cases:
-        n_workers = 0 if engine == "linear" else (
-            args.workers if args.workers is not None else os.cpu_count() or 1)
-        where = f"on {args.scheduler}" if args.scheduler else (
-            f"{n_workers} worker{'s' * (n_workers != 1)}" if n_workers else "in this process")
-        stage(f"campaign {camp.name!r}: {len(camp.cases)} cases ({engine} engine, {where}) "
-              f"into {shown(out)}")
+    n_workers = 0 if engine == "linear" else (
+        args.workers if args.workers is not None else os.cpu_count() or 1)
+    where = f"on {args.scheduler}" if args.scheduler else (
+        f"{n_workers} worker{'s' * (n_workers != 1)}" if n_workers else "in this process")
+    work = [f"{len(camp.cases)} cases"] if camp.cases else []
+    work += [f"{len(camp.wheel_sweeps)} wheel sweep{'s' * (len(camp.wheel_sweeps) != 1)}"
+             ] if camp.wheel_sweeps else []
+    stage(f"campaign {camp.name!r}: {', '.join(work) or 'nothing to run'} ({engine} engine, "
+          f"{where}) into {shown(out)}")
     try:
         res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                            progress=False if args.quiet else None)
@@ -147,9 +149,10 @@ def run(args) -> int:
         return 128 + exc.signum
     for label, why in res.rerun.items():
         print(f"  case {label!r} not trusted ({why}); running it again", file=sys.stderr)
-    print(f"{res.n_cases} cases: {res.n_run} run, {res.n_skipped} already finished, "
-          f"{res.n_failed} failed ({engine} engine); cases in {out / 'summary.csv'}, "
-          f"budget in {out / 'budget.csv'}")
+    if res.n_cases:
+        print(f"{res.n_cases} cases: {res.n_run} run, {res.n_skipped} already finished, "
+              f"{res.n_failed} failed ({engine} engine); cases in {out / 'summary.csv'}, "
+              f"budget in {out / 'budget.csv'}")
     for line in budget_lines(out / "summary.parquet"):
         print(line)
     for label, err in res.failures.items():
@@ -176,6 +179,8 @@ def run(args) -> int:
         path = run_wheel_sweeps(camp, out, runner if engine == "linear" else None,
                                 progress=lambda text: print(f"  {text}"))
         print(f"wheel sweeps: {path} (worst speeds in {out / 'wheel_sweeps_worst.csv'})")
+        for line in wheel_lines(out / "wheel_sweeps_worst.csv"):
+            print(line)
     if camp.uncertainty:
         # from 40 samples on, one worker per CPU (each closes its own loops) unless
         # --workers says otherwise
@@ -215,6 +220,47 @@ def run(args) -> int:
               + (f", {out / 'campaign.mat'} and cases/*/results.mat" if args.format == "mat"
                  else ", cases/*/results.csv"))
     return min(res.n_failed, 100)
+
+
+def wheel_lines(worst_csv, limit: int = 20) -> list:
+    """The worst wheel speed of each instrument axis, per configuration, as lines.
+
+    Parameters
+    ----------
+    worst_csv : path-like
+        The campaign's ``wheel_sweeps_worst.csv``.
+    limit : int
+        Instrument-axis lines at most (the rest are counted).
+
+    Returns
+    -------
+    list of str
+        Empty when the file is missing or empty.
+    """
+    import csv
+
+    try:
+        with open(worst_csv, newline="", encoding="utf-8") as fh:
+            rows = list(csv.DictReader(fh))
+    except OSError:
+        return []
+    lines: dict = {}
+    for r in rows:
+        lines.setdefault((r["sweep"], r["instrument"], r["axis"]), []).append(r)
+    if not lines:
+        return []
+    first = rows[0]
+    out = [f"worst wheel speed per axis ({first['metric']} over {float(first['window']):g} s, "
+           f"{first['unit']}; requirement in brackets):"]
+    for (sweep, inst, axis), rs in list(lines.items())[:limit]:
+        req = rs[0]["requirement"]
+        cells = [f"{r['configuration']} {float(r['value']):.3g} at "
+                 f"{float(r['worst_rpm']):.0f} rpm" for r in rs]
+        out.append(f"  {inst} {axis}: " + " | ".join(cells)
+                   + (f"  [{float(req):.3g}]" if req not in ("", "nan") else ""))
+    if len(lines) > limit:
+        out.append(f"  ... {len(lines) - limit} more lines in {worst_csv}")
+    return out
 
 
 def budget_lines(summary_path, limit: int = 20) -> list:

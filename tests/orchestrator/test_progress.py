@@ -88,16 +88,16 @@ def test_the_interval_from_the_environment_is_capped_at_30_s(monkeypatch):
 
 
 def test_a_long_campaign_logged_to_a_file_has_no_gap_longer_than_the_interval(tmp_path):
-    """Two cases of 2.5 s each, stderr to a file, lines due every 0.5 s: the file is
+    """Two cases of 4 s each, stderr to a file, lines due every 0.5 s: the file is
     watched while the command runs and no two lines (nor the last line and the end) are
-    more than 1.5 s apart, which only the clock thread makes true (a case ends only
-    every 2.5 s).  The interval is the production one scaled down by the environment."""
+    more than 2.5 s apart (the interval and room for a loaded machine), which only the
+    clock thread makes true (a case ends only every 4 s).  The interval is the production one scaled down by the environment."""
     import tomli_w
 
     from tests.orchestrator.test_campaign import campaign_data
 
     path = tmp_path / "c.toml"
-    path.write_text(tomli_w.dumps(campaign_data(sleep=2.5, n_events=1)))
+    path.write_text(tomli_w.dumps(campaign_data(sleep=4.0, n_events=1)))
     err = tmp_path / "stderr.log"
     root = Path(__file__).resolve().parents[2]
     env = {**os.environ, "JITTERFMU_LOG_EVERY": "0.5"}
@@ -120,7 +120,7 @@ def test_a_long_campaign_logged_to_a_file_has_no_gap_longer_than_the_interval(tm
     assert text.startswith("jitterfmu: campaign 'synthetic': 2 cases"), text
     assert "campaign: 0/2 cases" in text and "campaign: 1/2 cases" in text
     gaps = np.diff(stamps + [end])
-    assert gaps.max() < 1.5, (gaps, text)
+    assert gaps.max() < 2.5, (gaps, text)
     assert "budget (" in out        # it ends with the numbers the user came for
 
 

@@ -7,14 +7,14 @@ from __future__ import annotations
 import math
 
 from ..analysis.uncertainty import DISTRIBUTIONS, KINDS, Distribution, Uncertain
+from ..schema import keys
 from .spec_base import ENGINES, CampaignError, check_table_keys
 
 __all__ = ["parse_uncertainty"]
 
-_UNCERTAINTY_KEYS = ("samples", "max_samples", "seed", "confidence", "assurance",
-                     "parameters", "engine")
-_PARAMETER_KEYS = ("name", "kind", "distribution", "low", "high", "mean", "std", "median",
-                   "sigma", "instances", "per_mode", "band")
+# the key reference's (orchestrator.schema)
+_UNCERTAINTY_KEYS = keys("[uncertainty]")
+_PARAMETER_KEYS = keys("[[uncertainty.parameters]]")
 
 
 def parse_uncertainty(table, fmus: dict):

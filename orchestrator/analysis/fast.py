@@ -213,12 +213,8 @@ class FastResponse(SteadyState):
         ``h_p = C M^(p-1) N`` (column Krylov of the channels not built before)."""
         miss = [int(c) for c in active if int(c) not in t.cols]
         if miss:
-            L, s, c = t.L, t.M.shape[0], len(miss)
-            # column Krylov M^q N, q = 0 .. L-1, by doubling (as the rows in _type)
-            K = np.empty((s, L, c))
-            K[:, 0] = t.N[:, miss]
-            for P, (lo, hi) in zip(t.powers, _doubling(L)):
-                K[:, lo:hi] = (P @ K[:, :hi - lo].reshape(s, -1)).reshape(s, hi - lo, c)
+            L, s, c = t.L, t.N.shape[0], len(miss)
+            K = self._column_krylov(t, miss)
             h = np.empty((L, t.live.size, c))
             h[0] = t.D[:, miss]
             if L > 1:
@@ -228,6 +224,15 @@ class FastResponse(SteadyState):
         G = np.stack([t.cols[int(c)][0] for c in active], axis=-1)
         h = np.stack([t.cols[int(c)][1] for c in active], axis=-1)
         return G, h
+
+    def _column_krylov(self, t: _RunType, miss) -> np.ndarray:
+        """``M^q N`` of the channels ``miss``, ``(s, L, c)``, by doubling (as the rows)."""
+        L, s, c = t.L, t.N.shape[0], len(miss)
+        K = np.empty((s, L, c))
+        K[:, 0] = t.N[:, miss]
+        for P, (lo, hi) in zip(t.powers, _doubling(L)):
+            K[:, lo:hi] = (P @ K[:, :hi - lo].reshape(s, -1)).reshape(s, hi - lo, c)
+        return K
 
     def prepare(self, channels=None) -> "FastResponse":
         """Build every run type and its input side for ``channels`` (default every

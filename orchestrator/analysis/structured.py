@@ -1,0 +1,504 @@
+"""The fast path on the structure it is given: modal 2x2 blocks plus low-rank coupling.
+
+A reduced structure steps its modes as independent 2x2 blocks (:mod:`structfmu.discrete`)
+and its static Ritz block as one dense block whose damping is proportional (so one fixed
+orthogonal rotation splits it into 2x2 blocks too).  Everything else of a closed loop
+(amplifiers, controllers, ACS, held outputs, the accelerometer filter) is a few states
+that read the structure through its outputs and write it through its inputs.  In the
+basis ``x = Q x~`` (the modes' ``(q, v)`` pairs first, Ritz pairs rotated, the other
+states after them) every tick map of a loop's memory state is::
+
+    M = blockdiag(2x2 blocks) + [Gamma; 0] Lu + [0; I] MR  =  Bd + U W
+
+``Gamma`` (pair states x structure inputs) the ZOH input rows of the modes, ``Lu`` the
+structure's held inputs after the tick as a function of the memory state (what the
+master sets from the other instances' outputs), ``MR`` the rows of the other states.  A
+product with ``M`` costs ``4 n_pairs`` for the blocks plus ``(n_in + n_rest) s`` for the
+coupling instead of ``s^2``.
+
+:class:`ModalLoop` finds this form once for a compiled nominal loop
+(:class:`~orchestrator.analysis.fast.FastResponse`) and checks it against the loop's own
+tick maps.  :meth:`ModalLoop.sample` is a Monte Carlo sample's loop: its structure block
+(perturbed modal frequencies and damping) changes only the modes' 2x2 blocks and input
+rows and the filter rows, which are patched into the nominal form; nothing of the loop
+is relinearised.  The :class:`StructuredResponse` it returns is a ``FastResponse``
+whose run types (``M^L``, the row Krylov products ``C M^q``, the column Krylov products
+``M^q N`` and Markov parameters) come from block-wise recursions: ``M^L`` of the pairs the
+coupling never reads is their own 2x2 power, the rest by recursion or, where the
+coupling is dense, by squaring (the cheaper of the two, counted in flops).  Its records
+equal the dense engine's to round-off (tested on the truss and the EOS loops).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .blocks import AnalysisError
+from .fast import FastResponse, _RunType
+from .fastparts import _power, _powers, _tick_map
+
+__all__ = ["ModalLoop", "StructuredResponse", "StructureRefused", "modal_loop", "respond"]
+
+# the structured form must rebuild the loop's own tick maps to this fraction of their
+# largest entry (the Ritz rotation leaves round-off off its 2x2 blocks: 2e-15 on EOS)
+_FORM_TOL = 1e-11
+# proportional damping of the Ritz block: V^T D V diagonal to this fraction
+_PROPORTIONAL_TOL = 1e-10
+
+
+class StructureRefused(AnalysisError):
+    """A loop whose tick maps are not modal blocks plus low-rank coupling."""
+
+
+def _pair_power(a, L: int):
+    """``a^L`` of a stack of 2x2 blocks ``a`` (n, 2, 2), by squaring."""
+    out = np.broadcast_to(np.eye(2), a.shape).copy()
+    sq = a
+    while L:
+        if L & 1:
+            out = sq @ out
+        L >>= 1
+        if L:
+            sq = sq @ sq
+    return out
+
+
+class _Form:
+    """One tick map as ``Bd + U W`` in the basis ``x = Q x~`` (see the module docstring).
+
+    Attributes: ``a`` (n_pairs, 2, 2) the blocks, ``gamma`` (2 n_pairs, k_in) the pairs'
+    input rows, ``W`` (k_in + n_rest, s) the coupling rows (``Lu`` over ``MR``), ``N``
+    (s, m) the input columns, ``n_p`` the pair states."""
+
+    __slots__ = ("a", "gamma", "W", "N", "n_p", "k_in")
+
+    def __init__(self, a, gamma, W, N):
+        self.a, self.gamma, self.W, self.N = a, gamma, W, N
+        self.n_p = 2 * a.shape[0]
+        self.k_in = gamma.shape[1]
+
+    @property
+    def s(self) -> int:
+        return self.W.shape[1]
+
+    def dense(self) -> np.ndarray:
+        """The tick map ``(s, s)`` itself."""
+        n_p, s = self.n_p, self.s
+        M = np.zeros((s, s))
+        M[:n_p] = self.gamma @ self.W[:self.k_in]
+        M[n_p:] = self.W[self.k_in:]
+        i = np.arange(0, n_p, 2)
+        M[i, i] += self.a[:, 0, 0]
+        M[i, i + 1] += self.a[:, 0, 1]
+        M[i + 1, i] += self.a[:, 1, 0]
+        M[i + 1, i + 1] += self.a[:, 1, 1]
+        return M
+
+    def right(self, X: np.ndarray) -> np.ndarray:
+        """``M X`` for ``X`` (s, c)."""
+        n_p, a = self.n_p, self.a
+        Z = self.W @ X
+        Y = np.empty_like(X)
+        q, v = X[0:n_p:2], X[1:n_p:2]
+        Y[0:n_p:2] = a[:, 0, 0, None] * q + a[:, 0, 1, None] * v
+        Y[1:n_p:2] = a[:, 1, 0, None] * q + a[:, 1, 1, None] * v
+        Y[:n_p] += self.gamma @ Z[:self.k_in]
+        Y[n_p:] = Z[self.k_in:]
+        return Y
+
+    def left(self, O: np.ndarray) -> np.ndarray:
+        """``O M`` for ``O`` (r, s)."""
+        n_p, a = self.n_p, self.a
+        coef = np.empty((O.shape[0], self.W.shape[0]))
+        coef[:, :self.k_in] = O[:, :n_p] @ self.gamma
+        coef[:, self.k_in:] = O[:, n_p:]
+        Y = coef @ self.W
+        q, v = O[:, 0:n_p:2], O[:, 1:n_p:2]
+        Y[:, 0:n_p:2] += q * a[:, 0, 0] + v * a[:, 1, 0]
+        Y[:, 1:n_p:2] += q * a[:, 0, 1] + v * a[:, 1, 1]
+        return Y
+
+    def step_cost(self) -> float:
+        """Flops of one product with one vector."""
+        return 2.0 * self.W.size + 2.0 * self.gamma.size + 6.0 * self.n_p
+
+    def power(self, L: int) -> np.ndarray:
+        """``M^L`` (s, s): the pairs no coupling row reads by their own 2x2 power, the
+        others by ``L`` products, or all by squaring where that costs fewer flops."""
+        s, n_p = self.s, self.n_p
+        read = np.any(self.W[:, :n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
+        cols = np.concatenate([np.flatnonzero(np.repeat(read, 2)), np.arange(n_p, s)])
+        squaring = (L.bit_length() + bin(L).count("1") - 2) * 2.0 * s ** 3
+        if cols.size * L * self.step_cost() > squaring:
+            M = self.dense()
+            return _power(M, L, _powers(M, L))
+        out = np.zeros((s, s))
+        free = np.flatnonzero(~read)
+        if free.size:
+            P = _pair_power(self.a[free], L)
+            i = 2 * free
+            out[i, i], out[i, i + 1] = P[:, 0, 0], P[:, 0, 1]
+            out[i + 1, i], out[i + 1, i + 1] = P[:, 1, 0], P[:, 1, 1]
+        X = np.zeros((s, cols.size))
+        X[cols, np.arange(cols.size)] = 1.0
+        for _ in range(L):
+            X = self.right(X)
+        out[:, cols] = X
+        return out
+
+
+class ModalLoop:
+    """A compiled loop's tick maps as modal 2x2 blocks plus low-rank coupling.
+
+    Parameters
+    ----------
+    fr : FastResponse
+        The nominal compiled loop (its memory state, runs and records).
+
+    Raises
+    ------
+    StructureRefused
+        With one sentence when the loop has not one reduced structure, or its tick maps
+        are not that form (checked against them).
+    """
+
+    def __init__(self, fr: FastResponse):
+        self.fr = fr
+        lin = fr.lin
+        names = [n for n, b in lin.blocks.items()
+                 if b.kind == "structure" and b.model is not None]
+        if len(names) != 1:
+            raise StructureRefused(f"the structured engine needs one reduced structure in "
+                                   f"the loop; it has {len(names)}: the dense engine runs it")
+        self.name = name = names[0]
+        block = lin.blocks[name]
+        model = block.model
+        self.block = block
+        sx, su, _ = lin.slots[name]
+        S = fr._S
+        col = {int(j): c for c, j in enumerate(S)}
+        n_m, n_r = model.n_modes, model.n_ritz
+        at = [col.get(sx.start + i) for i in range(block.n)]
+        pairs, rot = [], []          # pairs: (col q, col v) per modal mode
+        for i in range(n_m):
+            if at[i] is not None and at[n_m + i] is not None:
+                pairs.append((at[i], at[n_m + i]))
+        ritz = list(range(2 * n_m, 2 * n_m + 2 * n_r))
+        V = None
+        if n_r and all(at[i] is not None for i in ritz):
+            w, V = np.linalg.eigh(model.K_oo)
+            Dd = V.T @ model.D_oo @ V
+            off = np.abs(Dd - np.diag(np.diag(Dd))).max()
+            if off > _PROPORTIONAL_TOL * max(np.abs(np.diag(Dd)).max(), 1e-300):
+                V = None
+        used = {c for p in pairs for c in p}
+        if V is not None:
+            used |= {at[i] for i in ritz}
+        rest = [c for c in range(S.size) if c not in used]
+        s, n_p = S.size, 2 * len(pairs) + (2 * n_r if V is not None else 0)
+        Q = np.zeros((s, s))
+        for p, (cq, cv) in enumerate(pairs):
+            Q[cq, 2 * p], Q[cv, 2 * p + 1] = 1.0, 1.0
+        if V is not None:
+            o = 2 * len(pairs)
+            qo = np.array([at[i] for i in ritz[:n_r]])
+            vo = np.array([at[i] for i in ritz[n_r:]])
+            Q[np.ix_(qo, o + 2 * np.arange(n_r))] = V
+            Q[np.ix_(vo, o + 2 * np.arange(n_r) + 1)] = V
+        Q[rest, n_p + np.arange(len(rest))] = 1.0
+        self.Q, self.n_p, self.rest = Q, n_p, np.asarray(rest, int)
+        self.n_modes_paired = len(pairs)
+        self.pairs = np.asarray(pairs, int).reshape(-1, 2)
+        self.ritz_V = V
+        # the structure's own rows among the memory state: in the basis, the pairs and
+        # the structure states left among the others (the filter, a half-kept mode)
+        local = {c: i for i, c in enumerate(at) if c is not None}
+        self._struct_rest = np.array([j for j, c in enumerate(rest) if c in local], int)
+        self._struct_rest_state = np.array([local[rest[j]] for j in self._struct_rest], int)
+        self._struct_cols = np.array(sorted(local), int)            # memory columns
+        self._struct_state = np.array([local[c] for c in self._struct_cols], int)
+        # per signature: the nominal tick map and the structure's inputs after the tick
+        first = {}
+        for k in range(fr.P):
+            first.setdefault(fr._signature(k), k)
+        order = list(lin.blocks)
+        self._due = {sig: bool(sig[order.index(name)]) for sig in first}
+        self._base = {}
+        worst = 0.0
+        for sig, k in first.items():
+            Mf, Nf = _tick_map(fr, k, S)
+            Lu, Nu = Mf[su], Nf[su]
+            live = np.flatnonzero(np.any(Lu != 0.0, axis=1))      # the coupling
+            drive = np.flatnonzero(np.any(Nu != 0.0, axis=1))     # the sources
+            Mt = Q.T @ Mf[S] @ Q
+            base = {"Mt": Mt, "Nt": Q.T @ Nf[S], "Lu": Lu[live] @ Q, "Nu": Nu[drive],
+                    "live": live, "drive": drive, "C": fr._maps[sig][2] @ Q}
+            self._base[sig] = base
+            form = self._form(sig, block)
+            err = np.abs(form.dense() - Mt).max() / max(np.abs(Mt).max(), 1e-300)
+            worst = max(worst, err)
+        self.form_error = worst
+        if worst > _FORM_TOL:
+            raise StructureRefused(
+                f"the tick maps of the loop are not modal 2x2 blocks plus coupling through "
+                f"{name!r}'s inputs (rebuilt to {worst:.1e} of their largest entry): the "
+                "dense engine runs it")
+
+    # ------------------------------------------------------------------ forms
+    def _form(self, sig, block) -> _Form:
+        """The structured tick map of signature ``sig`` with the structure ``block``."""
+        base, Q, n_p = self._base[sig], self.Q, self.n_p
+        Mt, live = base["Mt"], base["live"]
+        k_in = live.size
+        rest = self.rest
+        W = np.empty((k_in + rest.size, Mt.shape[0]))
+        W[:k_in] = base["Lu"]
+        W[k_in:] = Mt[n_p:]
+        N = base["Nt"].copy()
+        n_pairs = n_p // 2
+        a = np.zeros((n_pairs, 2, 2))
+        gamma = np.zeros((n_p, k_in))
+        if not self._due[sig]:   # the structure holds: identity on its pairs
+            a[:] = np.eye(2)
+            N[:n_p] = 0.0
+            return _Form(a, gamma, W, N)
+        A, B = block.A, block.B
+        n_m, nm = self.n_modes_paired, block.model.n_modes
+        # the modes: a11 a12 / a21 a22 from the diagonals of the step matrix
+        qi = self._paired_modes()
+        vi = nm + qi
+        a[:n_m, 0, 0], a[:n_m, 0, 1] = A[qi, qi], A[qi, vi]
+        a[:n_m, 1, 0], a[:n_m, 1, 1] = A[vi, qi], A[vi, vi]
+        gamma[0:2 * n_m:2] = B[qi][:, live]
+        gamma[1:2 * n_m:2] = B[vi][:, live]
+        if self.ritz_V is not None:   # the same for every sample (checked)
+            a[n_m:], gamma[2 * n_m:] = self._ritz(sig)
+        drive = base["drive"]
+        N[0:2 * n_m:2] = B[qi][:, drive] @ base["Nu"]
+        N[1:2 * n_m:2] = B[vi][:, drive] @ base["Nu"]
+        # structure states among the others (the filter): their rows patched
+        if self._struct_rest.size:
+            rows = self._struct_rest_state
+            cols = self._struct_cols
+            R = np.zeros((rows.size, Q.shape[0]))
+            R[:, cols] = A[rows][:, self._struct_state]
+            W[k_in + self._struct_rest] = R @ Q + B[rows][:, live] @ base["Lu"]
+            N[n_p + self._struct_rest] = B[rows][:, drive] @ base["Nu"]
+        return _Form(a, gamma, W, N)
+
+    def _ritz(self, sig) -> tuple:
+        """The rotated Ritz block's 2x2 blocks and input rows (kept per signature)."""
+        got = self._base[sig].get("ritz")
+        if got is None:
+            A, B, live = self.block.A, self.block.B, self._base[sig]["live"]
+            V, nm, nr = self.ritz_V, self.block.model.n_modes, self.block.model.n_ritz
+            o = 2 * nm
+            Phi = A[o:o + 2 * nr, o:o + 2 * nr]
+            R = np.empty((nr, 2, 2))
+            for i, rows in enumerate((Phi[:nr], Phi[nr:])):   # V^T Phi_ij V, diagonal
+                for j in range(2):
+                    R[:, i, j] = np.einsum("lk,lm,mk->k", V, rows[:, j * nr:(j + 1) * nr], V)
+            Bo = B[o:o + 2 * nr][:, live]
+            g = np.empty((2 * nr, live.size))
+            g[0::2], g[1::2] = V.T @ Bo[:nr], V.T @ Bo[nr:]
+            got = self._base[sig]["ritz"] = (R, g)
+        return got
+
+    def _paired_modes(self) -> np.ndarray:
+        """The modal modes kept as pairs (both their states in the memory state)."""
+        if not hasattr(self, "_modes"):
+            sx = self.fr.lin.slots[self.name][0]
+            S = self.fr._S
+            self._modes = np.asarray(S[self.pairs[:, 0]] - sx.start, int)
+        return self._modes
+
+    def sample(self, block, lin=None) -> "StructuredResponse":
+        """The loop with the structure ``block`` (a sample's perturbed modes).
+
+        Parameters
+        ----------
+        block : Block
+            :func:`~orchestrator.analysis.blocks.structure_block` of the perturbed
+            model: the same outputs (``C``, ``D``) and Ritz block as the nominal one.
+        lin : LinearScenario, optional
+            The sample's loop (default the nominal one with ``block``).
+
+        Returns
+        -------
+        StructuredResponse
+
+        Raises
+        ------
+        StructureRefused
+            When ``block`` changes more than the modes (its output rows, its Ritz block).
+        """
+        b0 = self.block
+        used = self._used_outputs()
+        if (block.A.shape != b0.A.shape or not np.array_equal(block.C[used], b0.C[used])
+                or not np.array_equal(block.D[used], b0.D[used])):
+            raise StructureRefused(f"the sample's structure {block.name!r} changes its "
+                                   "output rows: the dense engine runs it")
+        nm, nr = b0.model.n_modes, b0.model.n_ritz
+        o = slice(2 * nm, 2 * nm + 2 * nr)
+        if nr and not (np.array_equal(block.A[o, o], b0.A[o, o])
+                       and np.array_equal(block.B[o], b0.B[o])):
+            raise StructureRefused(f"the sample's structure {block.name!r} changes its "
+                                   "static Ritz block: the dense engine runs it")
+        lin = self.fr.lin.with_block(block) if lin is None else lin
+        forms = {sig: self._form(sig, block) for sig in self._base}
+        return StructuredResponse(self, lin, forms)
+
+    def _used_outputs(self) -> np.ndarray:
+        """The structure's outputs the loop reads or records (the others may change)."""
+        if not hasattr(self, "_used"):
+            lin, fr = self.fr.lin, self.fr
+            names = {lin.blocks[self.name].outputs[i] for _, _, src, i, _ in lin._conns
+                     if src == self.name}
+            names |= {r.partition(".")[2] for r in list(fr.refs) + [c[0] for c in fr._checks]
+                      if r.partition(".")[0] == self.name}
+            self._used = np.array([i for i, o in enumerate(self.block.outputs) if o in names],
+                                  int)
+        return self._used
+
+    def nominal(self) -> "StructuredResponse":
+        """The nominal loop in the structured form."""
+        return self.sample(self.block, self.fr.lin)
+
+
+class StructuredResponse(FastResponse):
+    """A :class:`FastResponse` whose run types come from the structured tick maps.
+
+    Built by :meth:`ModalLoop.sample`; its memory state is in the loop's basis ``x~``
+    (records, limits and poles are those of the dense loop)."""
+
+    def __init__(self, loop: ModalLoop, lin, forms: dict):   # noqa: D107 (no super)
+        base = loop.fr
+        for key in ("refs", "_checks", "_zero", "_computed", "_check_col", "inputs",
+                    "_in_off", "m", "P", "_runs", "_S", "n_memory"):
+            setattr(self, key, getattr(base, key))
+        self.lin = lin
+        self.loop = loop
+        self._forms = forms
+        self._maps = _LazyMaps(self)
+        self._types = {}
+        self._form_of = {}
+        self._schur = None
+        self._kernels = {}
+
+    def _type(self, sig, L: int) -> _RunType:
+        key = (sig, L)
+        t = self._types.get(key)
+        if t is not None:
+            return t
+        f = self._forms[sig]
+        C = self.loop._base[sig]["C"]
+        D = self.fr_D(sig)
+        live = np.flatnonzero(np.any(C != 0, axis=1) | np.any(D != 0, axis=1))
+        O = np.empty((L, live.size, f.s))
+        O[0] = C[live]
+        for q in range(1, L):
+            O[q] = f.left(O[q - 1])
+        t = _RunType(L, f.power(L), O.reshape(L * live.size, f.s), live, None, f.N,
+                     np.ascontiguousarray(D[live]), {}, ())
+        self._types[key] = t
+        self._form_of[id(t)] = f   # the run types live as long as the loop
+        return t
+
+    def fr_D(self, sig) -> np.ndarray:
+        """Feedthrough of the recorded rows for the ticks of ``sig``."""
+        return self.loop.fr._maps[sig][3]
+
+    def _column_krylov(self, t: _RunType, miss) -> np.ndarray:
+        """``M^q N`` of the channels ``miss``, ``(s, L, c)``: block-wise recursion."""
+        f = self._form_of[id(t)]
+        K = np.empty((f.s, t.L, len(miss)))
+        K[:, 0] = t.N[:, miss]
+        for q in range(1, t.L):
+            K[:, q] = f.right(K[:, q - 1])
+        return K
+
+
+class _LazyMaps(dict):
+    """``_maps`` of a structured loop, ``(M, N, C, D)`` per signature in its basis,
+    made dense on first use (the run types never need them)."""
+
+    def __init__(self, fr: StructuredResponse):
+        super().__init__()
+        self._fr = fr
+
+    def __missing__(self, sig):
+        f = self._fr._forms[sig]
+        got = (f.dense(), f.N, self._fr.loop._base[sig]["C"], self._fr.fr_D(sig))
+        self[sig] = got
+        return got
+
+
+
+# the structured form is used where one product with it costs at most this fraction of a
+# dense one (below, the recursions and the squaring cost the same; above, dense wins)
+_PAYS = 0.5
+
+
+def modal_loop(fr: FastResponse):
+    """The structured form of the compiled loop ``fr`` (kept on it), or None.
+
+    Parameters
+    ----------
+    fr : FastResponse
+        A nominal compiled loop.
+
+    Returns
+    -------
+    ModalLoop or None
+        None where the loop is not modal blocks plus low-rank coupling, or where that
+        form does not pay; ``fr.structure_reason`` then says why in one sentence.
+    """
+    if not hasattr(fr, "_modal"):
+        fr._modal, fr.structure_reason = None, None
+        try:
+            loop = ModalLoop(fr)
+        except StructureRefused as exc:
+            fr.structure_reason = str(exc)
+        else:
+            ratio = max(f.step_cost() / (2.0 * f.s ** 2)
+                        for f in (loop._form(sig, loop.block) for sig in loop._base))
+            if ratio > _PAYS:
+                fr.structure_reason = (
+                    f"the coupling of {loop.name!r} with the rest of the loop is not low "
+                    f"rank (a product with the structured map costs {ratio:.0%} of a dense "
+                    "one): the dense engine runs it")
+            else:
+                fr._modal = loop
+    return fr._modal
+
+
+def respond(lin, refs, like: FastResponse) -> FastResponse:
+    """A sample of ``like``'s loop: structured where only its structure's modes differ.
+
+    Parameters
+    ----------
+    lin : LinearScenario
+        The sample's loop: ``like``'s with a perturbed structure block
+        (:meth:`~orchestrator.analysis.LinearScenario.with_block`), or with other
+        changes (a controller's gain), which the dense engine runs.
+    refs : sequence of str
+        Outputs to record.
+    like : FastResponse
+        The nominal compiled loop.
+
+    Returns
+    -------
+    FastResponse
+        A :class:`StructuredResponse` (:meth:`ModalLoop.sample`) where the structured
+        form applies and pays (:func:`modal_loop`), else ``FastResponse(lin, refs,
+        like=like)``: the same records either way, to round-off.
+    """
+    loop = modal_loop(like)
+    if loop is not None and tuple(refs) == like.refs:
+        changed = [n for n, b in lin.blocks.items() if b is not like.lin.blocks.get(n)]
+        if set(changed) <= {loop.name} and lin.blocks.keys() == like.lin.blocks.keys():
+            try:
+                return loop.sample(lin.blocks[loop.name], lin)
+            except StructureRefused:
+                pass
+    return FastResponse(lin, refs, like=like)

@@ -1,0 +1,227 @@
+"""The structured linear engine (orchestrator.analysis.structured) against the dense one.
+
+Reference: the dense engine (:class:`~orchestrator.analysis.fast.FastResponse` compiled on
+the sample's own loop), an independent computation of the same records from the
+lifted tick maps (itself checked against the tick-by-tick map and the co-simulation in
+test_linear_engine.py).  Records to 1e-12 of each record's peak, the rails reached and
+the unstable poles the same, on nominal, perturbed and unstable samples of the EOS
+budget (isolation off and on) and of the ten-bay truss.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+
+import numpy as np
+import pytest
+
+from orchestrator.analysis import structured
+from orchestrator.analysis.blocks import structure_block
+from orchestrator.analysis.fast import FastResponse
+from orchestrator.analysis.structured import (ModalLoop, StructuredResponse,
+                                              StructureRefused, modal_loop, respond)
+from orchestrator.analysis.sweep import unstable_poles
+from orchestrator.campaign import LinearRunner, load_campaign
+from orchestrator.experiments import eos
+from orchestrator.experiments.eos import CAMPAIGN as EOS_CAMPAIGN
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def eos_loops(suite_fmu_dir):
+    """The EOS budget's nominal loops (RWA case), isolation off and on, and the runner."""
+    fmu_dir = eos.ensure_fmus(suite_fmu_dir)
+    camp = load_campaign(EOS_CAMPAIGN)
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
+    cases = {c.configuration: c for c in camp.cases if c.event == "RWA"}
+    return {cf: runner.compiled(c.scenario) for cf, c in cases.items()}, runner, cases
+
+
+@pytest.fixture(scope="module")
+def truss_loop(suite_fmus, suite_fmu_dir):
+    from tests.orchestrator.test_truss10_campaign import CAMPAIGN, FMUS
+    suite_fmus(*FMUS)
+    camp = load_campaign(CAMPAIGN)
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=suite_fmu_dir)
+    return runner.compiled(camp.cases[0].scenario)
+
+
+def _sample(lin, rng, freq=0.05, damp=(0.5, 2.0), mode=None, factor=None):
+    """``lin`` with its structure's modes perturbed as a Monte Carlo sample does."""
+    name = next(n for n, b in lin.blocks.items() if b.kind == "structure")
+    b = lin.blocks[name]
+    n = b.model.n_modes
+    f_w = rng.uniform(1 - freq, 1 + freq, n)
+    f_z = rng.uniform(*damp, n)
+    if mode is not None:
+        f_w[mode], f_z[mode] = 1.0, factor
+    model = dataclasses.replace(b.model, omega=b.model.omega * f_w,
+                                modal_damping=b.model.modal_damping * f_w * f_z)
+    return lin.with_block(structure_block(model, name, b.period, b.period * lin.base,
+                                          b.feedthrough, blockwise=True))
+
+
+def _assert_same_records(got, want):
+    for g, w in zip(got, want, strict=True):
+        peak = np.maximum(np.nanmax(np.abs(w.values), axis=0), 1e-300)
+        assert np.array_equal(np.isnan(g.values), np.isnan(w.values))
+        assert np.nanmax(np.abs(g.values - w.values) / peak) < 1e-12
+        assert g.reached == w.reached
+
+
+@pytest.mark.parametrize("config", ["isolation off", "isolation on"])
+def test_the_form_rebuilds_the_eos_tick_maps(eos_loops, config):
+    """Modal 2x2 blocks (70 modes and the 69 rotated Ritz modes) plus coupling through
+    the structure's inputs and the other states rebuild every tick map of the loop to
+    round-off (the Ritz rotation's off-block round-off is all that is dropped); the
+    coupling is low rank (a product costs well under a dense one)."""
+    fr = eos_loops[0][config]
+    loop = modal_loop(fr)
+    assert isinstance(loop, ModalLoop), fr.structure_reason
+    assert loop.form_error < 1e-13
+    assert loop.n_p == 2 * (70 + 69)
+    for sig in loop._base:
+        f = loop._form(sig, loop.block)
+        assert f.step_cost() < 0.5 * 2 * f.s ** 2
+        # the products of the form are those of its dense map
+        rng = np.random.default_rng(0)
+        X, O = rng.standard_normal((f.s, 3)), rng.standard_normal((4, f.s))
+        M = f.dense()
+        np.testing.assert_allclose(f.right(X), M @ X, rtol=0, atol=1e-12 * np.abs(M @ X).max())
+        np.testing.assert_allclose(f.left(O), O @ M, rtol=0, atol=1e-12 * np.abs(O @ M).max())
+        for L in (1, 7, 99):
+            np.testing.assert_allclose(f.power(L), np.linalg.matrix_power(M, L), rtol=0,
+                                       atol=1e-12 * np.abs(np.linalg.matrix_power(M, L)).max())
+
+
+@pytest.mark.parametrize("config", ["isolation off", "isolation on"])
+def test_structured_records_equal_the_dense_engine_on_eos(eos_loops, config):
+    """Nominal and perturbed samples (frequencies +-5 %, damping x0.5-2 per mode): every
+    record of a batch (random sources on every channel) equal to the dense engine's to
+    1e-12 of its peak; with the Monte Carlo's bounded limits and skipped start too; the
+    rails reached and the unstable poles the same."""
+    fr = eos_loops[0][config]
+    rng = np.random.default_rng(1)
+    Ws = [rng.standard_normal((801, fr.m)) for _ in range(3)]
+    for i in range(3):
+        lin = fr.lin if i == 0 else _sample(fr.lin, rng)
+        got = respond(lin, fr.refs, fr)
+        assert isinstance(got, StructuredResponse)
+        want = FastResponse(lin, fr.refs, like=fr)
+        _assert_same_records(got.run_many(Ws, check=False), want.run_many(Ws, check=False))
+        kw = dict(check=False, bound_limits=True, start=300)
+        _assert_same_records(got.run_many(Ws, **kw), want.run_many(Ws, **kw))
+        assert unstable_poles(got) == unstable_poles(want) == []
+
+
+def test_unstable_samples_have_the_same_poles(eos_loops):
+    """The EOS loop with the ACS it had before its redesign (0.1 Hz on the rigid body)
+    takes damping from its 2.58 Hz mode: samples around that mode's threshold damping
+    are unstable or not, and the structured loop's poles outside the unit circle are
+    the dense loop's (verdict and values), its records too (a growing record)."""
+    _, runner, cases = eos_loops
+    old = copy.deepcopy(cases["isolation off"].scenario)
+    old["fmus"]["acs"]["parameters"].update(
+        bandwidth=0.1, notch_hz_x=0.0, lowpass_hz_x=0.0, lowpass_hz_y=0.0, lowpass_hz_z=0.0)
+    fr = runner.compiled(old)
+    f = fr.lin.blocks["structure"].model.frequencies_hz
+    mode = int(np.argmin(np.abs(f - 2.58)))
+    rng = np.random.default_rng(2)
+    verdicts = []
+    W = rng.standard_normal((801, fr.m))
+    for factor in np.linspace(0.6, 1.8, 9):
+        lin = _sample(fr.lin, rng, freq=0.0, damp=(1.0, 1.0), mode=mode, factor=factor)
+        got, want = respond(lin, fr.refs, fr), FastResponse(lin, fr.refs, like=fr)
+        assert isinstance(got, StructuredResponse)
+        pg, pw = unstable_poles(got), unstable_poles(want)
+        assert len(pg) == len(pw)
+        np.testing.assert_allclose(np.sort_complex(np.array(pg)),
+                                   np.sort_complex(np.array(pw)), rtol=1e-9)
+        verdicts.append(bool(pw))
+        _assert_same_records(got.run_many([W], check=False), want.run_many([W], check=False))
+    assert verdicts[0] and not verdicts[-1]     # both kinds among the samples
+
+
+def test_stability_verdicts_equal_eigenvalues_on_200_samples(eos_loops):
+    """200 samples of the isolation-on loop, every mode perturbed and the 146.95 Hz bus
+    mode's damping drawn around where the MISR struts destabilise it (x0.2-0.6 of its
+    nominal, the marginal samples of the shipped Monte Carlo): the verdict of the
+    structured loop is that of the dense loop's eigenvalues on every one."""
+    fr = eos_loops[0]["isolation on"]
+    f = fr.lin.blocks["structure"].model.frequencies_hz
+    mode = int(np.argmin(np.abs(f - 146.95)))
+    rng = np.random.default_rng(3)
+    agree, unstable = 0, 0
+    for factor in rng.uniform(0.2, 0.6, 200):
+        lin = _sample(fr.lin, rng, freq=0.01, damp=(0.9, 1.1), mode=mode, factor=factor)
+        a = bool(unstable_poles(respond(lin, fr.refs, fr)))
+        b = bool(unstable_poles(FastResponse(lin, fr.refs, like=fr)))
+        agree += a == b
+        unstable += b
+    assert agree == 200
+    assert 0 < unstable < 200     # near-marginal: both verdicts occur
+
+
+def test_truss_structured_equals_dense_and_is_not_chosen(truss_loop, monkeypatch):
+    """The ten-bay truss (6 modes, 2 Ritz vectors, two strain loops: 22 memory states)
+    is coupled on most of its states: a product with its structured map costs about
+    half a dense one, so the dense engine runs it and says why.  Forced, the structured
+    form gives the dense records all the same (runs of 1 and 3 ticks, nominal and
+    perturbed)."""
+    fr = truss_loop
+    got = respond(fr.lin, fr.refs, fr)
+    assert type(got) is FastResponse
+    assert "not low rank" in fr.structure_reason and "dense engine" in fr.structure_reason
+    monkeypatch.setattr(structured, "_PAYS", 1.0)
+    del fr._modal
+    rng = np.random.default_rng(4)
+    W = rng.standard_normal((401, fr.m))
+    for i in range(3):
+        lin = fr.lin if i == 0 else _sample(fr.lin, rng)
+        got = respond(lin, fr.refs, fr)
+        assert isinstance(got, StructuredResponse), fr.structure_reason
+        want = FastResponse(lin, fr.refs, like=fr)
+        _assert_same_records(got.run_many([W], check=False), want.run_many([W], check=False))
+        assert unstable_poles(got) == unstable_poles(want)
+    del fr._modal
+
+
+def test_a_sample_that_changes_more_than_the_modes_runs_dense(eos_loops):
+    """A structure whose output rows differ, or another block changed (a controller's
+    gain), is not a patch of the nominal form: refused in one sentence by the form, and
+    run by the dense engine through :func:`respond`."""
+    fr = eos_loops[0]["isolation on"]
+    loop = modal_loop(fr)
+    b = loop.block
+    moved = dataclasses.replace(b, C=b.C * 1.001)
+    with pytest.raises(StructureRefused, match="changes its output rows"):
+        loop.sample(moved)
+    got = respond(fr.lin.with_block(moved), fr.refs, fr)
+    assert type(got) is FastResponse
+    ctrl = fr.lin.controllers(active_only=True)[0]
+    assert type(respond(fr.lin.with_gain(ctrl, 0.9), fr.refs, fr)) is FastResponse
+
+
+def test_monte_carlo_samples_equal_with_either_engine(eos_loops, monkeypatch):
+    """Two samples of the shipped EOS Monte Carlo (12 events x 2 configurations, 8 s
+    records, metrics and statuses): the same numbers through the structured loops as
+    through the dense ones."""
+    from orchestrator.analysis.uncertainty import draw
+    from orchestrator.campaign import montecarlo as mcm
+
+    _, runner, _ = eos_loops
+    camp = load_campaign(EOS_CAMPAIGN, EOS_CAMPAIGN.parent / "eos_uncertainty.toml", 2)
+    ctx = mcm._setup(camp, runner)
+    lin0, structs, _ = ctx["base"][ctx["configs"][0]]
+    draws = draw(camp.uncertainty["parameters"], 2, camp.uncertainty["seed"],
+                 lin0.blocks[structs[0]].model.frequencies_hz)
+    v_s, st_s = mcm._evaluate(camp, runner, ctx, draws, [0, 1])
+    monkeypatch.setattr(structured, "_PAYS", 0.0)    # the dense engine everywhere
+    for cf in ctx["configs"]:
+        del ctx["base"][cf][2]._modal
+    v_d, st_d = mcm._evaluate(camp, runner, ctx, draws, [0, 1])
+    assert np.array_equal(st_s, st_d)
+    assert np.all(np.isfinite(v_d))
+    np.testing.assert_allclose(v_s, v_d, rtol=1e-10)

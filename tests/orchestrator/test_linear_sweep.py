@@ -336,3 +336,18 @@ def test_shipped_wheel_sweep_report_has_its_verdict(rwa_sweep, tmp_path):
     cells = [html.unescape(c) for c in re.findall(r"<td[^>]*>(.*?)</td>", rows[0])]
     assert re.fullmatch(r"RWA speed at \d+ rpm \| RWA speed at \d+ rpm", cells[-2]), cells
     assert "15 instrument axes" in text
+
+
+def test_wheel_sweep_campaign_never_says_it_verified_nothing(rwa_sweep, suite_fmu_dir,
+                                                             capsys):
+    """A campaign of wheel sweeps alone has no case to co-simulate: --verify says
+    nothing rather than 'verified 0 case(s) ...:' over an empty list."""
+    from orchestrator.cli import main
+    from orchestrator.experiments import eos
+
+    camp, out, _, _ = rwa_sweep
+    src = eos.CAMPAIGN.parent / "eos_rwa_sweep.toml"
+    assert main(["campaign", str(src), "--out", str(out), "--verify", "2", "--quiet",
+                 "--fmu-dir", str(eos.ensure_fmus(suite_fmu_dir))]) == 0
+    printed = capsys.readouterr().out
+    assert "wheel sweeps:" in printed and "verified" not in printed

@@ -250,6 +250,22 @@ def test_testbed_isolation(testbed, out):
     for k in ("mount3", "all_mounts"):
         assert red[k] == pytest.approx(lin[k], abs=1.0)
         assert res["paper_way_reduction_pct"][k] == pytest.approx(lin[k], abs=1.0)
+    # the instruments (testbed_instruments): the simulated jitter is below half a step
+    # of the optical scoring system (0.2 arcsec), so at this level it reads only its own
+    # quantisation; scaled to 1 arcsec (a linear system) it reads the reductions to a
+    # point.  The stacks' servo loop (assumed 100 Hz) lags the law: with the same gains
+    # it removes less at less margin (docs/eos_experiments.md gives the numbers)
+    inst = res["instruments"]
+    assert res["boresight_rms"]["off"]["before_arcsec_rms"] < 0.1
+    assert inst["oss_at_level"]["off_before_arcsec"] == pytest.approx(1.0, abs=0.05)
+    for k in ("mount3", "all_mounts"):
+        assert inst["oss_at_level"][k]["paper_way_pct"] == pytest.approx(
+            res["paper_way_reduction_pct"][k], abs=1.0)
+    assert inst["servo"]["reduction_pct"] < inst["analog_no_servo"]["reduction_pct"]
+    assert inst["servo"]["gain_margin_db"] < inst["analog_no_servo"]["gain_margin_db"]
+    # the servo changes the plant the law sees, not what the struts can do
+    assert inst["servo"]["upper_bound_pct"] == pytest.approx(res["upper_bound_pct"]["mount3"],
+                                                             abs=0.1)
     assert (out / "testbed-isolation.png").is_file()
 
 

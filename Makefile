@@ -38,12 +38,14 @@ demo: setup
 	$(VENV)/bin/jitterfmu reproduce eos-budget --out out/demo --workers 2
 	$(VENV)/bin/jitterfmu report out/demo/eos-budget-campaign
 
+# Two workers (a file's tests share one); the 15 slowest tests are listed at the end.
 test: setup
-	$(PY) -m pytest -q -n 2 --dist loadfile -m "not paper"   # two workers; a file's tests share one
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "not paper and not long" --durations=15
 
-# The paper's experiments and their designs at length (tests marked `paper`); CI runs both.
+# What must run long: the paper's experiments and their designs at length (marker
+# `paper`) and the tests of more than about 10 s (marker `long`); CI runs both targets.
 test-full: setup
-	$(PY) -m pytest -q -n 2 --dist loadfile -m paper
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "paper or long" --durations=15
 
 build: setup
 	$(VENV)/bin/jitterfmu build

@@ -36,6 +36,7 @@ def fmu_dir(suite_fmu_dir):
     return suite_fmu_dir
 
 
+@pytest.mark.long   # make test-full
 def test_truss_decay_through_the_cosimulation(tmp_path, fmu_dir, monkeypatch):
     import orchestrator.experiments.truss_decay as td
     res = td.run(tmp_path, quick=True, fmu_dir=fmu_dir)
@@ -65,6 +66,7 @@ def test_truss_decay_through_the_cosimulation(tmp_path, fmu_dir, monkeypatch):
         assert (tmp_path / fig).stat().st_size > 10_000
 
 
+@pytest.mark.long   # make test-full
 @pytest.mark.filterwarnings("ignore::orchestrator.cosim.UnconnectedInputWarning")
 def test_reproduce_runs_the_python_build_when_asked(tmp_path, fmu_dir, capsys):
     """jitterfmu reproduce --python-fmus runs the experiment on the Python twins: the

@@ -342,6 +342,7 @@ def test_fast_response_refuses_an_unknown_source(eos_pair):
         fr.input_matrix({"nope": np.zeros((3, 6))}, 2)
 
 
+@pytest.mark.long   # make test-full
 def test_linear_engine_on_the_truss_campaign(tmp_path, suite_fmus, suite_fmu_dir):
     """Sources at 4 ms in a 1 ms loop: the super-period is 64 ticks of runs of 1 and 3."""
     from orchestrator.campaign import ENGINES

@@ -144,6 +144,7 @@ def test_unstable_samples_have_the_same_poles(eos_loops):
     assert verdicts[0] and not verdicts[-1]     # both kinds among the samples
 
 
+@pytest.mark.long   # make test-full
 def test_stability_verdicts_equal_eigenvalues_on_200_samples(eos_loops):
     """200 samples of the isolation-on loop, every mode perturbed and the 146.95 Hz bus
     mode's damping drawn around where the MISR struts destabilise it (x0.2-0.6 of its

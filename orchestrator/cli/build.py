@@ -37,7 +37,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "none; a discrete law runs at its own Ts)")
     parser.add_argument("--force", action="store_true",
                         help="rebuild every FMU asked for (default: keep those in --out built "
-                        "from the same sources, content-keyed)")
+                        "from the same sources, content-keyed, and say which lack a win64 "
+                        "binary)")
     only = parser.add_mutually_exclusive_group()
     only.add_argument("--native", action="store_true",
                       help="only the native (C99) FMUs, into --out itself "
@@ -126,20 +127,24 @@ def _stale(args, out: Path, py_dir: Path) -> tuple[list, list]:
     if args.force:
         return names, names
     py_ok = [] if args.native else current_fmus(py_dir, names, "python")
-    native_ok = [] if args.python else [
-        n for n in current_fmus(out, names, "native") if _has_binaries(out / f"{n}.fmu",
-                                                                       mingw_compiler())]
+    native_ok = [] if args.python else current_fmus(out, names, "native")
     kept = sorted(set(py_ok) | set(native_ok))
     todo_py = [n for n in names if n not in py_ok]
     todo_native = [n for n in names if n not in native_ok]
     if kept:
         print(f"kept {len(py_ok) + len(native_ok)} FMU(s) already built from these sources "
               f"in {out} ({', '.join(kept)}); --force rebuilds them")
+    mingw = mingw_compiler()
+    linux_only = [n for n in native_ok if not _has_binaries(out / f"{n}.fmu", mingw)]
+    if linux_only:   # built for this machine alone (jitterfmu reproduce, make demo)
+        print(f"{len(linux_only)} of them have no win64 binary (built for this machine "
+              "only); --force adds it")
     return todo_py, todo_native
 
 
 def _has_binaries(fmu: Path, mingw) -> bool:
-    """A native FMU holds the binaries this machine builds (win64 with a cross compiler)."""
+    """A native FMU holds every binary this machine can build (win64 with a cross
+    compiler)."""
     import zipfile
 
     if mingw is None:

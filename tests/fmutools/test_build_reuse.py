@@ -45,3 +45,19 @@ def test_build_twice_keeps_what_it_built(tmp_path, capsys):
     assert main(args + ["--force"]) == 0          # --force rebuilds every one
     after = _bytes(tmp_path)
     assert all(after[k] != before[k] for k in before)
+
+
+@pytest.mark.slow
+def test_fmus_built_for_this_machine_only_are_kept_and_said(tmp_path, suite_fmus, capsys):
+    """FMUs ensure_fmus built (jitterfmu reproduce, make demo: linux64 only) are current:
+    build keeps them and, with a cross compiler, says they lack win64 binaries."""
+    from fmutools.ensure import ensure_fmus
+    from nativefmu.build import mingw_compiler
+
+    ensure_fmus(["excitation"], tmp_path)
+    first = _bytes(tmp_path)
+    capsys.readouterr()
+    assert main(["build", "--model", "excitation", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "kept 2 FMU(s)" in out and _bytes(tmp_path) == first
+    assert ("have no win64 binary" in out) == (mingw_compiler() is not None)

@@ -26,7 +26,8 @@ MAX_MESSAGE = 2000
 _SHOWN: dict[str, int] = {}
 #: Where the running command keeps the names of the scenario's unconnected inputs (it
 #: sets this before the run); the warning then gives their count and this place.
-UNCONNECTED_NAMES = {"where": "the list orchestrator.prepare(scenario).unconnected"}
+UNCONNECTED_NAMES = {"where": "unconnected_inputs in the run.json that jitterfmu run "
+                               "writes for the scenario"}
 #: Unconnected inputs named in the warning itself; more are counted.
 UNCONNECTED_SHOWN = 3
 

@@ -391,7 +391,9 @@ def _contents(out_dir: Path):
         "key": ("RSS = root-sum-square over the events of a configuration; change = (last "
                 "configuration − first) / first; requirements are the campaign file's "
                 "inputs; margin = requirement − RSS; dominant event: the largest share of "
-                "the RSS² (value² / RSS²). " + engine_text),
+                "the RSS² (value² / RSS²) in the configuration of largest RSS, the event "
+                "the figures follow, with its share in every configuration. "
+                + engine_text),
         "figures": figures, "worst": worst, "unc": (unc_rows, unc_text),
         "check": (check_rows, flagged), "failed": failed,
         "budget": _budget_rows(summary, metric, window), "summary": _summary_rows(summary),

@@ -16,6 +16,7 @@ silent longer than that.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 import threading
@@ -83,7 +84,10 @@ class ProgressBar:
         fraction = not unit
         self.failed = 0
         self._stream, self._label, self._unit, self._total = stream, label, unit, total
-        self._t0 = self._last = time.monotonic()
+        self._t0 = time.monotonic()
+        # its first line: `every` s after the command's last line while a command holds
+        # the heartbeat open, else `every` s after the bar starts
+        self._last = -math.inf if _BEAT.active else self._t0
         self._done = 0.0
         self._every = _every() if every is None else every
         self._lock = threading.Lock()
@@ -136,12 +140,13 @@ class ProgressBar:
             _BEAT.bar(-1)   # the heartbeat speaks again once no bar is alive
 
     def _log(self, waiting: bool = False) -> None:
-        """A line off a terminal, at most every ``every`` seconds (the clock thread's
-        ``waiting`` lines come also before the first unit is done)."""
+        """A line off a terminal once ``every`` seconds passed without one from this bar
+        or any other line of the command (the clock thread's ``waiting`` lines come also
+        before the first unit is done)."""
         if not self._lines:
             return
         now = time.monotonic()
-        if now - self._last < self._every or not (self._done or waiting):
+        if now - max(self._last, _BEAT.last) < self._every or not (self._done or waiting):
             return
         self._last = now
         elapsed = now - self._t0
@@ -186,7 +191,7 @@ class _Heartbeat:
         self.message = None
         self.t0 = self.last = time.monotonic()
         self.bars = 0
-        self.stop = None
+        self.active = False
 
     def stage(self, message: str) -> None:
         with self.lock:
@@ -200,7 +205,6 @@ class _Heartbeat:
     def bar(self, change: int) -> None:
         with self.lock:
             self.bars += change
-            self.last = time.monotonic()
 
     def run(self, stop: threading.Event, stream, every: float) -> None:
         while not stop.wait(min(REDRAW_EVERY, every)):
@@ -233,7 +237,8 @@ def heartbeat(stream=None, every: float | None = None):
         ``$JITTERFMU_LOG_EVERY`` up to it).
     """
     stop = threading.Event()
-    _BEAT.message = None
+    _BEAT.message, _BEAT.active = None, True
+    _BEAT.last = time.monotonic()
     thread = threading.Thread(target=_BEAT.run, daemon=True, name="heartbeat",
                               args=(stop, stream or sys.stderr,
                                     _every() if every is None else every))
@@ -243,3 +248,4 @@ def heartbeat(stream=None, every: float | None = None):
     finally:
         stop.set()
         thread.join()
+        _BEAT.active = False

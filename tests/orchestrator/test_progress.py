@@ -147,3 +147,18 @@ def test_the_heartbeat_keeps_quiet_while_a_bar_speaks():
         bar.close()
     assert log.getvalue() == "jitterfmu: campaign 'x': 3 cases\n"
     assert "campaign: 0/3 cases" in bars.getvalue()
+
+
+def test_a_bar_speaks_when_the_command_was_silent_the_interval_not_when_it_started():
+    """Within a command the silence that counts is the command's: a stage said 1.6 s
+    before a bar starts, lines due every 2 s, so the bar's first line comes 2 s after
+    the stage (0.4 s into the bar), not 2 s into the bar (3.6 s)."""
+    log = io.StringIO()
+    with progress.heartbeat(stream=log, every=2.0):
+        stage("eos-budget: 24 cases", stream=log)
+        time.sleep(1.6)
+        bar = ProgressBar(24, "campaign", "case", stream=log, every=2.0)
+        time.sleep(1.2)
+        lines = log.getvalue().splitlines()
+        bar.close()
+    assert len(lines) == 2 and lines[1].startswith("campaign: 0/24 cases, "), lines

@@ -26,15 +26,16 @@ from tqdm import tqdm
 
 __all__ = ["LOG_EVERY", "ProgressBar", "heartbeat", "stage"]
 
-#: Seconds between progress lines when stderr is not a terminal
-#: (env ``JITTERFMU_LOG_EVERY``, at most this).
-LOG_EVERY = 30.0
+#: Seconds of silence before a progress line when stderr is not a terminal (env
+#: ``JITTERFMU_LOG_EVERY``, at most this): the clocks look every second, so no two lines
+#: are more than 30 s apart.
+LOG_EVERY = 29.0
 #: Seconds between redraws of a terminal bar while nothing finishes.
 REDRAW_EVERY = 1.0
 
 
 def _every() -> float:
-    """The line interval: ``$JITTERFMU_LOG_EVERY`` when it is a number in (0, 30], else 30."""
+    """The line interval: ``$JITTERFMU_LOG_EVERY`` when it is a number in (0, 29], else 29."""
     try:
         value = float(os.environ.get("JITTERFMU_LOG_EVERY", LOG_EVERY))
     except ValueError:

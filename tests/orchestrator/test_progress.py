@@ -78,7 +78,7 @@ def test_a_line_comes_while_nothing_finishes():
     assert lines[0].endswith("time left known after the first case")
 
 
-def test_the_interval_from_the_environment_is_capped_at_30_s(monkeypatch):
+def test_the_interval_from_the_environment_is_capped_below_30_s(monkeypatch):
     monkeypatch.setenv("JITTERFMU_LOG_EVERY", "100")
     assert progress._every() == progress.LOG_EVERY <= 30.0
     monkeypatch.setenv("JITTERFMU_LOG_EVERY", "0.5")

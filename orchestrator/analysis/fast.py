@@ -23,9 +23,7 @@ structure of the problem instead:
   :meth:`FastResponse.run_many` runs their state recursions as one product per run and
   their free responses as one product per run type.
 
-The state recursion is then one small product per run (80 for an 8 s record at a 0.1 s
-hyperperiod) and everything else is a few large matrix products: the cost of a record
-is about that of its outputs, ``n_outputs x n_memory x n_ticks``.
+The state recursion is one small product per run, the rest a few large products.
 
 The result equals :meth:`LinearScenario.simulate` to round-off (tested), which equals
 the co-simulation of a linear scenario to round-off.  Where the FMUs would leave the
@@ -213,17 +211,23 @@ class FastResponse(SteadyState):
         ``h_p = C M^(p-1) N`` (column Krylov of the channels not built before)."""
         miss = [int(c) for c in active if int(c) not in t.cols]
         if miss:
-            L, s, c = t.L, t.N.shape[0], len(miss)
-            K = self._column_krylov(t, miss)
-            h = np.empty((L, t.live.size, c))
-            h[0] = t.D[:, miss]
-            if L > 1:
-                h[1:] = t.O.reshape(L, t.live.size, s)[:L - 1] @ t.N[:, miss]
-            for j, ch in enumerate(miss):
-                t.cols[ch] = (np.ascontiguousarray(K[:, ::-1, j]), h[:, :, j].copy())
-        G = np.stack([t.cols[int(c)][0] for c in active], axis=-1)
-        h = np.stack([t.cols[int(c)][1] for c in active], axis=-1)
-        return G, h
+            self._store_columns(t, miss, self._column_krylov(t, miss))
+        ck = ("cols", id(t), np.asarray(active, int).tobytes())   # kept: every record asks
+        if ck not in self._kernels:
+            self._keep(ck, tuple(np.stack([t.cols[int(c)][i] for c in active], axis=-1)
+                                 for i in (0, 1)))
+        return self._kernels[ck]
+
+    def _store_columns(self, t: _RunType, miss, K) -> None:
+        """Keep ``M^(L-1-l) N`` and the Markov parameters of the channels ``miss`` of a
+        run type from their column Krylov products ``K`` (s, L, c)."""
+        L, s = t.L, t.N.shape[0]
+        h = np.empty((L, t.live.size, len(miss)))
+        h[0] = t.D[:, miss]
+        if L > 1:
+            h[1:] = t.O.reshape(L, t.live.size, s)[:L - 1] @ t.N[:, miss]
+        for j, ch in enumerate(miss):
+            t.cols[ch] = (np.ascontiguousarray(K[:, ::-1, j]), h[:, :, j].copy())
 
     def _column_krylov(self, t: _RunType, miss) -> np.ndarray:
         """``M^q N`` of the channels ``miss``, ``(s, L, c)``, by doubling (as the rows)."""
@@ -276,9 +280,8 @@ class FastResponse(SteadyState):
         return Wu.reshape(Wu.shape[0], L * k) @ T[1]
 
     def _keep(self, key, value):
-        """Keep a derived matrix of this loop (a bounded cache); keys name the run type
-        by ``id``: the run types live as long as the loop."""
-        if len(self._kernels) > 64:
+        """Keep a derived matrix of this loop (bounded; keys name a run type by ``id``)."""
+        if len(self._kernels) > 256:
             self._kernels.clear()
         self._kernels[key] = value
 

@@ -125,26 +125,98 @@ class _Form:
     def power(self, L: int) -> np.ndarray:
         """``M^L`` (s, s): the pairs no coupling row reads by their own 2x2 power, the
         others by ``L`` products, or all by squaring where that costs fewer flops."""
+        return self.run(L, np.zeros((0, self.s)), np.zeros((self.s, 0)))[0]
+
+    def run(self, L: int, C: np.ndarray, N: np.ndarray) -> tuple:
+        """``M^L``, the rows ``C M^q`` (L, r, s) and the columns ``M^q N`` (s, L, c),
+        ``q < L``, in one recursion over the run's ticks.
+
+        ``M^L`` of the pairs no coupling row reads is their own 2x2 power, of the other
+        columns ``L`` products, or all of it by squaring where that costs fewer flops
+        (a dense coupling); a single tick is the form itself (it multiplies as ``M``)."""
         s, n_p = self.s, self.n_p
         read = np.any(self.W[:, :n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
         cols = np.concatenate([np.flatnonzero(np.repeat(read, 2)), np.arange(n_p, s)])
         squaring = (L.bit_length() + bin(L).count("1") - 2) * 2.0 * s ** 3
-        if cols.size * L * self.step_cost() > squaring:
+        dense = L > 1 and cols.size * L * self.step_cost() > squaring
+        k = 0 if dense or L == 1 else cols.size
+        X = np.zeros((s, k + N.shape[1]))
+        X[cols[:k], np.arange(k)] = 1.0
+        X[:, k:] = N
+        O = np.empty((L, C.shape[0], s))
+        K = np.empty((s, L, N.shape[1]))
+        O[0], K[:, 0] = C, N
+        for q in range(1, L + 1):
+            if q < L and C.shape[0]:
+                O[q] = self.left(O[q - 1])
+            if X.shape[1] and (k or q < L):
+                X = self.right(X)
+                if q < L:
+                    K[:, q] = X[:, k:]
+        if L == 1:
+            ML = self
+        elif dense:
             M = self.dense()
-            return _power(M, L, _powers(M, L))
-        out = np.zeros((s, s))
-        free = np.flatnonzero(~read)
-        if free.size:
-            P = _pair_power(self.a[free], L)
-            i = 2 * free
-            out[i, i], out[i, i + 1] = P[:, 0, 0], P[:, 0, 1]
-            out[i + 1, i], out[i + 1, i + 1] = P[:, 1, 0], P[:, 1, 1]
-        X = np.zeros((s, cols.size))
-        X[cols, np.arange(cols.size)] = 1.0
-        for _ in range(L):
-            X = self.right(X)
-        out[:, cols] = X
-        return out
+            ML = _power(M, L, _powers(M, L))
+        else:
+            free = np.flatnonzero(~read)
+            ML = _BlockPower(s, 2 * free, _pair_power(self.a[free], L), cols, X[:, :k])
+            ML = ML if 2 * cols.size <= s else ML.toarray()
+        return ML, O, K
+
+    __matmul__ = right
+
+    def toarray(self) -> np.ndarray:
+        """The tick map ``(s, s)`` (as :meth:`dense`)."""
+        return self.dense()
+
+    copy = toarray
+
+    @property
+    def nbytes(self) -> int:
+        return self.a.nbytes + self.gamma.nbytes + self.W.nbytes
+
+    @property
+    def shape(self) -> tuple:
+        return (self.s, self.s)
+
+    def __array__(self, dtype=None, copy=None):
+        return self.dense() if dtype is None else self.dense().astype(dtype)
+
+
+class _BlockPower:
+    """``M^L`` of a run whose coupling leaves pairs alone: their own 2x2 powers ``P``
+    (at the pair states ``i``, ``i + 1`` for ``i`` in ``at``) plus the dense columns
+    ``X`` of the others (``cols``).  Multiplies as the matrix (``@``); ``toarray()``,
+    ``copy()`` and ``numpy.asarray`` give the matrix itself."""
+
+    def __init__(self, s, at, P, cols, X):
+        self.shape = (s, s)
+        self.at, self.P, self.cols, self.X = at, P, cols, X
+
+    @property
+    def nbytes(self) -> int:
+        return self.P.nbytes + self.X.nbytes
+
+    def __matmul__(self, Y):
+        Y = np.asarray(Y)
+        flat = Y.ndim == 1
+        Y = Y.reshape(self.shape[0], -1)
+        out = self.X @ Y[self.cols]
+        i, P = self.at, self.P
+        q, v = Y[i], Y[i + 1]
+        out[i] += P[:, 0, 0, None] * q + P[:, 0, 1, None] * v
+        out[i + 1] += P[:, 1, 0, None] * q + P[:, 1, 1, None] * v
+        return out[:, 0] if flat else out
+
+    def toarray(self) -> np.ndarray:
+        """The matrix ``(s, s)``."""
+        return self @ np.eye(self.shape[0])
+
+    copy = toarray
+
+    def __array__(self, dtype=None, copy=None):
+        return self.toarray() if dtype is None else self.toarray().astype(dtype)
 
 
 class ModalLoop:
@@ -164,6 +236,7 @@ class ModalLoop:
 
     def __init__(self, fr: FastResponse):
         self.fr = fr
+        self.channels = set()   # source channels samples of this loop drove
         lin = fr.lin
         names = [n for n, b in lin.blocks.items()
                  if b.kind == "structure" and b.model is not None]
@@ -394,12 +467,14 @@ class StructuredResponse(FastResponse):
         C = self.loop._base[sig]["C"]
         D = self.fr_D(sig)
         live = np.flatnonzero(np.any(C != 0, axis=1) | np.any(D != 0, axis=1))
-        O = np.empty((L, live.size, f.s))
-        O[0] = C[live]
-        for q in range(1, L):
-            O[q] = f.left(O[q - 1])
-        t = _RunType(L, f.power(L), O.reshape(L * live.size, f.s), live, None, f.N,
+        # the channels the loop's records drove before (a Monte Carlo's next sample
+        # drives the same ones): their columns in the same recursion
+        ch = sorted(self.loop.channels)
+        ML, O, K = f.run(L, C[live], f.N[:, ch])
+        t = _RunType(L, ML, O.reshape(L * live.size, f.s), live, None, f.N,
                      np.ascontiguousarray(D[live]), {}, ())
+        if ch:
+            self._store_columns(t, ch, K)
         self._types[key] = t
         self._form_of[id(t)] = f   # the run types live as long as the loop
         return t
@@ -410,12 +485,9 @@ class StructuredResponse(FastResponse):
 
     def _column_krylov(self, t: _RunType, miss) -> np.ndarray:
         """``M^q N`` of the channels ``miss``, ``(s, L, c)``: block-wise recursion."""
+        self.loop.channels.update(miss)
         f = self._form_of[id(t)]
-        K = np.empty((f.s, t.L, len(miss)))
-        K[:, 0] = t.N[:, miss]
-        for q in range(1, t.L):
-            K[:, q] = f.right(K[:, q - 1])
-        return K
+        return f.run(t.L, np.zeros((0, f.s)), t.N[:, miss])[2]
 
 
 class _LazyMaps(dict):

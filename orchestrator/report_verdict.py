@@ -206,8 +206,9 @@ def verdict_table(configs, lines, value_name: str = "RSS"):
 
     Columns: instrument, axis, the RSS of every configuration, the change of the last
     configuration against the first (with two or more), requirement, the margin and the
-    verdict of every configuration, and the dominant event with its share of the RSS²
-    in each configuration.
+    verdict of every configuration, with sweeps where each configuration's value is worst
+    ("worst at"), and the dominant event (:attr:`AxisVerdict.lead`) with its share of
+    the RSS² in each configuration, then any configuration another event leads.
 
     Parameters
     ----------

@@ -41,7 +41,7 @@ class Deprecated(argparse.Action):
 
     Give it ``dest`` of the new option and ``new`` (its spelling) as a keyword:
     ``parser.add_argument("--stop-time", dest="stop", action=Deprecated, new="--stop",
-    type=float, help=argparse.SUPPRESS)``.
+    type=float, help=argparse.SUPPRESS)``; a flag takes ``nargs=0`` and stores ``const``.
     """
 
     def __init__(self, option_strings, dest, new: str = "", **kwargs):
@@ -51,7 +51,7 @@ class Deprecated(argparse.Action):
     def __call__(self, parser, namespace, values, option_string=None):
         print(f"jitterfmu: note: {option_string} is an old spelling of {self.new}, kept "
               f"for one release; use {self.new}", file=sys.stderr)
-        setattr(namespace, self.dest, values)
+        setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
 
 
 def shown(path) -> str:

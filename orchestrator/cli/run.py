@@ -12,7 +12,9 @@ HELP = "co-simulate a scenario (.toml or .ssp) and write results.parquet and run
 
 def add_arguments(parser) -> None:
     """Declare the options of ``jitterfmu run``."""
-    from ._options import add_fmu_dir, add_out, add_stop
+    import argparse
+
+    from ._options import Deprecated, add_fmu_dir, add_out, add_stop
 
     parser.add_argument("scenario", help="scenario file (.toml) or SSP archive (.ssp)")
     add_out(parser, "<scenario file name without .toml>",
@@ -30,7 +32,8 @@ def add_arguments(parser) -> None:
                         dest="fmt", help="results file: results.parquet (default, units in "
                         "its metadata), results.csv (header 'name [unit]') or results.mat "
                         "(MATLAB: a struct per instance)")
-    parser.add_argument("--csv", action="store_true", help="the same as --format csv")
+    parser.add_argument("--csv", dest="fmt", action=Deprecated, nargs=0, const="csv",
+                        new="--format csv", help=argparse.SUPPRESS)
     add_fmu_dir(parser)
     parser.add_argument("--python-fmus", action="store_const", const="python",
                         dest="fmu_kind", default=None,
@@ -64,7 +67,7 @@ def run(args) -> int:
         try:
             result = run_scenario(args.scenario, out, stop_time=args.stop,
                                   overrides=overrides, algorithm=args.algorithm,
-                                  quiet=args.quiet, csv=args.csv, fmu_dir=args.fmu_dir,
+                                  quiet=args.quiet, fmu_dir=args.fmu_dir,
                                   fmu_kind=args.fmu_kind, overwrite=args.overwrite,
                                   fmt=args.fmt)
         except SimulationError as exc:

@@ -94,6 +94,14 @@ def test_the_old_spelling_of_stop_still_works_with_a_note(capsys):
     assert "--stop-time" not in commands()["run"].format_help()
 
 
+def test_run_csv_is_an_old_spelling_of_format_csv(capsys):
+    """``--csv`` is a file in analyze; in run it was a flag for ``--format csv``."""
+    args = build_parser().parse_args(["run", "x.toml", "--csv"])
+    assert args.fmt == "csv"
+    assert "old spelling of --format csv" in capsys.readouterr().err
+    assert "--csv" not in commands()["run"].format_help()
+
+
 def test_workers_default_to_the_cpus_in_the_help():
     import os
 

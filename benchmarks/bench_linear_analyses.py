@@ -3,7 +3,7 @@
 Run::
 
     .venv/bin/python benchmarks/bench_linear_analyses.py [--samples 20] [--core-samples 6]
-        [--repeat 3]
+        [--repeat 3] [--modes 70,140,280,500] [--no-sweep] [--json FILE]
 
 * **RWA sweep**: 500 wheel speeds 0-6000 rpm, all 5 instruments x 3 axes, isolation off
   and on (``campaigns/eos_rwa_sweep.toml``), steady state on the linear engine; beside it
@@ -19,6 +19,13 @@ Run::
   of a quarter of ``--samples`` and of ``--samples`` on ``--workers`` processes give
   the command's own rate and the peak memory with both counts: it does not grow with
   the samples.
+* **Structured against dense** (``benchmarks/_structured.py``): the same samples on
+  both engines, one core, interleaved sample by sample (a busy machine slows both
+  alike): seconds a sample each, their largest metric difference and whether the
+  statuses agree; the structured floor (the flops of a structured sample, in its own
+  shapes, over this machine's one-thread square dgemm rate); and both engines with the
+  EOS structure reduced to each of ``--modes`` (memory states, the slope of the
+  per-sample cost against the memory state, the bytes of the structured forms).
 * **The exact floor of a sample** (``--no-floor`` leaves it out): the products an exact
   engine cannot leave out, on the nominal loops the samples perturb (their memory
   states, live rows and driven channels): the free responses of the 24 records after the
@@ -45,6 +52,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _measure import best_of, blas_cores, peak_rss_mb  # noqa: E402
+import _structured  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -203,6 +211,11 @@ def main(argv=None) -> int:
                     help="samples timed on one core in this process")
     ap.add_argument("--no-floor", dest="floor", action="store_false",
                     help="leave out the exact floor of a sample")
+    ap.add_argument("--no-sweep", dest="sweep", action="store_false",
+                    help="leave out the RWA sweep")
+    ap.add_argument("--modes", default="70,140,280,500",
+                    help="mode counts of the scaling comparison ('' leaves it out)")
+    ap.add_argument("--json", default=None, help="write the numbers to this file")
     args = ap.parse_args(argv)
     if args.samples < 1 or args.core_samples < 1:
         ap.error("--samples and --core-samples count samples; give at least 1 each")
@@ -220,20 +233,22 @@ def main(argv=None) -> int:
         master(rwa.scenario, tmp / "one")
         t_case = time.perf_counter() - t0
 
-        scratch = []
-        for i in range(max(1, args.repeat)):
+        scratch, t_again = [float("nan")], float("nan")
+        for i in range(max(1, args.repeat) if args.sweep else 0):
             runner = LinearRunner(sweep.scenario_dir, fmu_dir=fmu_dir)
             for sw in sweep.wheel_sweeps:
                 runner.compiled(sw["scenario"])      # the model build
             t0 = time.perf_counter()
             run_wheel_sweeps(sweep, tmp / f"sweep{i}", runner)
             scratch.append(time.perf_counter() - t0)
+        if args.sweep:
+            scratch = scratch[1:]
+            # again on the same loops: their open-ACS loops and factorisations are kept,
+            # what a second range, wheel or metric on a configuration costs
+            t0 = time.perf_counter()
+            run_wheel_sweeps(sweep, tmp / "sweep2", runner)
+            t_again = time.perf_counter() - t0
         t_sweep = float(np.median(scratch))
-        # again on the same loops: their open-ACS loops and factorisations are kept,
-        # what a second range, wheel or metric on a configuration costs
-        t0 = time.perf_counter()
-        run_wheel_sweeps(sweep, tmp / "sweep2", runner)
-        t_again = time.perf_counter() - t0
 
         # the Monte Carlo of the shipped uncertainty file (campaigns/eos_uncertainty.toml)
         unc_file = eos.CAMPAIGN.parent / "eos_uncertainty.toml"
@@ -255,8 +270,13 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         mcm._evaluate(camp, lrun, ctx, draws, list(range(1, args.core_samples + 1)))
         t_core = (time.perf_counter() - t0) / args.core_samples
-        floor = exact_floor(camp, lrun) if args.floor else None
-        forms = formulations(ctx) if args.floor else []
+        side = _structured.per_sample(camp, lrun, ctx, args.core_samples)
+        s_gflop, s_rows = _structured.structured_flops(camp, lrun, ctx)
+        modes = [int(m) for m in args.modes.split(",") if m.strip()]
+        scale = _structured.scaling(camp, lrun, ctx, modes, 2) if modes else []
+        with _structured.engine(ctx, "dense"):
+            floor = exact_floor(camp, lrun) if args.floor else None
+            forms = formulations(ctx) if args.floor else []
     print(f"one co-simulated EOS case (8 s at 1 kHz, native FMUs): {t_case:.2f} s")
     print(f"{'analysis':<48}{'linear (s)':>12}{'co-simulation (s)':>20}")
     print(f"{'RWA sweep, 500 speeds x 15 axes x 2 configs':<48}{t_sweep:>12.2f}"
@@ -291,6 +311,38 @@ def main(argv=None) -> int:
         print("what rules out cheaper exact formulations (nominal loops):")
         for r in forms:
             print(f"  {r}")
+    rate = floor[1] if floor is not None else float("nan")
+    print("structured against dense, the same samples, one core, interleaved:")
+    print(f"  a sample: structured {side['structured_s']:.3f} s, dense {side['dense_s']:.3f} s "
+          f"({side['dense_s'] / side['structured_s']:.2f}x), median of {side['samples']}; "
+          f"metrics within {side['largest_metric_difference']:.1e}, statuses "
+          f"{'equal' if side['statuses_equal'] else 'DIFFERENT'}")
+    print(f"  1000 samples on {cores} cores at that: structured "
+          f"{1000 * side['structured_s'] / cores:.0f} s, dense {1000 * side['dense_s'] / cores:.0f}"
+          f" s; a co-simulated case on one core {t_case:.2f} s (a sample is "
+          f"{side['structured_s'] / t_case:.2f} of it)")
+    print(f"  structured floor: {s_gflop:.2f} GFlop a sample at {rate:.0f} GFlop/s -> "
+          f"{s_gflop / rate:.3f} s")
+    for r in s_rows:
+        print(f"    {r}")
+    if scale:
+        print(f"  {'modes':>6}{'memory states':>16}{'structured (s)':>16}{'dense (s)':>11}"
+              f"{'forms (MB)':>12}")
+        for r in scale:
+            print(f"  {r['modes']:>6}{'/'.join(map(str, r['memory_states'])):>16}"
+                  f"{r['structured_s']:>16.3f}{r['dense_s']:>11.3f}{r['form_bytes'] / 1e6:>12.1f}")
+        if len(scale) > 1:
+            print(f"  cost ~ s^{_structured.exponent(scale, 'structured_s'):.2f} structured, "
+                  f"s^{_structured.exponent(scale, 'dense_s'):.2f} dense (s the memory state)")
+    if args.json:
+        import json
+        Path(args.json).write_text(json.dumps({
+            "cosim_case_s": t_case, "sweep_s": t_sweep, "mc_per_sample_one_core_s": t_core,
+            "mc_run_per_sample_s": t_mc / args.samples, "workers": cores,
+            "peak_rss_mb": {str(k): v for k, v in rss.items()}, **side,
+            "structured_gflop": s_gflop, "dgemm_gflops": rate,
+            "dense_floor_gflop": floor[0] if floor is not None else None,
+            "scaling": scale}, indent=1))
     return 0
 
 

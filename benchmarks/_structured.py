@@ -1,0 +1,170 @@
+"""The structured engine beside the dense one, for bench_linear_analyses.py.
+
+Both engines evaluate the same Monte Carlo samples (:func:`orchestrator.campaign.
+montecarlo._evaluate`: the sample's loop, its poles, its 24 records and their metrics)
+in this process on one BLAS thread, interleaved sample by sample so that a busy machine
+slows both alike.  The dense engine is the structured one told that its form never pays
+(``orchestrator.analysis.structured._PAYS = 0``).
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+
+import numpy as np
+
+from orchestrator.analysis import structured
+from orchestrator.analysis.blocks import structure_block
+from orchestrator.analysis.fast import FastResponse
+from orchestrator.analysis.structured import StructuredResponse, respond
+from orchestrator.analysis.uncertainty import draw
+from orchestrator.campaign import montecarlo as mcm
+
+
+@contextmanager
+def engine(ctx, name: str):
+    """Run the Monte Carlo's samples on ``name`` ("structured" or "dense"); each
+    engine keeps its own structured forms of the nominal loops between calls."""
+    keep = structured._PAYS
+    structured._PAYS = keep if name == "structured" else 0.0
+    kept = ctx.setdefault("_forms", {}).setdefault(name, {})
+    for cf in ctx["configs"]:
+        fr = ctx["base"][cf][2]
+        fr.__dict__.pop("_modal", None)
+        if cf in kept:
+            fr._modal, fr.structure_reason = kept[cf]
+    try:
+        yield
+    finally:
+        structured._PAYS = keep
+        for cf in ctx["configs"]:
+            fr = ctx["base"][cf][2]
+            if "_modal" in fr.__dict__:
+                kept[cf] = (fr.__dict__.pop("_modal"), fr.structure_reason)
+
+
+def _draws(camp, ctx, n):
+    lin0, structs, _ = ctx["base"][ctx["configs"][0]]
+    return draw(camp.uncertainty["parameters"], n, camp.uncertainty["seed"],
+                lin0.blocks[structs[0]].model.frequencies_hz)
+
+
+def per_sample(camp, runner, ctx, n: int) -> dict:
+    """Seconds a sample on one core, per engine, and the largest difference of their
+    metrics (relative) and statuses, over samples ``1 .. n`` (sample 0 warms both)."""
+    draws = _draws(camp, ctx, n + 1)
+    out = {"structured": [], "dense": []}
+    values = {}
+    for s in range(n + 1):
+        for name in ("structured", "dense"):
+            with engine(ctx, name):
+                t0 = time.perf_counter()
+                v, st = mcm._evaluate(camp, runner, ctx, draws, [s])
+                if s:
+                    out[name].append(time.perf_counter() - t0)
+                values.setdefault(name, []).append((v, st))
+    diff = max(float(np.nanmax(np.abs(a[0] - b[0]) / np.maximum(np.abs(b[0]), 1e-300)))
+               for a, b in zip(values["structured"], values["dense"]))
+    same = all(np.array_equal(a[1], b[1]) for a, b in zip(values["structured"],
+                                                          values["dense"]))
+    return {"structured_s": float(np.median(out["structured"])),
+            "dense_s": float(np.median(out["dense"])), "samples": n,
+            "largest_metric_difference": diff, "statuses_equal": same}
+
+
+def structured_flops(camp, runner, ctx) -> tuple:
+    """Flops of one structured sample (the products it computes, in their shapes) and a
+    line per configuration naming the form's sizes."""
+    draws = _draws(camp, ctx, 1)
+    items = camp.uncertainty["parameters"]
+    first = mcm.first_tick(camp, ctx["base"][ctx["configs"][0]][0])
+    flop, rows = 0.0, []
+    for cf in ctx["configs"]:
+        lin, structs, fr0 = ctx["base"][cf]
+        b = lin.blocks[structs[0]]
+        blk = structure_block(mcm._perturbed(b.model, draws, items, 0), structs[0],
+                              b.period, b.period * lin.base, b.feedthrough, blockwise=True)
+        fr = respond(lin.with_block(blk), ctx["refs"], fr0)
+        if not isinstance(fr, StructuredResponse):
+            rows.append(f"{cf}: dense ({fr0.structure_reason})")
+            continue
+        Ws = [ctx["inputs"][(cf, ev)][1] for ev in ctx["events"]]
+        E, K = len(Ws), Ws[0].shape[0]
+        acts = [ctx["actives"][(cf, ev)] for ev in ctx["events"]]
+        k = np.unique(np.concatenate(acts)).size
+        k_sum = sum(a.size for a in acts)
+        kept = (K - first) / K
+        s, n_los = fr.n_memory, len(fr._computed)
+        runs = {}
+        for key in fr._runs:
+            runs[key] = runs.get(key, 0) + 1
+        for (sig, L), per_period in runs.items():
+            f = fr._forms[sig]
+            t = fr._type(sig, L)
+            c = f.step_cost()
+            n_u = max(1, round(per_period * K / fr.P))
+            flop += (L - 1) * (t.live.size + k) * c + 2.0 * (L - 1) * t.live.size * s * k
+            ML = t.ML
+            if isinstance(ML, structured._BlockPower):
+                flop += L * ML.cols.size * c
+                apply = 2.0 * s * ML.cols.size + 6.0 * ML.at.size
+            elif ML is f:
+                apply = c
+            else:
+                flop += (L.bit_length() + bin(L).count("1") - 2) * 2.0 * s ** 3
+                apply = 2.0 * s * s
+            flop += n_u * apply * E                                  # state recursion
+            flop += 2.0 * n_u * L * k_sum * s                         # input side
+            flop += 2.0 * E * max(1, round(n_u * kept)) * s * L * n_los   # free responses
+        flop += 10.0 * s ** 3                                        # poles
+        rows.append(f"{cf}: memory state {s} = {f.n_p} pair states + {s - f.n_p} others, "
+                    f"coupling {f.W.shape[0]} rows ({f.k_in} structure inputs), a product "
+                    f"{c / (2.0 * s * s):.0%} of a dense one")
+    return flop / 1e9, rows
+
+
+def scaling(camp, runner, ctx, modes, n: int) -> list:
+    """Per-sample seconds on one core of both engines with the EOS structure reduced
+    to each count of ``modes`` (all mount legs active, as the budget's), memory states
+    and the bytes the structured loops keep."""
+    from structfmu.models import eos_testbed as et
+
+    out = []
+    truss = et.build(active_legs="all")
+    for n_modes in modes:
+        t0 = time.perf_counter()
+        model = et.reduced(n_modes, truss=truss)
+        base = {}
+        for cf in ctx["configs"]:
+            lin, structs, fr0 = ctx["base"][cf]
+            b = lin.blocks[structs[0]]
+            lin_n = lin.with_block(structure_block(model, structs[0], b.period,
+                                                   b.period * lin.base, b.feedthrough,
+                                                   blockwise=True))
+            base[cf] = (lin_n, structs, FastResponse(lin_n, ctx["refs"]))
+        models = {(cf, name): (name, mcm._digest(model), base[cf][0].blocks[name].period,
+                               base[cf][0].blocks[name].feedthrough.tobytes())
+                  for cf in ctx["configs"] for name in base[cf][1]}
+        ctx_n = {**{k: v for k, v in ctx.items() if k != "_forms"}, "base": base,
+                 "models": models}
+        build = time.perf_counter() - t0
+        t = per_sample(camp, runner, ctx_n, n)
+        kept = 0
+        for cf in ctx["configs"]:
+            loop = ctx_n["_forms"]["structured"].get(cf, (None,))[0]
+            kept += 0 if loop is None else sum(
+                sum(np.asarray(v).nbytes for v in d.values() if isinstance(v, np.ndarray))
+                for d in loop._base.values())
+        out.append({"modes": n_modes, "ritz": model.n_ritz,
+                    "memory_states": [base[cf][2].n_memory for cf in ctx["configs"]],
+                    "build_s": build, "form_bytes": kept, **t})
+    return out
+
+
+def exponent(rows: list, key: str) -> float:
+    """Slope of log(seconds) against log(memory state) over ``rows`` (least squares)."""
+    s = np.array([sum(r["memory_states"]) for r in rows], float)
+    y = np.array([r[key] for r in rows], float)
+    return float(np.polyfit(np.log(s), np.log(y), 1)[0])
+

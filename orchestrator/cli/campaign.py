@@ -51,7 +51,8 @@ def add_arguments(parser) -> None:
                         "Parquet ones: each case's time histories, and with mat the "
                         "summary, budget, cases and Monte Carlo samples in campaign.mat "
                         "(default: %(default)s)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no start line and no progress bar or lines")
 
 
 def _import_runner(spec: str):
@@ -139,8 +140,9 @@ def run(args) -> int:
     work = [f"{len(camp.cases)} cases"] if camp.cases else []
     work += [f"{len(camp.wheel_sweeps)} wheel sweep{'s' * (len(camp.wheel_sweeps) != 1)}"
              ] if camp.wheel_sweeps else []
-    stage(f"campaign {camp.name!r}: {', '.join(work) or 'nothing to run'} ({engine} engine, "
-          f"{where}) into {shown(out)}")
+    if not args.quiet:
+        stage(f"campaign {camp.name!r}: {', '.join(work) or 'nothing to run'} ({engine} "
+              f"engine, {where}) into {shown(out)}")
     try:
         res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                            progress=False if args.quiet else None)

@@ -171,3 +171,11 @@ def test_a_campaign_says_its_unconnected_inputs_once_and_lists_them_in_a_file(
     assert err == [f"jitterfmu: warning: 4 inputs are not connected and keep their start "
                    f"values (e.g. {', '.join(listed[:3])}); all 4 names: "
                    f"{out / 'unconnected_inputs.txt'}"]
+
+
+def test_quiet_means_the_same_wherever_it_is():
+    helps = {name: next(a.help for a in sub._actions if "--quiet" in a.option_strings)
+             for name, sub in commands().items()
+             if any("--quiet" in a.option_strings for a in sub._actions)}
+    assert set(helps) >= {"run", "campaign"}
+    assert len(set(helps.values())) == 1, helps

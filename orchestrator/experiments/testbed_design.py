@@ -385,9 +385,9 @@ def strut_bounds(plant, mounts, Gh=None) -> dict:
     return {"upper_bound": c["optimal"], "accel_null": c["cancel"]}
 
 
-def _design_law(kp, kb, delayed=True):
+def _design_law(kp, kb, delayed=True, band=(20.0, 60.0)):
     return to_statespace(design("testbed_isolation", payload_gain=kp, bus_gain=kb,
-                                delayed=delayed))
+                                delayed=delayed, band_hz=band))
 
 
 def design_gains(plant, mounts, n_dir=36, margin_db=6.0, delayed=True):

@@ -232,9 +232,17 @@ def test_testbed_isolation(testbed, out):
     # no controller beats the least-squares upper bound
     for k in ("mount3", "all_mounts"):
         assert lin[k] <= res["upper_bound_pct"][k] + 1e-6
-    # the explanation of the miss, as a number: the design at 6 dB removes what the
-    # law's bus path removes as a pure feedforward with the best real gain
-    assert lin["mount3"] == pytest.approx(res["feedforward_best_gain_mount3_pct"], abs=2.0)
+    # robust: the shipped gains keep 6 dB over the testbed's uncertainty (frequencies
+    # x0.95-1.05, damping x0.5-2) at its nine corners (testbed_robust; the factors were
+    # set on 40 more per-mode points), and they are the nominal design scaled down
+    rob = res["robust"]
+    for k in ("mount3", "all_mounts"):
+        assert rob[k]["margin_db"] >= 6.0
+        assert rob["nominal_gains_linear_reduction_pct"][k] > lin[k]
+    # the explanation of the nominal design's number: at 6 dB on the nominal plant it
+    # removes what the law's bus path removes as a pure feedforward with the best real gain
+    assert rob["nominal_gains_linear_reduction_pct"]["mount3"] == pytest.approx(
+        res["feedforward_best_gain_mount3_pct"], abs=2.0)
     # the margin is set by a pole that leaves the unit circle (a real instability)
     assert res["margin_limiting_poles"]["mount3"][0]["abs_z"] >= 1.0
     # a settled before-window (docs/eos_experiments.md): with isolation off the boresight
@@ -273,22 +281,28 @@ def test_testbed_isolation(testbed, out):
 
 def test_testbed_regression_pin(testbed):
     """A regression pin, not a reproduction: today's linear design values (step-mean
-    coupling, 6 dB, the stored gains), to 0.5 points (they are frequency responses of a
-    fixed loop, well conditioned); a change of the model or the gains moves them."""
+    coupling, the shipped robust gains; the nominal 6 dB design's beside them), to 0.5
+    points (frequency responses of a fixed loop, well conditioned); a change of the model
+    or the gains moves them."""
     lin = testbed["linear_reduction_pct"]
-    assert lin["mount3"] == pytest.approx(46.8, abs=0.5)
-    assert lin["all_mounts"] == pytest.approx(48.3, abs=0.5)
+    assert lin["mount3"] == pytest.approx(16.4, abs=0.5)
+    assert lin["all_mounts"] == pytest.approx(17.0, abs=0.5)
+    nominal = testbed["robust"]["nominal_gains_linear_reduction_pct"]
+    assert nominal["mount3"] == pytest.approx(46.8, abs=0.5)
+    assert nominal["all_mounts"] == pytest.approx(48.3, abs=0.5)
 
 
 #: Why the testbed misses (measured with ``jitterfmu reproduce testbed-isolation``, settled
-#: windows): the stated law at 6 dB removes 47.4 % from mount #3 and 48.8 % with all three
-#: the paper's way (47.1 / 48.5 % in the quick run), 46.9 / 48.4 % in two runs, 46.8 /
-#: 48.3 % on the linear model, against an upper bound of 82.2 % at mount #3; the law acts
-#: as a feedforward of the bus accelerometer whose phase at the harmonics allows 47 %
+#: windows): with gains that keep 6 dB over the testbed's uncertainty the stated law
+#: removes 16.9 % from mount #3 and 17.5 % with all three the paper's way (quick run),
+#: 16.4 / 17.0 % on the linear model, against an upper bound of 82.2 % at mount #3; at
+#: 6 dB on the nominal plant alone 46.8 / 48.3 % (unstable over the set); the paper's
+#: structure with corners and gains free reaches 78.6 % at 6 dB on the nominal plant
 #: (docs/eos_experiments.md).
-TESTBED_MISS = ("on the stiff struts the stated law at 6 dB removes 47 % from mount #3 and "
-                "49 % with all three on a settled response (upper bound 82 % at mount #3): "
-                "a bus-accelerometer feedforward whose phase at the harmonics allows 47 % "
+TESTBED_MISS = ("on the stiff struts the stated law at 6 dB over the testbed's uncertainty "
+                "(modal frequencies x0.95-1.05, damping x0.5-2) removes 17 % from mount #3 "
+                "and 17 % with all three on a settled response (upper bound 82 %); the "
+                "damping uncertainty of the 0.5 %-damped bus modes is what stops it "
                 "(docs/eos_experiments.md)")
 
 
@@ -319,7 +333,7 @@ def test_reproduces_tests_overall_all_mounts(testbed):
     assert 50.0 <= v["ours"] <= 80.0 and v["reproduced"] is True
 
 
-@pytest.mark.xfail(strict=True, reason="the isolation band of mount #3 ends at 27 Hz, not "
+@pytest.mark.xfail(strict=True, reason="the isolation band of mount #3 ends at 30 Hz, not "
                    "about 45 Hz (docs/eos_experiments.md)")
 def test_reproduces_fig13_bandwidth(testbed):
     assert testbed["verdicts"][2]["reproduced"] is True

@@ -219,8 +219,11 @@ class _Bound:
         s0 = 1j * nu0
         H0c = np.where(nu0 == 0, md.P, (1 - np.exp(-s0 * md.P)) / np.where(nu0 == 0, 1, s0))
         jj = np.arange(n)
-        self.alpha = sum(MC[q][:, jj, jj] * np.take_along_axis(kap[q], order[:, :, 0], axis=1)
-                         for q in (0, 1, 2)) * H0c / md.P * valid[:, :, 0]
+        # and on every loop, with its direction: E_ij = Gc_ij dh_j(i nu0_j) + (the rest)
+        Gc = sum(MC[q] * np.take_along_axis(kap[q], order[:, :, 0], axis=1)[:, None, :]
+                 for q in (0, 1, 2)) * (H0c / md.P * valid[:, :, 0])[:, None, :]
+        self.Gc = Gc.astype(np.complex64)
+        self.alpha = Gc[:, jj, jj]
         self.nu0, self.has0 = nu0, valid[:, :, 0]
 
     def take(self, keep):
@@ -233,6 +236,7 @@ class _Bound:
         self.nr = (new[zi[sel]], ji[sel], num[sel])
         self.nr = self.nr[:3] + (w[:, sel],)
         self.nu, self.absM, self.G = self.nu[idx], self.absM[idx], self.G[idx]
+        self.Gc = self.Gc[idx]
         self.rs = (self.rs[0][idx], self.rs[1][idx])
         self.alpha, self.nu0, self.has0 = self.alpha[idx], self.nu0[idx], self.has0[idx]
         return self
@@ -266,9 +270,79 @@ class _Bound:
         exact = np.abs(beta) * _ratio_min(corners, dstar) - rest
         L = np.where(self.has0, exact, 1.0 - diag)
         self.self_bound = diag.max(axis=0)          # per mode, over the points
+        rest = N - self.G[..., 0] * (Ts[:, :, 0] * self.has0)[:, None, :]
         N[:, jj, jj] = 0.0
         rho = _collatz(N / np.where(L > 0, L, 1.0)[:, :, None])
-        return np.where((L > 0).all(axis=1), rho, np.inf)
+        rho = np.where((L > 0).all(axis=1), rho, np.inf)
+        ell = np.where(self.has0, np.abs(beta) * _ratio_min(corners, dstar), 1.0)
+        # a bound that is not a number proves nothing
+        rho = np.where(np.isnan(rho), np.inf, rho)
+        sel = np.flatnonzero(rho >= 1.0)           # the second test where the first fails
+        if sel.size:
+            with np.errstate(all="ignore"):
+                closed = self._closed(sel, fw, fz, rest[sel], ell[sel], d0[sel], dstar[sel])
+            rho[sel] = np.fmin(rho[sel], np.where(np.isnan(closed), np.inf, closed))
+        return rho
+
+    def _closed(self, sel, fw, fz, rest, ell, d0, dstar) -> np.ndarray:
+        """The second test, with the couplings' phase.  Each mode's own loop is closed
+        exactly: with ``E = Gc D + R`` (``D = diag(dh_j(i nu0_j))``, ``|R| <= rest``),
+        ``I - E = [(I - Go T) - R (I - Gd D)^-1] (I - Gd D)``, ``Gd``/``Go`` the diagonal
+        and off-diagonal parts of ``Gc`` and ``T = diag(t_j)``,
+        ``t_j = dh_j / (1 - g_jj dh_j) = kappa (d - d0) / (d - d*)``: a Moebius image of
+        the rectangle, held in a disc ``q_j + r_j u_j`` (radius exact over the
+        rectangle).  With ``A0 = I - Go diag(q)``, ``I - E`` is nonsingular when every
+        ``|1 - g_jj dh_j| >= ell_j > 0`` and the Perron root of
+        ``|A0^-1 Go| diag(r) + |A0^-1| rest diag(1/ell)`` is below 1.  A phase-stabilised
+        mode keeps its phase here: its closed own loop ``t_j`` is small, where the
+        entrywise bound multiplies its open deviation by the couplings.
+        """
+        md = self.modes
+        n = md.w0.size
+        w0, c0 = md.w0[None, :], md.c0[None, :]
+        nu0, has0 = self.nu0[sel], self.has0[sel]
+        neg = nu0 < 0
+        corners = [np.where(neg, c.conj(), c) for c in
+                   _rect(nu0, w0, c0, (fw[0][None], fw[1][None]),
+                         (fz[0][None], fz[1][None]))]
+        g = self.alpha[sel]
+        dst = np.where(neg, dstar.conj(), dstar)            # back to the signed plane
+        kappa = -1.0 / np.where(d0 + g == 0, 1.0, d0 + g)
+        t = np.linspace(0.0, 1.0, 9)[:-1]
+        pts = np.concatenate([a[..., None] + t * (b - a)[..., None] for a, b in
+                              zip(corners, corners[1:] + corners[:1])], axis=-1)
+        with np.errstate(all="ignore"):
+            tau = kappa[..., None] * (pts - d0[..., None]) / (pts - dst[..., None])
+        q = (0.5 * (tau.real.max(-1) + tau.real.min(-1))
+             + 0.5j * (tau.imag.max(-1) + tau.imag.min(-1)))
+        # |t - q| = |kappa - q| |d - e| / |d - d*|,  e = (kappa d0 - q d*) / (kappa - q)
+        kq = np.where(kappa - q == 0, 1e-300, kappa - q)
+        e = (kappa * d0 - q * dst) / kq
+        m = np.maximum.reduce([_seg_max(c - dst, f - c, e - dst) for c, f in
+                               zip(corners, corners[1:] + corners[:1])])
+        m = np.where(np.isfinite(m), m, np.inf)
+        ok = has0 & (ell > 0) & np.isfinite(q)
+        r = np.where(ok, np.abs(kq) * np.sqrt(m) * (1 + 1e-6), 0.0)
+        q = np.where(ok, q, 0.0)
+        Gc = self.Gc[sel].astype(np.complex128)
+        jj = np.arange(n)
+        Go = Gc.copy()
+        Go[:, jj, jj] = 0.0
+        A0 = np.eye(n)[None] - Go * q[:, None, :]
+        with np.errstate(all="ignore"):
+            Ainv = np.linalg.inv(A0)
+        fin = np.isfinite(Ainv).all(axis=(1, 2))
+        Ainv = np.where(fin[:, None, None], Ainv, 0.0)
+        # Gc is kept in single precision: its error (1e-6 of it) joins the rest
+        rest = rest + 1e-6 * np.abs(Gc) * (np.abs(q) + r)[:, None, :]
+        inv_ell = np.where(has0, 1.0 / np.where(ell > 0, ell, 1.0), 1.0)
+        Y = (np.abs(Ainv @ Go) * r[:, None, :]
+             + (np.abs(Ainv) @ rest) * inv_ell[:, None, :])
+        Y = np.where(np.isnan(Y), np.inf, Y)
+        out = _collatz(Y) * (1 + 1e-6)
+        cond = np.abs(A0).sum(axis=2).max(axis=1) * np.abs(Ainv).sum(axis=2).max(axis=1)
+        good = fin & (cond < 1e8) & (ok | ~has0).all(axis=1)
+        return np.where(good, out, np.inf)
 
 
 def _hold(num, P):

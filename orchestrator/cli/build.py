@@ -70,6 +70,13 @@ def run(args: argparse.Namespace) -> int:
     if args.period is not None and not args.controller:
         raise ValueError("--period is the period of a --controller state-space; give "
                          "--controller LAW or drop --period")
+    if not single:   # the long builds; a single FMU says what it built when done
+        from orchestrator.progress import stage
+
+        from ._options import shown
+
+        what = ", ".join(args.model) if args.model else "every FMU of the project"
+        stage(f"build {what} (FMI {fmi}) into {shown(out)}")
     if args.controller:   # with --fmi 3 the Python twin stays in a temporary folder
         return _report(*_build_controller(args.controller, out, py_dir, name, args))
     problems, built, skipped = [], [], ()

@@ -73,7 +73,8 @@ class Table:
 
     def example(self) -> str:
         """The table as TOML: its header and every key's example but alternatives."""
-        head = "" if self.name.startswith("(") else f"{self.name}\n"
+        head = "" if self.name.startswith("(") else \
+            self.name.replace("NAME", "structure") + "\n"
         return head + "\n".join(k.example for k in self.keys
                                 if k.example and not k.alternative
                                 and not k.example.startswith("[")) + "\n"
@@ -409,6 +410,8 @@ def markdown(kinds=None) -> str:
                            f"{_cell(k.unit)} | {_cell(k.default)} | {_cell(k.allowed)} | "
                            f"{ex} |")
             out.append("")
+            if not t.name.startswith("("):
+                out += ["```toml", t.example().rstrip("\n"), "```", ""]
     return "\n".join(out)
 
 

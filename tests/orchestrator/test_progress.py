@@ -162,3 +162,15 @@ def test_a_bar_speaks_when_the_command_was_silent_the_interval_not_when_it_start
         lines = log.getvalue().splitlines()
         bar.close()
     assert len(lines) == 2 and lines[1].startswith("campaign: 0/24 cases, "), lines
+
+
+def test_a_terminal_bar_keeps_its_clock_moving_while_nothing_finishes():
+    """On a terminal the bar is redrawn every second: its elapsed time moves although no
+    sample has finished (a Monte Carlo used to show 0:10 until its first chunk ended)."""
+    tty = Tty()
+    bar = ProgressBar(10, "uncertainty", "sample", stream=tty)
+    time.sleep(2.3)
+    shown = tty.getvalue()
+    bar.close()
+    assert "0/10 [00:02" in shown, shown
+    assert "samples," not in shown            # the bar, not the log lines

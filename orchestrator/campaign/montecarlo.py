@@ -386,7 +386,10 @@ def _parallel(chunks, campaign, runner, draws, workers, scheduler):
     os.environ.update({k: "1" for k in _BLAS_THREADS})
     try:
         ctx = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx)
+        from .engine import _die_with_parent
+        # a killed run takes its workers (and so the resource tracker) with it
+        pool = ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx,
+                                   initializer=_die_with_parent, initargs=(os.getpid(),))
         try:
             futs = {pool.submit(_chunk, *args, c): c for c in chunks}
             for fut in done(futs):

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+import sys
 import tempfile
 import uuid
 import zipfile
@@ -41,12 +42,14 @@ from nativefmu.data import KERNELS, kernel_of, model_data, zip_compression
 from nativefmu.fmi3xml import build_description, fmi3_model_description
 from structfmu.fmuspec import build_structure_fmu, spec_from_npz
 
-__all__ = ["CFLAGS", "FMI_VERSIONS", "NativeBuildError", "NativeReport", "build_native", "build_all_native",
+__all__ = ["CFLAGS", "C_STRING_MAX", "FMI_VERSIONS", "c_string", "NativeBuildError", "NativeReport", "build_native", "build_all_native",
            "build_native_structure",
            "compile_sources", "mingw_compiler", "native_model_description", "source_files"]
 
 #: Flags the sources must compile with (libc and libm only).
 CFLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
+#: The linker version script of a Linux binary: the FMI functions global, the rest local.
+EXPORTS_SCRIPT = "{\n  global: fmi2*; fmi3*;\n  local: *;\n};\n"
 #: The FMI 2.0 and 3.0 headers shipped with fmpy (Modelica Association, BSD licence).
 _FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
                 3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
@@ -77,8 +80,40 @@ def _fmi_header_dir() -> Path:
     return Path(fmpy.__file__).parent / "c-code"
 
 
-def _c_string(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+#: The longest string literal an ISO C99 compiler must accept (-pedantic refuses more).
+C_STRING_MAX = 4095
+
+
+def c_string(text: str, what: str = "a name") -> str:
+    """``text`` as a C99 string literal, for the generated sources.
+
+    Printable ASCII stays as it is; every other byte of its UTF-8 (a newline, a control
+    character, a non-ASCII letter), the quote, the backslash and ``?`` (``??/`` is a
+    trigraph for a backslash in C99) become three-digit octal escapes.
+
+    Parameters
+    ----------
+    text : str
+        The string.
+    what : str
+        What it is, for the message (``"String parameter 'file' start value"``).
+
+    Raises
+    ------
+    NativeBuildError
+        When the literal would be longer than :data:`C_STRING_MAX` bytes.
+    """
+    data = str(text).encode("utf-8")
+    if len(data) > C_STRING_MAX:
+        raise NativeBuildError(f"{what} is {len(data)} bytes long, more than the "
+                               f"{C_STRING_MAX} a C string of a native FMU's sources holds; "
+                               "shorten it")
+    return '"' + "".join(chr(b) if 32 <= b < 127 and chr(b) not in '"\\?' else f"\\{b:03o}"
+                         for b in data) + '"'
+
+
+#: The range of a Real that declares none (the largest finite double).
+_BIG = sys.float_info.max
 
 
 def _model_config(root: ET.Element) -> str:
@@ -99,19 +134,21 @@ def _model_config(root: ET.Element) -> str:
         elif typed.tag == "Boolean" and start is not None:
             number = "1.0" if start in ("true", "1") else "0.0"
         elif typed.tag == "String":
-            text = _c_string(start or "")
+            text = c_string(start or "", f"String {sv.get('name')!r} start value")
         tunable = int(sv.get("variability", "continuous") != "fixed"
                       and sv.get("variability") != "constant")
         causality = _CAUSALITIES.get(sv.get("causality", "local"), "JF_OTHER")
-        rows.append(f"    {{{_c_string(sv.get('name'))}, {vr}u, {_TYPES[typed.tag]}, "
-                    f"{causality}, {tunable}, {number}, {text}}},")
+        lo, hi = (float(typed.get(k, default)).hex() if typed.tag == "Real" else
+                  float(default).hex() for k, default in (("min", -_BIG), ("max", _BIG)))
+        rows.append(f"    {{{c_string(sv.get('name'))}, {vr}u, {_TYPES[typed.tag]}, "
+                    f"{causality}, {tunable}, {number}, {text}, {lo}, {hi}}},")
     index = [first.get(v, -1) for v in range(max_vr + 1)] + [-1]
     return "\n".join([
         f"/* Generated from the model description of {model_id} (do not edit). */",
         "#ifndef MODEL_CONFIG_H",
         "#define MODEL_CONFIG_H",
-        f"#define JF_MODEL_IDENTIFIER {_c_string(model_id)}",
-        f"#define JF_GUID {_c_string(root.get('guid'))}",
+        f"#define JF_MODEL_IDENTIFIER {c_string(model_id)}",
+        f"#define JF_GUID {c_string(root.get('guid'))}",
         f"#define JF_N_VARS {len(rows)}u",
         f"#define JF_N_VR {max_vr + 1}u",
         "static const JfVar JF_VARS[JF_N_VARS] = {",
@@ -225,10 +262,17 @@ def compile_sources(sources: Path, out: Path, *, compiler: str = "gcc",
     c_files = sorted(p.name for p in Path(sources).glob("*.c"))
     pic = [] if windows else ["-fPIC"]
     extra = ["-static-libgcc"] if windows else []
-    # relative file names and a neutral cwd: no path of this machine in the binary
-    cmd = [compiler, *CFLAGS, "-O2", "-shared", *pic, *extra, "-o", str(Path(out).resolve()),
-           *c_files, "-lm"]
-    proc = subprocess.run(cmd, cwd=sources, capture_output=True, text=True)
+    with tempfile.TemporaryDirectory(prefix="nativefmu_link_") as tmp:
+        if not windows:
+            # only the FMI functions are global: a host that loads two FMUs into one
+            # symbol scope (RTLD_GLOBAL, LD_PRELOAD) never binds one to the other's helpers
+            script = Path(tmp) / "exports.map"
+            script.write_text(EXPORTS_SCRIPT)
+            extra = [f"-Wl,--version-script={script}"]
+        # relative file names and a neutral cwd: no path of this machine in the binary
+        cmd = [compiler, *CFLAGS, "-O2", "-shared", *pic, *extra, "-o",
+               str(Path(out).resolve()), *c_files, "-lm"]
+        proc = subprocess.run(cmd, cwd=sources, capture_output=True, text=True)
     if proc.returncode != 0:
         raise NativeBuildError(f"{compiler} failed on {Path(out).name}: "
                                f"{proc.stderr.strip()[-3000:]}")

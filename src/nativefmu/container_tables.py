@@ -50,8 +50,11 @@ class ContainerVariable:
     variable: str
 
 
-def _c_str(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+def _c_str(text: str, what: str = "a name") -> str:
+    # deferred: nativefmu.build imports fmpy, which the tables do not otherwise need
+    from nativefmu.build import c_string
+
+    return c_string(text, what)
 
 
 def _c_double(x: float) -> str:
@@ -114,7 +117,8 @@ def _parts(plan, bus: Bus, layout):
 def _value(inst_index: int, v, value) -> str:
     t = _TYPE_CODE[v.type]
     if v.type == "String":
-        return f"{{{inst_index}, {t}, {v.vr}u, 0.0, {_c_str(str(value))}}}"
+        return (f"{{{inst_index}, {t}, {v.vr}u, 0.0, "
+                f"{_c_str(str(value), f'the String {v.name!r}')}}}")
     x = float(bool(value)) if v.type == "Boolean" else float(value)
     return f"{{{inst_index}, {t}, {v.vr}u, {_c_double(x)}, NULL}}"
 

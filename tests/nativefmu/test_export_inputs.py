@@ -5,7 +5,9 @@ replaced by the container, ``--output time``, ``out`` a folder)."""
 from __future__ import annotations
 
 import hashlib
+import json
 import shutil
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -72,3 +74,41 @@ def test_output_without_a_dot_and_a_folder_as_out_are_one_sentence(own, capsys, 
     err = _refused(capsys, ["export-fmu", str(s), str(folder), "--fmu-dir", str(d),
                             "--no-windows"])
     assert "is a folder" in err
+
+
+def _with_string_parameter(tmp_path, value):
+    from .test_container import MIXED
+
+    text = MIXED.replace("[[actions]]", '[fmus.dist]\nfmu = "disturbance"\nperiod = 1e-3\n'
+                         f"parameters = {{ preset = {json.dumps(value)} }}\n"
+                         '[[connections]]\nfrom = "dist.Fx"\nto = "structure.f_tip_x"\n'
+                         "[[actions]]")
+    (tmp_path / "s.toml").write_text(text)
+    return tmp_path / "s.toml"
+
+
+def test_a_string_parameter_with_a_newline_or_trigraph_compiles_as_written(own, tmp_path):
+    """A newline, ``??/`` (a C99 trigraph for a backslash), a quote and a non-ASCII letter
+    in a String parameter: the container's sources hold it as octal escapes and compile
+    (before: a raw gcc error dump)."""
+    import warnings
+
+    from nativefmu.container import export_fmu
+
+    _, d = own
+    value = 'a\nb??/c"d\\é'
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fmu = export_fmu(_with_string_parameter(tmp_path, value), tmp_path / "x.fmu",
+                         fmu_dir=d, windows=False)
+    with zipfile.ZipFile(fmu) as z:
+        header = z.read("sources/container_data.h").decode()
+    assert r'"a\012b\077\077/c\042d\134\303\251"' in header
+
+
+def test_a_string_parameter_longer_than_a_c_string_is_one_sentence(own, tmp_path, capsys):
+    _, d = own
+    s = _with_string_parameter(tmp_path, "x" * 20000)
+    err = _refused(capsys, ["export-fmu", str(s), str(tmp_path / "x.fmu"), "--fmu-dir", str(d),
+                            "--no-windows"])
+    assert "the String 'preset' is 20000 bytes long, more than the 4095" in err

@@ -111,3 +111,44 @@ def test_parts_of_a_run_with_another_seed_or_bounds_are_run_again(tmp_path, trus
     err = capsys.readouterr().err
     assert err.count("another run wrote it") >= 1
     assert rep["resumed"] < 8 and _samples(tmp_path / "a") == first
+
+
+@pytest.mark.slow
+def test_sigkill_of_a_two_worker_monte_carlo_takes_its_workers_with_it(tmp_path, truss_fmus):  # noqa: F811
+    """The run killed (SIGKILL: no handler runs) while its two workers compute: within
+    a few seconds no process it started is left, the workers and the resource tracker
+    included (before, both workers and the tracker ran on, orphaned)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import psutil
+    import tomli_w
+
+    data = _campaign(_amp_and_gain(3000, 6, 0.2, 1.5))
+    path = tmp_path / "c.toml"
+    path.write_text(tomli_w.dumps(data))
+    out = tmp_path / "out"
+    cli = "import sys; from orchestrator.cli import main; sys.exit(main(sys.argv[1:]))"
+    proc = subprocess.Popen([sys.executable, "-c", cli, "campaign", str(path), "--out",
+                             str(out), "--workers", "2", "--quiet", "--fmu-dir",
+                             str(truss_fmus)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, env={**os.environ,
+                                                            "OPENBLAS_NUM_THREADS": "1"})
+    parent = psutil.Process(proc.pid)
+    deadline = time.monotonic() + 240
+    kids = []
+    while time.monotonic() < deadline and proc.poll() is None:
+        kids = parent.children(recursive=True)
+        if len(kids) >= 3 and list(out.glob("uncertainty_parts/*/part-*.npz")):
+            break                      # two workers and the tracker, samples being kept
+        time.sleep(0.2)
+    assert proc.poll() is None and len(kids) >= 3, "the run ended before its workers ran"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    gone, alive = psutil.wait_procs(kids, timeout=15)
+    for p in alive:                    # leave nothing behind whatever the outcome
+        p.kill()
+    assert not alive, [p.cmdline()[:3] for p in alive]

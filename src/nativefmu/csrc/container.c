@@ -11,7 +11,10 @@
  * makes the calls `jitterfmu run` makes over those ticks, in the same order.
  *
  * Time inside is the tick count k: t_k = (A + k B) / D, correctly rounded, as the
- * master computes it; a step must be a whole number of base ticks (within 1e-9 of it).
+ * master computes it; a step must end on the tick grid, judged with a tolerance that
+ * grows with the host's accumulated time (host_tolerance: a host that adds t += h and
+ * shortens its last step to land on its stop time is off by some ulps per step taken),
+ * and take at most CT_MAX_STEP_TICKS ticks.
  * After fmi2ExitInitializationMode and after every doStep, the first phase of the
  * current tick has run (inputs set, feedthrough outputs read), so the outputs are the
  * master's recorded values at t_k; setting an input marks that phase stale and it runs
@@ -198,6 +201,19 @@ static char *dup_string(const char *s) {
     char *out = (char *)malloc(n + 1);
     if (out != NULL) memcpy(out, s, n + 1);
     return out;
+}
+
+/* The most ticks one doStep takes (its work is bounded: a longer step is refused, not
+ * hung on); CT_MAX_TICK (container_data.h) is the last tick whose time is exact. */
+#define CT_MAX_STEP_TICKS INT64_C(10000000)
+
+/* How far a host's time t may be from a tick after steps of h: 1e-6 of a base step plus
+ * a few ulps of t per step taken, never a quarter of a base step. */
+static double host_tolerance(double t, double h) {
+    double tol;
+    if (!(h > CT_BASE_STEP)) h = CT_BASE_STEP;   /* a host's last, shortened step */
+    tol = 1e-6 * CT_BASE_STEP + 4.0 * 2.220446049250313e-16 * fabs(t) * (1.0 + fabs(t) / h);
+    return tol < 0.25 * CT_BASE_STEP ? tol : 0.25 * CT_BASE_STEP;
 }
 
 /* t_k exactly rounded: (A + k B) / D with A + k B and D exact in a double. */
@@ -732,18 +748,36 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         return failed(C, CT_FN_DOSTEP ": %s", "not in step mode (initialise first, and no step "
                       "after an error or fmi2Terminate)");
     m_real = nearbyint(communicationStepSize / CT_BASE_STEP);
-    if (!isfinite(communicationStepSize) || !(m_real >= 1.0) || m_real > 1e15 ||
-        !(fabs(communicationStepSize - m_real * CT_BASE_STEP) <=
-          1e-9 * fabs(communicationStepSize))) {
+    t_now = tick_time(C->tick);
+    if (isfinite(communicationStepSize) && m_real > (double)CT_MAX_STEP_TICKS) {
+        ct_log(C, 3, CT_FN_DOSTEP ": communication step %.17g s is %.0f base steps, more than "
+               "the %lld one doStep takes; step in pieces", communicationStepSize, m_real,
+               (long long)CT_MAX_STEP_TICKS);
+        return fmi2Error;
+    }
+    if (m_real == 0.0 && communicationStepSize > 0.0 &&
+        fabs(currentCommunicationPoint - t_now) <= host_tolerance(t_now, 0.0) &&
+        fabs(currentCommunicationPoint + communicationStepSize - t_now) <=
+            host_tolerance(t_now, 0.0))
+        return fmi2OK;   /* a host's rounding remainder (t += h short of its stop time) */
+    if (!isfinite(communicationStepSize) || !(m_real >= 1.0) ||
+        !(fabs(currentCommunicationPoint + communicationStepSize -
+               tick_time(C->tick + (int64_t)m_real)) <=
+          host_tolerance(currentCommunicationPoint + communicationStepSize,
+                         communicationStepSize))) {
         ct_log(C, 3, CT_FN_DOSTEP ": communication step %.17g s is not a whole number of base "
                "steps; allowed steps are m x %.17g s for m = 1, 2, 3, ... (the scenario's base "
                "step: the GCD of its periods and output interval)", communicationStepSize,
                CT_BASE_STEP);
         return fmi2Error;
     }
-    t_now = tick_time(C->tick);
+    if (C->tick + (int64_t)m_real > CT_MAX_TICK) {
+        ct_log(C, 3, CT_FN_DOSTEP ": the step would end past tick %lld, the last whose time "
+               "is exact", (long long)CT_MAX_TICK);
+        return fmi2Error;
+    }
     if (!(fabs(currentCommunicationPoint - t_now) <=
-          1e-6 * CT_BASE_STEP + 1e-12 * fabs(t_now))) {
+          host_tolerance(t_now, communicationStepSize))) {
         ct_log(C, 3, CT_FN_DOSTEP ": the step starts at %.17g s but the container is at "
                "t = %.17g s (tick %lld); step from where the last step ended",
                currentCommunicationPoint, t_now, (long long)C->tick);
@@ -931,7 +965,7 @@ static int state_check(Container *ct, const unsigned char *p, size_t n) {
     memcpy(head + 2, p + 80, 16);
     memcpy(&tick, p + 96, 8);
     if (head[2] != (uint32_t)CT_N_INST || head[3] != (uint32_t)(3 * CT_N_SLOTS) ||
-        head[4] > PH_TERMINATED || head[5] > 1u || tick < 0) {
+        head[4] > PH_TERMINATED || head[5] > 1u || tick < 0 || tick > CT_MAX_TICK) {
         ct_log(ct, 3, "FMU state rejected: %u instances, %u bus values, phase %u, tick %lld; "
                "expected %u instances, %u bus values, a valid phase and tick",
                (unsigned)head[2], (unsigned)head[3], (unsigned)head[4], (long long)tick,

@@ -182,6 +182,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
                        const fmi2Real value[]) {
     size_t k;
     CHECK(JF_REAL, 1);
+    if (jf_check_reals(INST, vr, nvr, value, "fmi2SetReal") != JF_OK) return fmi2Error;
     for (k = 0; k < nvr; k++) INST->r[vr[k]] = value[k];
     return STATUS(jf_after_set(INST, nvr));
 }

@@ -153,11 +153,25 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
     if (jf_check_refs(INST, valueReferences, nValueReferences, type, setting) != JF_OK)  \
         return fmi3Error
 
+/* The independent variable `time` takes the value reference after every other one
+ * (nativefmu.fmi3xml); its value is the current time, as FMI 3.0 says. */
+#define TIME_VR ((fmi3ValueReference)JF_N_VR)
+
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
     size_t k;
-    CHECK(JF_REAL, 0, "fmi3GetFloat64");
-    for (k = 0; k < nValueReferences; k++) values[k] = INST->r[valueReferences[k]];
+    if (instance == NULL) return fmi3Error;
+    if (nValues != nValueReferences)
+        return fail(instance, "fmi3GetFloat64", "nValues differs from nValueReferences "
+                    "(every variable is a scalar)");
+    for (k = 0; k < nValueReferences; k++) {
+        if (valueReferences[k] == TIME_VR && INST->phase != JF_FAILED) {
+            values[k] = INST->phase >= JF_INITIALIZATION ? INST->t_next : 0.0;
+            continue;
+        }
+        if (jf_check_refs(INST, valueReferences + k, 1, JF_REAL, 0) != JF_OK) return fmi3Error;
+        values[k] = INST->r[valueReferences[k]];
+    }
     return fmi3OK;
 }
 
@@ -190,7 +204,15 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
                           size_t nValueReferences, const fmi3Float64 values[],
                           size_t nValues) {
     size_t k;
+    if (instance != NULL)
+        for (k = 0; k < nValueReferences; k++)
+            if (valueReferences[k] == TIME_VR)
+                return fail(instance, "fmi3SetFloat64", "time is the independent variable "
+                            "and cannot be set");
     CHECK(JF_REAL, 1, "fmi3SetFloat64");
+    if (jf_check_reals(INST, valueReferences, nValueReferences, values, "fmi3SetFloat64") !=
+        JF_OK)
+        return fmi3Error;
     for (k = 0; k < nValueReferences; k++) INST->r[valueReferences[k]] = values[k];
     return STATUS(jf_after_set(INST, nValueReferences));
 }
@@ -307,6 +329,9 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (terminateSimulation != NULL) *terminateSimulation = fmi3False;
     if (earlyReturn != NULL) *earlyReturn = fmi3False;
     st = jf_do_step(INST, currentCommunicationPoint, communicationStepSize, "fmi3DoStep");
+    /* FMI 3.0: an output the model cannot vouch for is an error, never NaN with OK (the
+     * FMI 2.0 build leaves that check to its master, which names the diverging loop) */
+    if (st == JF_OK) st = jf_check_outputs(INST, "fmi3DoStep");
     if (lastSuccessfulTime != NULL)
         *lastSuccessfulTime = st == JF_OK ? currentCommunicationPoint + communicationStepSize
                                           : currentCommunicationPoint;

@@ -12,7 +12,7 @@
  *
  *   offset  size        field
  *   0       8           magic "JFMUSTAT"
- *   8       4           layout version (uint32, 1)
+ *   8       4           layout version (uint32, 2)
  *   12      4           byte-order mark 0x01020304 (uint32, host order)
  *   16      64          GUID (FMI 3.0: instantiation token) of the model, zero padded
  *   80      4 x 4       n_vr, n_state, phase, 0 (uint32)
@@ -21,6 +21,7 @@
  *   ...     4 n_vr      Integer (Int32) values (int32)
  *   ...     4 n_vr      Boolean values (int32, 0 or 1)
  *   ...     8 n_state   kernel state (double)
+ *   ...     8           the communication point the next step starts from (double)
  *   end-8   8           FNV-1a 64 checksum of every byte before it
  *
  * String variables (fixed parameters) are not part of the state.
@@ -39,7 +40,7 @@
 #include "model_config.h"
 
 #define STATE_MAGIC "JFMUSTAT"
-#define STATE_VERSION 1u
+#define STATE_VERSION 2u
 #define STATE_HEADER JF_STATE_HEADER
 
 /* ------------------------------------------------------------------ logging, memory */
@@ -182,7 +183,13 @@ int jf_enter_initialization(JfInstance *inst, double start_time, const char *fn)
         jf_log(inst, 3, "%s: only allowed once, after instantiation", fn);
         return JF_ERROR;
     }
+    if (!isfinite(start_time) || fabs(start_time) > JF_MAX_TIME) {
+        jf_log(inst, 3, "%s: start time %.17g s is not a finite time within %g s", fn,
+               start_time, JF_MAX_TIME);
+        return JF_ERROR;
+    }
     inst->start_time = start_time;
+    inst->t_next = start_time;
     inst->phase = JF_INITIALIZATION;
     return JF_OK;
 }
@@ -207,7 +214,63 @@ int jf_do_step(JfInstance *inst, double t, double h, const char *fn) {
         jf_log(inst, 3, "%s: communication step must be positive and finite", fn);
         return JF_ERROR;
     }
-    return jf_kernel_status(inst, model_do_step(inst, t, h));
+    if (h > JF_MAX_STEP || fabs(t) + h > JF_MAX_TIME) {
+        jf_log(inst, 3, "%s: a step of %.17g s from t = %.17g s is longer than the %g s one "
+               "step may take (or ends past %g s); step in pieces", fn, h, t, JF_MAX_STEP,
+               JF_MAX_TIME);
+        return JF_ERROR;
+    }
+    if (!jf_same_point(t, inst->t_next, h)) {
+        jf_log(inst, 3, "%s: the step starts at t = %.17g s but the FMU is at t = %.17g s; "
+               "step from where the last step ended (or restore a state saved there)", fn,
+               t, inst->t_next);
+        return JF_ERROR;
+    }
+    if (model_do_step(inst, t, h) != JF_OK) return jf_kernel_status(inst, JF_ERROR);
+    inst->t_next = jf_end_time(t, h, inst->t_next);
+    return JF_OK;
+}
+
+int jf_same_point(double t, double known, double h) {
+    /* a host that accumulates t += h is off by up to about (t / h) ulps of t */
+    double tol = JF_TIME_RTOL * h + 4.0 * DBL_EPSILON * fabs(known) * (1.0 + fabs(known) / h);
+    return fabs(t - known) <= (tol < 0.5 * h ? tol : 0.5 * h);
+}
+
+int jf_check_reals(JfInstance *inst, const unsigned int *vr, size_t nvr, const double *v,
+                   const char *fn) {
+    size_t k;
+    for (k = 0; k < nvr; k++) {
+        const JfVar *var = var_of(vr[k]);
+        if (!isfinite(v[k])) {
+            jf_log(inst, 3, "%s: %s = %g is not a finite number; nothing was set", fn,
+                   var->name, v[k]);
+            return JF_ERROR;
+        }
+        if (v[k] < var->min || v[k] > var->max) {
+            jf_log(inst, 3, "%s: %s = %.17g is outside its declared range [%.17g, %.17g]; "
+                   "nothing was set", fn, var->name, v[k], var->min, var->max);
+            return JF_ERROR;
+        }
+    }
+    return JF_OK;
+}
+
+int jf_check_outputs(JfInstance *inst, const char *fn) {
+    size_t i;
+    for (i = 0; i < JF_N_VARS; i++) {
+        const JfVar *v = &JF_VARS[i];
+        double x;
+        if (v->type != JF_REAL || v->causality != JF_OUTPUT) continue;
+        x = inst->r[v->vr];
+        if (isfinite(x) && x >= v->min && x <= v->max) continue;
+        jf_log(inst, 3, "%s: output %s = %g is %s; an input drove the model outside its "
+               "validity (the instance stops here)", fn, v->name, x,
+               isfinite(x) ? "outside its declared range" : "not a finite number");
+        inst->phase = JF_FAILED;
+        return JF_ERROR;
+    }
+    return JF_OK;
 }
 
 /* ------------------------------------------------------------------ variables */
@@ -263,7 +326,7 @@ int jf_set_string(JfInstance *inst, unsigned int vr, const char *s) {
 /* ------------------------------------------------------------------ FMU state */
 
 static size_t state_size(const JfInstance *inst) {
-    return STATE_HEADER + JF_N_VR * (8u + 4u + 4u) + inst->n_state * 8u + 8u;
+    return STATE_HEADER + JF_N_VR * (8u + 4u + 4u) + inst->n_state * 8u + 8u + 8u;
 }
 
 JfState *jf_state_save(JfInstance *inst) {
@@ -296,6 +359,8 @@ JfState *jf_state_save(JfInstance *inst) {
     }
     if (inst->n_state) memcpy(p, inst->state, inst->n_state * 8u);
     p += inst->n_state * 8u;
+    memcpy(p, &inst->t_next, 8);
+    p += 8;
     sum = jf_state_sum(blob->bytes, n - 8u);
     memcpy(p, &sum, 8);
     return blob;
@@ -348,6 +413,15 @@ static int state_check(JfInstance *inst, const unsigned char *p, size_t n) {
             return 1;
         }
     }
+    {
+        double t;
+        memcpy(&t, p, 8);
+        if (!isfinite(t) || fabs(t) > JF_MAX_TIME) {
+            jf_log(inst, 3, "FMU state rejected: its time %g s is not a finite time within "
+                   "%g s", t, JF_MAX_TIME);
+            return 1;
+        }
+    }
     p = start + 96;
     for (i = 0; i <= JF_N_VR; i++, p += 8) {   /* the start time, then every Real value */
         double x;
@@ -385,6 +459,7 @@ static void state_apply(JfInstance *inst, const unsigned char *p) {
         inst->bv[i] = (int)word;
     }
     if (inst->n_state) memcpy(inst->state, p, inst->n_state * 8u);
+    memcpy(&inst->t_next, p + inst->n_state * 8u, 8);
 }
 
 /* Restore a state all or nothing: checked bytes, then the kernel's own check; a state the

@@ -35,6 +35,13 @@ int jf_do_step(JfInstance *inst, double t, double h, const char *fn);
  * 0) or set (setting 1) now; JF_ERROR (logged) otherwise or if the instance failed. */
 int jf_check_refs(JfInstance *inst, const unsigned int *vr, size_t nvr, int type,
                   int setting);
+/* JF_OK when every Real value to set is finite and inside its variable's declared
+ * range; JF_ERROR (logged, naming the variable) otherwise. */
+int jf_check_reals(JfInstance *inst, const unsigned int *vr, size_t nvr, const double *v,
+                   const char *fn);
+/* JF_OK when every Real output is finite and inside its declared range; else JF_ERROR
+ * (logged) and the instance failed. */
+int jf_check_outputs(JfInstance *inst, const char *fn);
 /* After a set of nvr values: let the kernel refresh its direct feedthrough. */
 int jf_after_set(JfInstance *inst, size_t nvr);
 /* Replace String value reference vr by a copy of s; JF_ERROR if out of memory. */

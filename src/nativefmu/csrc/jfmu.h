@@ -24,6 +24,7 @@ typedef struct {
     int tunable;      /* variability tunable, discrete or continuous */
     double start;     /* Real, Integer and Boolean start values */
     const char *sstart;
+    double min, max;  /* a Real's declared range (+-DBL_MAX when undeclared) */
 } JfVar;
 
 typedef struct JfInstance JfInstance;
@@ -39,6 +40,7 @@ struct JfInstance {
     int *bv;              /* Boolean values (0 or 1) */
     char **sv;            /* String values */
     double start_time;
+    double t_next;        /* the communication point the next step must start from */
     size_t n_state;       /* internal state (beyond the variables), saved with the FMU state */
     double *state;
     void *model;          /* kernel data that is not state (matrices, caches) */
@@ -86,6 +88,13 @@ double jf_end_time(double t, double h, double last);
  * within JF_STEP_RTOL (relative) of a known step is that step.  As fmukit.timing. */
 #define JF_TIME_RTOL 1e-6
 #define JF_STEP_RTOL 1e-9
+/* The longest step one doStep takes (s), and the largest time an FMU runs to (s): a
+ * step's work is bounded (a kernel steps its samples one by one). */
+#define JF_MAX_STEP 1e4
+#define JF_MAX_TIME 1e9
+/* t is the communication point `known` up to a host's rounding of steps h: 1e-6 h, plus
+ * what t += h accumulates (a few ulps of t per step taken), never half a step. */
+int jf_same_point(double t, double known, double h);
 /* t at or after event within JF_TIME_RTOL of period (fmukit.timing.reached). */
 int jf_reached(double t, double event, double period);
 /* h is the step known up to host rounding (fmukit.timing.same_step). */

@@ -1,0 +1,97 @@
+"""Every native FMU and container exports its FMI functions and nothing else.
+
+Before, a native FMU exported 33 internal symbols (``jf_*``, ``model_*``) and a
+container 406 more (``uN_*``, ``fastloop_*``); loaded into one symbol scope
+(``RTLD_GLOBAL``, ``LD_PRELOAD``, as some hosts do) a second FMU bound to the first one's
+functions and refused its own GUID.  Reference: ``nm -D --defined-only`` of each
+binary, and a process that loads one FMU ``RTLD_GLOBAL`` and then runs another.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import warnings
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from .test_fmi3 import dirs  # noqa: F401  (the FMI 3.0 builds of the session)
+
+pytestmark = pytest.mark.slow
+
+REPO = Path(__file__).resolve().parents[2]
+NATIVE = ("truss10_structure", "controller_truss10_strain_diag", "piezo_p243_40",
+          "excitation", "acs", "disturbance")
+TRUSS = ["truss10_structure", "piezo_p243_40", "piezo_p243_30", "controller_truss10_strain_diag",
+         "controller_truss10_strain_long", "excitation"]
+
+
+def _binary(fmu: Path, tmp: Path) -> Path:
+    with zipfile.ZipFile(fmu) as z:
+        name = next(n for n in z.namelist() if n.endswith(".so"))
+        out = tmp / fmu.stem / Path(name).name
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_bytes(z.read(name))
+    return out
+
+
+def _exported(lib: Path) -> list:
+    out = subprocess.run(["nm", "-D", "--defined-only", str(lib)], capture_output=True,
+                         text=True, check=True).stdout
+    return [ln.split()[-1] for ln in out.splitlines() if len(ln.split()) == 3]
+
+
+@pytest.fixture(scope="module")
+def binaries(suite_fmus, suite_fmu_dir, dirs, tmp_path_factory):  # noqa: F811
+    """{label: .so} of FMI 2.0 and 3.0 native FMUs and of both containers."""
+    from nativefmu.container import export_fmu
+
+    suite_fmus(*NATIVE, *TRUSS)
+    tmp = tmp_path_factory.mktemp("symbols")
+    out = {f"{m} (FMI 2.0)": _binary(suite_fmu_dir / f"{m}.fmu", tmp / "2") for m in NATIVE}
+    out.update({f"{m} (FMI 3.0)": _binary(dirs[3] / f"{m}.fmu", tmp / "3") for m in NATIVE})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for fmi in (2, 3):
+            fmu = export_fmu(REPO / "scenarios" / "truss10_closed_loop.toml",
+                             tmp / f"truss_c{fmi}.fmu", fmu_dir=suite_fmu_dir, fmi=fmi,
+                             windows=False)
+            out[f"container (FMI {fmi}.0)"] = _binary(fmu, tmp / f"c{fmi}")
+    return out
+
+
+def test_only_fmi_functions_are_exported(binaries):
+    for label, lib in binaries.items():
+        names = _exported(lib)
+        prefix = "fmi3" if "FMI 3.0" in label else "fmi2"
+        assert len(names) >= 30, (label, names)
+        assert all(n.startswith(prefix) for n in names), (label, [n for n in names
+                                                                  if not n.startswith(prefix)])
+        assert f"{prefix}DoStep" in names
+
+
+_HOST = r"""
+import ctypes, sys
+from fmpy import simulate_fmu
+ctypes.CDLL(sys.argv[1], mode=ctypes.RTLD_GLOBAL)     # one FMU in the global scope
+res = simulate_fmu(sys.argv[2], stop_time=0.05, output_interval=1e-3)
+print(len(res))
+"""
+
+
+@pytest.mark.parametrize("first, second", [
+    ("truss10_structure", "controller_truss10_strain_diag"),
+    ("controller_truss10_strain_diag", "piezo_p243_40"),
+])
+def test_an_fmu_runs_beside_another_loaded_into_the_global_scope(suite_fmu_dir, binaries,
+                                                                 tmp_path, first, second):
+    fmu = tmp_path / f"{second}.fmu"
+    shutil.copy2(suite_fmu_dir / f"{second}.fmu", fmu)
+    lib = binaries[f"{first} (FMI 2.0)"]
+    proc = subprocess.run([sys.executable, "-c", _HOST, str(lib), str(fmu)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.split()[-1] == "51"

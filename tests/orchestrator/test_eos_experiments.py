@@ -167,15 +167,11 @@ def swir_events(tmp_path_factory, suite_fmu_dir):
     return dict(sorted(worst.items(), key=lambda kv: kv[1], reverse=True))
 
 
-#: The four largest events on SWIR with the shipped ACS (0.04 Hz), arcsec, measured with
-#: ``jitterfmu reproduce eos-budget``: CERES scan 4.58, MOPITT scan 1.72, SAD 1.57, SWIR
-#: cryocooler 1.41; VNIR pointing fifth, 0.71.  With the earlier 0.1 Hz ACS (unstable on
-#: this plant): SAD 1.79, VNIR pointing 1.69, CERES scan 1.34, SWIR cryocooler 0.84,
-#: MOPITT scan fifth, 0.65.  The ranking depends on the ACS, and the paper's (EOS AM-1's)
-#: is not ours (docs/eos_experiments.md).
-FIG8_ACS = ("with the shipped 0.04 Hz ACS the four largest events on SWIR are CERES scan, "
-            "MOPITT scan, SAD and SWIR cryocooler; VNIR pointing ranks fifth (0.71 arcsec "
-            "against MOPITT scan's 1.72)")
+#: The largest events on SWIR with the shipped ACS (the 0.5 Hz array mode damped through
+#: roll, docs/robustness.md), arcsec, measured with ``jitterfmu reproduce eos-budget``:
+#: CERES scan 1.78, SAD 1.56, SWIR cryocooler 1.30, VNIR pointing 1.14; MOPITT scan
+#: fifth, 1.02.  With the earlier ACS that notched the array mode out of roll the CERES
+#: scan rang it (4.58) and MOPITT scan ranked second (1.72), VNIR pointing fifth (0.71).
 
 
 def test_eos_budget_swir_cryocooler_is_a_primary_contributor(swir_events):
@@ -186,16 +182,12 @@ def test_eos_budget_swir_cryocooler_is_a_primary_contributor(swir_events):
     assert "SWIR cryocooler" in list(swir_events)[:4]
 
 
-@pytest.mark.xfail(strict=True, reason="the 4 N was fitted with the earlier 0.1 Hz ACS; with "
-                   "the shipped 0.04 Hz ACS 3 N ranks fourth as well (0.75 x 1.41 = 1.06 "
-                   "arcsec against VNIR pointing's 0.71, fifth): the fit no longer pins 4 N")
 def test_eos_budget_swir_cryocooler_needs_4n(swir_events):
     # 3 N would rank fifth: the fitted amplitude is the smallest that ranks it fourth
     top = list(swir_events)
     assert 0.75 * swir_events["SWIR cryocooler"] < swir_events[top[4]]
 
 
-@pytest.mark.xfail(strict=True, reason=FIG8_ACS)
 def test_reproduces_fig8_primary_contributors(swir_events):
     # paper (Fig. 8): the primary contributors on SWIR are VNIR pointing, the SWIR
     # cryocooler, the CERES scan and the SAD (not fitted: only the cryocooler's

@@ -194,10 +194,13 @@ def run_campaign(
 def _check_overrides(campaign: Campaign, runner) -> None:
     """Every variable the campaign sets must be settable in its FMU, every value it
     takes one of its type, and every instrument axis a recorded variable of its FMU
-    (checked before any case runs)."""
-    if not campaign.cases:
+    (checked before any case runs).  A campaign of wheel sweeps alone is checked on
+    its first sweep's scenario, where an instrument need not be recorded."""
+    if not (campaign.cases or campaign.wheel_sweeps):
         return
-    base = campaign.cases[0].scenario     # cases differ in parameter values only
+    # cases differ in parameter values only
+    base = (campaign.cases[0].scenario if campaign.cases
+            else campaign.wheel_sweeps[0]["scenario"])
     problem = getattr(runner, "override_problem", None)
     for where, ref, values in campaign.overrides if problem else ():
         why = problem(base, ref, values)
@@ -206,7 +209,7 @@ def _check_overrides(campaign: Campaign, runner) -> None:
     output = getattr(runner, "output_problem", None)
     for name, axes in campaign.instruments.items() if output else ():
         for axis, ref in axes.items():
-            why = output(base, ref)
+            why = output(base, ref, recorded=bool(campaign.cases))
             if why:
                 raise CampaignError(f"{campaign.source}: instrument {name!r} axis {axis!r}: "
                                     f"{why}")

@@ -100,7 +100,7 @@ class LinearRunner:
         """
         return self._master.override_problem(scenario, ref, values)
 
-    def output_problem(self, scenario: dict, ref: str) -> str | None:
+    def output_problem(self, scenario: dict, ref: str, recorded: bool = True) -> str | None:
         """As :meth:`MasterRunner.output_problem` (an instrument's axis in the record).
 
         Parameters
@@ -108,8 +108,10 @@ class LinearRunner:
         scenario, ref : dict, str
             A case's scenario data and ``"instance.variable"``; returns one sentence,
             or None when the record gives it.
+        recorded : bool
+            It must be in ``[record] variables`` too.
         """
-        return self._master.output_problem(scenario, ref)
+        return self._master.output_problem(scenario, ref, recorded)
 
     # ------------------------------------------------------------------ compiled loops
     def _config_key(self, scenario: dict, sources) -> str:

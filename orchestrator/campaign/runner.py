@@ -166,7 +166,7 @@ class MasterRunner:
                 return str(exc)
         return None
 
-    def output_problem(self, scenario: dict, ref: str) -> str | None:
+    def output_problem(self, scenario: dict, ref: str, recorded: bool = True) -> str | None:
         """Why a case's record cannot give ``ref`` (an instrument's axis); None if it can.
 
         The instance must be in the scenario, the variable in its FMU and the reference
@@ -180,6 +180,9 @@ class MasterRunner:
             A case's scenario data (the TOML layout).
         ref : str
             ``"instance.variable"``.
+        recorded : bool
+            It must be in ``[record] variables`` too (the cases' records; a wheel sweep
+            computes its instruments' angles whatever the record).
 
         Returns
         -------
@@ -202,7 +205,7 @@ class MasterRunner:
         if var not in info.variables:
             return (f"FMU {info.path.name} of instance {inst!r} has no variable {var!r}"
                     f"{closest(var, info.variables)}")
-        if ref not in sc.record:
+        if recorded and ref not in sc.record:
             return (f"{ref} is not recorded; add it to [record] variables of the base "
                     "scenario")
         return None
@@ -386,6 +389,9 @@ def _run(runner: Callable, scenario: dict, folder: Path) -> dict:
     if isinstance(produced, RunResult):
         if not results.is_file():
             raise FileNotFoundError(f"runner returned its table but wrote no {str(results)!r}")
+        held = produced.metadata.get("unstable")
+        if held:   # its jitter is that of the limits, not of the loop: not a budget value
+            raise ValueError(held["message"])
         return produced.table
     res = Path(produced)
     if not res.is_file():

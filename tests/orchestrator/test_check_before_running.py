@@ -90,3 +90,36 @@ def test_a_misspelt_instance_in_an_instrument_gets_the_closest_instance(tmp_path
                                             r"'structure'"):
         run_campaign(camp, tmp_path / "out", MasterRunner(camp.scenario_dir, fmu_dir=fmus),
                      workers=0, progress=False)
+
+
+def test_an_unrecorded_output_is_refused_for_cases_but_not_for_a_wheel_sweep(tmp_path, fmus):
+    camp = load_campaign(ROOT / "campaigns" / "truss10_quick.toml")
+    runner = MasterRunner(camp.scenario_dir, fmu_dir=fmus)
+    base = camp.cases[0].scenario
+    assert runner.output_problem(base, "structure.los_tip_roll") is None
+    base["record"]["variables"].remove("structure.los_tip_roll")
+    assert "is not recorded" in runner.output_problem(base, "structure.los_tip_roll")
+    assert runner.output_problem(base, "structure.los_tip_roll", recorded=False) is None
+    assert "no variable 'los_tip_rol'" in runner.output_problem(
+        base, "structure.los_tip_rol", recorded=False)
+
+
+def test_a_campaign_of_wheel_sweeps_alone_is_checked_on_its_sweep_scenario():
+    """No case: the instruments are checked on the first sweep's scenario, unrecorded."""
+    import dataclasses
+
+    from orchestrator.campaign.engine import _check_overrides
+
+    camp = load_campaign(ROOT / "campaigns" / "truss10_quick.toml")
+    sweep = {"name": "w", "configuration": "c", "scenario": camp.cases[0].scenario}
+    wheel_only = dataclasses.replace(camp, cases=(), wheel_sweeps=(sweep,))
+    asked = []
+
+    class Runner:
+        def output_problem(self, scenario, ref, recorded=True):
+            asked.append((scenario is sweep["scenario"], ref, recorded))
+            return "FMU x has no variable 'los_tip_rol'" if ref.endswith("roll") else None
+
+    with pytest.raises(CampaignError, match=r"instrument 'tip' axis 'roll': FMU x has no "):
+        _check_overrides(wheel_only, Runner())
+    assert asked[0] == (True, "structure.los_tip_roll", False)

@@ -112,7 +112,8 @@ def structured_flops(camp, runner, ctx) -> tuple:
             elif ML is f:
                 apply = c
             else:
-                flop += (L.bit_length() + bin(L).count("1") - 2) * 2.0 * s ** 3
+                flop += ((L.bit_length() - 1) * 2.0 * s ** 3
+                         + (bin(L).count("1") - 1) * s * c)
                 apply = 2.0 * s * s
             flop += n_u * apply * E                                  # state recursion
             flop += 2.0 * n_u * L * k_sum * s                         # input side

@@ -35,7 +35,7 @@ import numpy as np
 
 from .blocks import AnalysisError
 from .fast import FastResponse, _RunType
-from .fastparts import _power, _powers, _tick_map
+from .fastparts import _tick_map
 
 __all__ = ["ModalLoop", "StructuredResponse", "StructureRefused", "modal_loop", "respond"]
 
@@ -137,7 +137,8 @@ class _Form:
         s, n_p = self.s, self.n_p
         read = np.any(self.W[:, :n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
         cols = np.concatenate([np.flatnonzero(np.repeat(read, 2)), np.arange(n_p, s)])
-        squaring = (L.bit_length() + bin(L).count("1") - 2) * 2.0 * s ** 3
+        squaring = ((L.bit_length() - 1) * 2.0 * s ** 3
+                    + (bin(L).count("1") - 1) * s * self.step_cost())
         dense = L > 1 and cols.size * L * self.step_cost() > squaring
         k = 0 if dense or L == 1 else cols.size
         X = np.zeros((s, k + N.shape[1]))
@@ -155,9 +156,12 @@ class _Form:
                     K[:, q] = X[:, k:]
         if L == 1:
             ML = self
-        elif dense:
-            M = self.dense()
-            ML = _power(M, L, _powers(M, L))
+        elif dense:   # by squaring, left to right: a factor M is a structured product
+            ML = self.dense()
+            for bit in bin(L)[3:]:
+                ML = ML @ ML
+                if bit == "1":
+                    ML = self.right(ML)
         else:
             free = np.flatnonzero(~read)
             ML = _BlockPower(s, 2 * free, _pair_power(self.a[free], L), cols, X[:, :k])

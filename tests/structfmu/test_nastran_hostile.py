@@ -160,3 +160,41 @@ def test_an_include_inside_the_decks_folder_is_read(outside):
     _with_include(bdf, "extra.bdf")
     deck = nas.read_deck(bdf, "SI")
     assert 99 in deck.grids
+
+
+# ----------------------------------------------------------------------------- files
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"", r"OP4 '.*x.op4' holds no matrix \(0 bytes\)"),
+    (bytes(range(256)) * 12, r"cannot read OP4 '.*x.op4': .*check that it is an OUTPUT4"),
+])
+def test_an_empty_or_garbage_op4_is_one_sentence_and_nothing_printed(tmp_path, capfd, content,
+                                                                      message):
+    """pyNastran printed its own dump ("doubles(d) = ...") of a garbage OP4 to the
+    console before the error; now the error is the only word."""
+    bdf, _, _, _ = write_model(tmp_path, rigid=False)
+    op4 = tmp_path / "x.op4"
+    op4.write_bytes(content)
+    capfd.readouterr()
+    with pytest.raises(nas.NastranError, match=message):
+        nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none")
+    out = capfd.readouterr()
+    assert out.out == "" and out.err == ""
+
+
+def test_a_fixed_boundary_on_the_modes_of_an_op2_is_refused(tmp_path):
+    """--boundary fixed was ignored without a word when the modes came from an OP2."""
+    from structfmu.models import truss10
+
+    truss = truss10.build()
+    n = len(truss.nodes)
+    bdf, _ = nas.write_truss_deck(truss, tmp_path / "t.bdf", tmp_path / "t.op4")
+    phi = np.zeros((6 * n, 2))
+    phi[0, 0] = phi[1, 1] = 1.0
+    op2 = nas.write_modes_op2(tmp_path / "m.op2", np.array([100.0, 200.0]), phi,
+                              np.arange(1, n + 1))
+    with pytest.raises(nas.NastranError, match=r"boundary='fixed' builds the fixed-interface "
+                                               r"modes .* leave --boundary out"):
+        nas.import_nastran(bdf, units="SI", op2=op2, n_modes=2, ritz="none",
+                           boundary="fixed")

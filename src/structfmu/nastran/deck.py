@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from structfmu.nastran.pyn import QuietLog, includes_inside, pynastran, reason
+from structfmu.nastran.pyn import QuietLog, includes_inside, pynastran, quiet_output, reason
 from structfmu.nastran.rigid import Constraint, constraints
 from structfmu.nastran.spec import (ACTUATOR_ELEMENTS, NastranError, NastranWarning,
                                     UnitSystem, to_int, unit_system)
@@ -235,7 +235,8 @@ def _read_bdf(path: Path, text: str, include_dirs=()):
         tmp.close()
         source = Path(tmp.name)
     try:
-        with warnings.catch_warnings(), includes_inside(path, include_dirs) as outside:
+        with warnings.catch_warnings(), includes_inside(path, include_dirs) as outside, \
+                quiet_output():
             warnings.simplefilter("ignore")
             model.read_bdf(str(source), xref=True, punch=_is_punch(text))
         model.jf_read_outside = bool(outside)

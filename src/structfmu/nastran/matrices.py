@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from structfmu.errors import DimensionError
 from structfmu.nastran.deck import dof_scale
-from structfmu.nastran.pyn import QuietLog, includes_inside, pynastran, reason
+from structfmu.nastran.pyn import QuietLog, includes_inside, pynastran, quiet_output, reason
 from structfmu.nastran.spec import NastranError, unit_system
 
 __all__ = ["read_matrices", "read_op4", "read_dmig", "read_dmig_matrices", "op4_precision",
@@ -59,10 +59,14 @@ def read_op4(op4_path) -> dict:
         raise NastranError(f"OP4 file {str(path)!r} does not exist")
     log = QuietLog()
     try:
-        mats = OP4(log=log.log).read_op4(str(path), precision=op4_precision(path))
+        with quiet_output():
+            mats = OP4(log=log.log).read_op4(str(path), precision=op4_precision(path))
     except Exception as exc:
         raise NastranError(f"cannot read OP4 {str(path)!r}: {reason(exc, log)}; check that "
                            "it is an OUTPUT4 file") from None
+    if not mats:
+        raise NastranError(f"OP4 {str(path)!r} holds no matrix ({path.stat().st_size} bytes); "
+                           "check that it is the OUTPUT4 file of the stiffness and mass")
     out = {}
     for name, m in mats.items():
         data = m.data
@@ -142,7 +146,7 @@ def read_dmig(pch_path, include_dirs=()) -> dict:
     log = QuietLog()
     model = BDF(log=log.log)
     try:
-        with includes_inside(path, include_dirs):
+        with includes_inside(path, include_dirs), quiet_output():
             model.read_bdf(str(path), xref=False,
                            punch=not re.search(r"(?im)^\s*BEGIN\s+BULK", text))
     except NastranError:

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from structfmu.nastran.deck import dof_scale
-from structfmu.nastran.pyn import QuietLog, pynastran, reason
+from structfmu.nastran.pyn import QuietLog, pynastran, quiet_output, reason
 from structfmu.nastran.spec import NastranError, NastranWarning, unit_system
 
 __all__ = ["read_modes", "load_op2", "Modes"]
@@ -75,7 +75,7 @@ def load_op2(op2_path):
     log = QuietLog()
     op2 = OP2(log=log.log)
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), quiet_output():
             warnings.simplefilter("ignore")  # np.chararray in pyNastran
             # tables pyNastran does not know are read as matrices (OUTPUT2 of any data
             # block: GPXX, KAAX...), as its module-level read_op2 does

@@ -7,16 +7,17 @@ log into a :class:`QuietLog` whose lines an error message can quote instead.
 
 from __future__ import annotations
 
+import io
 import os
 import re
-from contextlib import contextmanager
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import numpy as np
 
 from structfmu.nastran.spec import NastranError
 
-__all__ = ["pynastran", "QuietLog", "reason", "includes_inside"]
+__all__ = ["pynastran", "QuietLog", "reason", "includes_inside", "quiet_output"]
 
 
 def pynastran():
@@ -42,6 +43,15 @@ def pynastran():
         if lent:
             del np.in1d
     return BDF, OP2, OP4
+
+
+@contextmanager
+def quiet_output():
+    """While pyNastran reads, what it prints (its dumps of a file it cannot read, its
+    "doubles(d) = ..." lines) goes nowhere: the import says what is wrong in one sentence.
+    """
+    with redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
+        yield
 
 
 @contextmanager

@@ -163,6 +163,9 @@ def run(args) -> int:
     if engine == "linear" and n_verify > 0 and camp.cases:
         from ..campaign import keyed
         camp = keyed(camp, runner)
+        if not args.quiet:
+            stage(f"verifying the linear engine: co-simulating the {n_verify} case(s) with "
+                  "the largest jitter")
         rep = verify_campaign(camp, out, n_verify, fmu_dir=args.fmu_dir,
                               fmu_kind=args.fmu_kind)
         write_summary(camp, out)   # the summary records the cross-check
@@ -189,6 +192,11 @@ def run(args) -> int:
         many = (camp.uncertainty.get("max_samples") or camp.uncertainty["samples"]) >= 40
         workers = args.workers if args.workers is not None else (
             (os.cpu_count() or 1) if many else 0)
+        if not args.quiet:
+            stage(f"uncertainty: {camp.uncertainty['samples']} samples "
+                  f"({camp.uncertainty['engine']} engine"
+                  + (f", up to {camp.uncertainty['max_samples']}"
+                     if camp.uncertainty.get("max_samples") else "") + ")")
         try:
             path = run_uncertainty(camp, out, runner if engine == "linear" else None,
                                    progress=False if args.quiet else None,

@@ -96,12 +96,10 @@ class _Form:
 
     def right(self, X: np.ndarray) -> np.ndarray:
         """``M X`` for ``X`` (s, c)."""
-        n_p, a = self.n_p, self.a
+        n_p, c = self.n_p, X.shape[1]
         Z = self.W @ X
-        Y = np.empty_like(X)
-        q, v = X[0:n_p:2], X[1:n_p:2]
-        Y[0:n_p:2] = a[:, 0, 0, None] * q + a[:, 0, 1, None] * v
-        Y[1:n_p:2] = a[:, 1, 0, None] * q + a[:, 1, 1, None] * v
+        Y = np.empty((X.shape[0], c))
+        np.matmul(self.a, X[:n_p].reshape(-1, 2, c), out=Y[:n_p].reshape(-1, 2, c))
         Y[:n_p] += self.gamma @ Z[:self.k_in]
         Y[n_p:] = Z[self.k_in:]
         return Y

@@ -219,7 +219,8 @@ def import_nastran(bdf, *, units, op4=None, op2=None, dmig=None, n_modes: int, a
     if op2 is not None:
         loaded = load_op2(op2)
         op2_mats = _op2_stiffness_mass(loaded, op2, k_name, m_name)
-    if op2 is not None and op2_mats is None and boundary == "fixed":
+    if op2 is not None and op2_mats is None and boundary == "fixed" and \
+            getattr(loaded, "eigenvectors", None):
         raise NastranError("boundary='fixed' builds the fixed-interface modes from the "
                            "stiffness and mass, but the OP2 gives the modes NASTRAN "
                            "computed: give the matrices (--op4, --dmig), or leave "

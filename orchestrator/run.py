@@ -56,8 +56,12 @@ FLUSH_SECONDS = 5.0
 #: Folder, inside ``out_dir``, that keeps the complete result a later run found there
 #: until that run completes too.
 PREVIOUS_DIR = "previous"
-#: Statuses of a run that completed (its results replace the previous ones).
-FINISHED = ("ok", "terminated")
+#: Statuses of a run that completed (its results replace the previous ones); an
+#: ``unstable`` run ran to its end held at a rail or limit (:data:`HELD_FRACTION`).
+FINISHED = ("ok", "terminated", "unstable")
+#: A run with a rail or limit flag (``sat_*``) set for more than this fraction of it ends
+#: with status ``unstable``: its loop is held by the limits, not the loop designed.
+HELD_FRACTION = 0.10
 RESULT_FILES = ("results.parquet", "results.csv", "results.mat")
 #: Formats of the results file: Parquet, CSV (``name [unit]`` header), MATLAB v5.
 FORMATS = ("parquet", "csv", "mat")
@@ -425,6 +429,16 @@ def _report_saturation(sim, meta) -> None:
     warnings.warn("saturated during the run: " + "; ".join(parts) + ": a loop at a rail or "
                   "limit is not the linear loop it was designed as", SaturationWarning,
                   stacklevel=3)
+    i, f, sec, first = max(spans, key=lambda x: x[2])
+    if meta.get("status") == "ok" and sec > HELD_FRACTION * length:
+        meta["status"] = "unstable"
+        meta["unstable"] = {
+            "instance": i, "flag": f, "seconds": sec, "first": first,
+            "message": f"the loop through {i} sat at its {f[4:]} limit ({i}.{f}) for "
+                       f"{sec:.4g} s, {100 * sec / length:.0f} % of the run from t = "
+                       f"{first:.6g} s: held by its limits, not the loop designed (status "
+                       "unstable); lower the gains or check the loop's stability with "
+                       "jitterfmu analyze"}
 
 
 def _run_plan(plan, meta, folder, quiet, wall0):

@@ -46,7 +46,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    """Run the scenario; return 0, or 1 when the run failed part-way."""
+    """Run the scenario; return 0, or 1 when the run failed part-way or ended unstable."""
     # deferred: the parser imports every subcommand (orchestrator.cli)
     from orchestrator import SimulationError, run_scenario
     from orchestrator.scenario import parse_override
@@ -85,6 +85,9 @@ def run(args) -> int:
     name = f"results.{meta['format']}"
     print(f"{meta['rows']} rows x {len(result.table) - 1} variables in {out / name} "
           f"({meta['wall_time_s']:.2f} s wall)")
+    if meta.get("status") == "unstable":   # a loop held by its limits: not a result
+        print(f"jitterfmu: unstable: {meta['unstable']['message']}", file=sys.stderr)
+        return 1
     return 0
 
 

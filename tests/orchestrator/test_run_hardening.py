@@ -213,7 +213,8 @@ def test_declared_ranges_are_in_the_model_descriptions(suite_fmus):
 # -------------------------------------------------------------------- saturation
 def test_a_loop_at_its_rail_is_reported_with_how_long(suite_fmus, tmp_path):
     """Gain 1e4 on the strain loops from t = 0 with the hardware's rails: the commands
-    sit at the rails; the run ends ok (it is bounded) but says which stacks saturated."""
+    sit at the rails; the run is bounded but held there, so it ends with status
+    ``unstable`` (more than 10 % of it at a limit) and says which stacks saturated."""
     sc, folder = truss_plan(suite_fmus, **{
         "ctrl_diag.gain": 1e4, "ctrl_long.gain": 1e4,
         "ctrl_diag.t_on": 0.0, "ctrl_long.t_on": 0.0})
@@ -223,7 +224,8 @@ def test_a_loop_at_its_rail_is_reported_with_how_long(suite_fmus, tmp_path):
     sat = [w for w in caught if issubclass(w.category, SaturationWarning)]
     assert len(sat) == 1
     meta = result.metadata
-    assert meta["status"] == "ok"
+    assert meta["status"] == "unstable"
+    assert meta["unstable"]["message"].startswith(f"the loop through {meta['unstable']['instance']}")
     spans = {(s["instance"], s["flag"]): s for s in meta["saturation"]}
     assert ("piezo_diag", "sat_voltage") in spans or ("piezo_diag", "sat_slew") in spans
     worst = max(s["fraction"] for s in meta["saturation"])
@@ -256,3 +258,39 @@ def test_an_output_interval_longer_than_the_run_is_refused(fmu_dir):
     with pytest.raises(ScenarioError, match=r"experiment.output_interval 5.0 s is longer "
                        r"than the run \(1.0 s\): it would record one row"):
         prepare(load_scenario(sc), fmu_dir)
+
+
+@pytest.mark.parametrize("gain", [30.0, -5.0])
+def test_a_loop_held_by_its_limits_ends_unstable_not_ok(suite_fmus, tmp_path, gain):
+    """The truss with both strain gains at 30 or -5, outside the range the linear engine
+    finds stable (-0.19 to 2.8): bounded only by the rails, it ran 12 s at +-1000 V and
+    ended ``ok``.  Now: status ``unstable``, one sentence naming the loop's instance,
+    limit and how long; the rows are kept.  The shipped gains (1) end ``ok``."""
+    results = {}
+    for g in (gain, 1.0):
+        sc, folder = truss_plan(suite_fmus, **{"ctrl_diag.gain": g, "ctrl_long.gain": g})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            results[g] = run_scenario(sc, tmp_path / f"o{g}", fmu_dir=folder)
+    meta = results[gain].metadata
+    assert meta["status"] == "unstable", meta.get("saturation")
+    held = meta["unstable"]
+    assert held["seconds"] > 0.1 * 12.0
+    assert held["instance"].startswith("piezo_") and "% of the run from t = " in held["message"]
+    assert json.loads((tmp_path / f"o{gain}" / "run.json").read_text())["status"] == "unstable"
+    assert len(results[gain].table["time"]) == len(results[1.0].table["time"])
+    assert results[1.0].metadata["status"] == "ok"
+
+
+def test_the_command_line_says_in_one_line_which_loop_is_held_and_exits_1(suite_fmus, tmp_path,
+                                                                       capsys):
+    from orchestrator.cli import main
+
+    _, folder = truss_plan(suite_fmus)
+    code = main(["run", str(TRUSS), "--out", str(tmp_path / "o"), "--fmu-dir", str(folder),
+                 "--set", "ctrl_diag.gain=30", "--set", "ctrl_long.gain=30", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1
+    lines = [ln for ln in err.splitlines() if ln.startswith("jitterfmu: unstable: ")]
+    assert len(lines) == 1 and "the loop through piezo_" in lines[0] and "% of the run" in lines[0]
+    assert (tmp_path / "o" / "results.parquet").exists()

@@ -75,23 +75,30 @@ def run(args: argparse.Namespace) -> int:
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", nastran.NastranWarning)
-        model = nastran.import_nastran(
-            args.bdf, units=args.units, op4=args.op4, op2=args.op2, dmig=args.dmig,
-            n_modes=args.modes, boundary=args.boundary,
-            actuators=[nastran.parse_actuator(a, args.units) for a in args.actuator],
-            sensors=[nastran.parse_point(s) for s in args.sensor],
-            loads=[nastran.parse_point(s, "force") for s in args.load],
-            los=[nastran.parse_los(s) for s in args.los], ritz=args.ritz, shift=args.shift,
-            damping=Damping(zeta=args.zeta, zeta_ritz=args.zeta_ritz), zeta_bands=bands,
-            dof_map=args.dof_map, k_name=args.k_name, m_name=args.m_name, name=args.name,
-            include_dirs=args.include_dir)
-    report_warnings(caught)
+        try:
+            model = _import(nastran, Damping, args, bands)
+        finally:   # what the deck said is shown even when the import then fails
+            report_warnings(caught)
     path = model.save(args.out)
     f = model.frequencies_hz
     print(f"{path}: {model.n_modes} modes ({f.min():.4g}-{f.max():.4g} Hz) + {model.n_ritz} "
           f"Ritz vectors, {model.n_inputs} inputs, {model.n_outputs} outputs, from "
           f"{model.meta['n_dof']} DOFs")
     return 0
+
+
+def _import(nastran, Damping, args, bands):
+    """The library call the options describe."""
+    return nastran.import_nastran(
+        args.bdf, units=args.units, op4=args.op4, op2=args.op2, dmig=args.dmig,
+        n_modes=args.modes, boundary=args.boundary,
+        actuators=[nastran.parse_actuator(a, args.units) for a in args.actuator],
+        sensors=[nastran.parse_point(s) for s in args.sensor],
+        loads=[nastran.parse_point(s, "force") for s in args.load],
+        los=[nastran.parse_los(s) for s in args.los], ritz=args.ritz, shift=args.shift,
+        damping=Damping(zeta=args.zeta, zeta_ritz=args.zeta_ritz), zeta_bands=bands,
+        dof_map=args.dof_map, k_name=args.k_name, m_name=args.m_name, name=args.name,
+        include_dirs=args.include_dir)
 
 
 def _band(text: str):

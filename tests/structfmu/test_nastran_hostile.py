@@ -198,3 +198,27 @@ def test_a_fixed_boundary_on_the_modes_of_an_op2_is_refused(tmp_path):
                                                r"modes .* leave --boundary out"):
         nas.import_nastran(bdf, units="SI", op2=op2, n_modes=2, ritz="none",
                            boundary="fixed")
+
+
+def test_a_repeated_grid_id_is_named_as_such(tmp_path):
+    """pyNastran's reason was "nid=1"; now the card, the id and what to do."""
+    bdf, op4, _, _ = write_model(tmp_path, rigid=False)
+    bdf.write_text(bdf.read_text().replace(
+        "ENDDATA", "GRID           1              5.      0.      0.\nENDDATA"))
+    with pytest.raises(nas.NastranError, match=r"cannot read BDF '.*rigid.bdf': two GRID cards "
+                                               r"have the id 1 \(nid\); give each its own id"):
+        nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none")
+
+
+def test_the_unread_cards_warning_is_shown_when_the_import_then_fails(tmp_path, capsys):
+    bdf, op4, K, M = write_model(tmp_path, rigid=False)
+    bdf.write_text(bdf.read_text().replace("ENDDATA", "CFAKE   7       1       2\nENDDATA"))
+    K = K.copy()
+    K[3, 3] = np.nan
+    _write_op4(op4, K, M)
+    code = main(["import-nastran", str(bdf), "--op4", str(op4), "--units", "SI", "--modes",
+                 "4", "--ritz", "none", "--out", str(tmp_path / "m.npz")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "cards this import does not interpret: CFAKE (1, unknown to pyNastran)" in err
+    assert "holds nan at row 4, column 4" in err

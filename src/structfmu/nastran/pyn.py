@@ -143,6 +143,12 @@ def reason(exc: BaseException, log: QuietLog | None = None) -> str:
         The log the reader wrote to.
     """
     lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    dup = re.fullmatch(r"(\w+)=(\S+)", lines[0]) if lines else None
+    if dup and len(lines) > 1 and lines[1].startswith("old_"):   # a repeated id
+        card = next((ln.split()[0].split(",")[0].rstrip("*") for ln in lines[2:]
+                     if not ln.startswith("$") and not ln.endswith("=")), "card")
+        return (f"two {card} cards have the id {dup.group(2)} ({dup.group(1)}); give each "
+                "its own id")
     keys = [m.group(1) for m in (_KEY.match(ln) for ln in lines) if m]
     if keys:
         more = f" (and {len(keys) - 1} more missing ids)" if len(keys) > 1 else ""

@@ -1,0 +1,53 @@
+"""The testbed law over the uncertainty (testbed_robust), against the experiment's own
+margin search and the set's definition."""
+
+import numpy as np
+import pytest
+
+from orchestrator.experiments import testbed_design as td
+from orchestrator.experiments import testbed_robust as tr
+
+pytestmark = pytest.mark.paper   # the paper's experiments' designs: make test-full
+
+
+@pytest.fixture(scope="module")
+def model(suite_fmu_dir):
+    return td.linear_model(suite_fmu_dir)
+
+
+def test_the_corners_are_the_set_and_the_nominal_is_linear_plant(model):
+    plants = tr.perturbed_plants(model, n_random=2, seed=1)
+    assert len(plants) == 11 and "f1 z1" in plants and "f0.95 z0.5" in plants
+    nominal = td.linear_plant(model)
+    np.testing.assert_array_equal(plants["f1 z1"].A, nominal.A)
+    # a corner moves every flexible mode by its factors: the sampled poles of the open
+    # plant at f x1.05 are the nominal ones to the power 1.05 in angle (z = e^{s T})
+    f = np.sort(np.abs(np.angle(np.linalg.eigvals(plants["f1.05 z1"].A))))
+    f0 = np.sort(np.abs(np.angle(np.linalg.eigvals(nominal.A))))
+    big = f0 > 2 * np.pi * 20.0 * td.DT          # well above the suspension and 1 Hz
+    assert np.allclose(f[big][:20], 1.05 * f0[big][:20], rtol=2e-3)
+
+
+def test_stability_limit_is_the_gain_margin_and_robust_factor_keeps_6db(model):
+    plant = td.linear_plant(model)
+    lim = tr.stability_limit(plant, (3,), 1.0)
+    # the experiment's own margin search (bisection to 0.5 %) on the same loop
+    assert 20 * np.log10(lim) == pytest.approx(td.gain_margin_db(plant, (3,), 1.0), abs=0.05)
+    plants = {k: p for k, p in tr.perturbed_plants(model).items() if k in ("f1 z1", "f1 z0.5")}
+    r = tr.robust_factor(plants, (3,), 1.0)
+    assert r["worst"] == "f1 z0.5" and r["margin_db"] < 0        # the nominal design
+    # at the factor, the worst plant is 6 dB from instability, the nominal more
+    worst = tr.stability_limit(plants["f1 z0.5"], (3,), r["factor"])
+    assert 20 * np.log10(worst) == pytest.approx(6.0, abs=0.05)
+    assert tr.stability_limit(plant, (3,), r["factor"]) > worst
+
+
+def test_design_within_structure_keeps_its_margin_and_the_bound(model):
+    plant = td.linear_plant(model)
+    best = tr.design_within_structure(plant, [plant], [(20.0, 60.0)], n_dir=3)[0]
+    kp, kb = best["gains"]
+    law = td._design_law(kp, kb, band=(20.0, 60.0))
+    assert 20 * np.log10(tr.stability_limit(plant, (3,), law=law)) == pytest.approx(6.0, abs=0.05)
+    assert 0 < best["reduction_pct"] <= td.strut_bounds(plant, (3,))["upper_bound"] + 1e-6
+    assert best["reduction_pct"] == pytest.approx(
+        td.boresight_reduction(plant, (3,), law=law), abs=1e-9)

@@ -56,6 +56,9 @@ def test_truss_decay_through_the_cosimulation(tmp_path, fmu_dir, monkeypatch):
         assert ol is None or ol > 5 * c
     assert res["reproduces_paper_cycles"] is True
     assert [v["reproduced"] for v in res["verdicts"]] == [True, True]
+    # every reproduced verdict has its number inside its band (verdicts.inconsistencies)
+    from orchestrator.experiments import verdicts
+    assert verdicts.inconsistencies(res) == []
     assert 0 < res["peak_voltage_v"] < 1000 and res["saturated"] is False
     # the linear closed loop predicts the co-simulated decay (same discretised models)
     lin = res["linear_prediction"]

@@ -107,12 +107,15 @@ GAINS = {"mount3": 0.288, "all_mounts": (0.0751, -0.0301, 0.3007)}
 NOMINAL_GAINS = {"mount3": 1.0, "all_mounts": (0.262, -0.105, 1.049)}
 #: The same for the hybrid mount #3 (``variant="hybrid"``: ``eos_testbed.build(iso3=
 #: "hybrid")``, its stack in series with an elastomer stage): the design law (the stiff
-#: strut's gain direction) at the largest factor of 0.05 steps that keeps 6 dB on the
-#: hybrid plant (6.2 dB at 2.95); all three mounts from design_mount_gains as above.  The
+#: strut's gain direction), set for 6 dB over the testbed's uncertainty on the hybrid plant
+#: as GAINS (the worst of the 49 points a corner, frequencies x0.95 and damping x0.5):
+#: mount #3 1.128, all three (-0.1204, 0.1204, 1.2055), the nominal factors (2.95 and
+#: -0.313, 0.313, 3.134, 6 dB on the nominal hybrid plant) times 0.382 and 0.385.  The
 #: elastomer was calibrated (stiffness, loss factor) with the earlier coupling and law
 #: direction to give the paper's 80 %; in its own best direction the hybrid plant allows
 #: much more (docs/eos_experiments.md).
-HYBRID_GAINS = {"mount3": 2.95, "all_mounts": (-0.313, 0.313, 3.134)}
+HYBRID_GAINS = {"mount3": 1.128, "all_mounts": (-0.1204, 0.1204, 1.2055)}
+HYBRID_NOMINAL_GAINS = {"mount3": 2.95, "all_mounts": (-0.313, 0.313, 3.134)}
 MOUNTS = {"mount3": (3,), "all_mounts": (1, 2, 3)}
 HP_HZ = 5.0
 #: Crossover of the stacks' built-in servo loops (Hz; assumed, the paper gives none) and
@@ -349,9 +352,9 @@ def compute(quick=False, fmu_dir="fmus", variant="stiff", fmu_kind="native"):
     corners = perturbed_plants(model)
     robust = {k: {kk: v for kk, v in robust_factor(corners, MOUNTS[k], gains[k]).items()
                   if kk != "limits"} for k in MOUNTS}
-    if variant == "stiff":
-        robust["nominal_gains_linear_reduction_pct"] = {
-            k: boresight_reduction(plant, MOUNTS[k], NOMINAL_GAINS[k], Gh=Gh) for k in MOUNTS}
+    nominal = NOMINAL_GAINS if variant == "stiff" else HYBRID_NOMINAL_GAINS
+    robust["nominal_gains_linear_reduction_pct"] = {
+        k: boresight_reduction(plant, MOUNTS[k], nominal[k], Gh=Gh) for k in MOUNTS}
     stage("testbed-isolation: the instruments (optical scoring) and the stacks' servo loops")
     scale = OSS_LEVEL_ARCSEC / before_after["off"]["before_arcsec_rms"]
     analog, servo = servo_plant(model), servo_plant(model, SERVO_HZ)
@@ -417,7 +420,8 @@ def run(out_dir, quick: bool = False, fmu_dir="fmus", variant="stiff",
                 f"mount #3 (stack + elastomer, build(iso3='hybrid'); its "
                 f"elastomer stiffness and loss factor were calibrated, on the earlier "
                 f"coupling and law direction, to give the paper's 80 %): the stated law in "
-                f"the stiff design's direction at the largest factor that keeps 6 dB "
+                f"the stiff design's direction with 6 dB over the testbed's uncertainty "
+                f"({data['robust']['mount3']['margin_db']:.1f} dB over its corners) "
                 f"removes {red['mount3']:.0f} % in two runs, "
                 f"{ba['mount3']['before_after_reduction_pct']:.0f} % the paper's way "
                 f"(linear {lin['mount3']['reduction_pct']:.0f} %); a law designed in "

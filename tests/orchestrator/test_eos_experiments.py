@@ -351,6 +351,7 @@ def test_testbed_isolation_hybrid(testbed_hybrid, out):
     assert res["variant"] == "hybrid"
     assert abs(res["off_change_pct"]) <= 2.0
     assert min(res["gain_margin_db"].values()) >= 6.0
+    assert all(res["robust"][k]["margin_db"] >= 6.0 for k in ("mount3", "all_mounts"))
     assert 0.0 < res["max_voltage_v"] < 50.0
     for k in ("mount3", "all_mounts"):
         assert red[k] == pytest.approx(lin[k], abs=5.0)

@@ -467,7 +467,7 @@ class StructuredResponse(FastResponse):
             return t
         f = self._forms[sig]
         C = self.loop._base[sig]["C"]
-        D = self.fr_D(sig)
+        D = self._feedthrough(sig)
         live = np.flatnonzero(np.any(C != 0, axis=1) | np.any(D != 0, axis=1))
         # the channels the loop's records drove before (a Monte Carlo's next sample
         # drives the same ones): their columns in the same recursion
@@ -481,7 +481,7 @@ class StructuredResponse(FastResponse):
         self._form_of[id(t)] = f   # the run types live as long as the loop
         return t
 
-    def fr_D(self, sig) -> np.ndarray:
+    def _feedthrough(self, sig) -> np.ndarray:
         """Feedthrough of the recorded rows for the ticks of ``sig``."""
         return self.loop.fr._maps[sig][3]
 
@@ -502,10 +502,9 @@ class _LazyMaps(dict):
 
     def __missing__(self, sig):
         f = self._fr._forms[sig]
-        got = (f.dense(), f.N, self._fr.loop._base[sig]["C"], self._fr.fr_D(sig))
+        got = (f.dense(), f.N, self._fr.loop._base[sig]["C"], self._fr._feedthrough(sig))
         self[sig] = got
         return got
-
 
 
 # the structured form is used where one product with it costs at most this fraction of a

@@ -47,6 +47,7 @@ def test_plant_closed_by_the_law_is_the_scenario_loop(lin):
     np.testing.assert_allclose(K @ plant.response(f), T, rtol=1e-8, atol=1e-10 * abs(T).max())
 
 
+@pytest.mark.long   # make test-full
 def test_reproduces_or_beats_the_measured_eos_redesign(lin):
     d = design_acs(lin, phase_stabilise=False, disk_margin_db=4.4)
     assert d.stable

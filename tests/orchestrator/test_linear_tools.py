@@ -114,6 +114,7 @@ def _toy_loop(g):
     return np.array([[0.5 + 0.3 * g[0], 0.2 * g[1]], [0.1 * g[0], 0.4 + 0.25 * g[1]]])
 
 
+@pytest.mark.long   # make test-full
 def test_loop_gain_margins_against_a_brute_force_scan():
     g = (0.8, 0.6)
 

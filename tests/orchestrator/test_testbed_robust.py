@@ -51,3 +51,33 @@ def test_design_within_structure_keeps_its_margin_and_the_bound(model):
     assert 0 < best["reduction_pct"] <= td.strut_bounds(plant, (3,))["upper_bound"] + 1e-6
     assert best["reduction_pct"] == pytest.approx(
         td.boresight_reduction(plant, (3,), law=law), abs=1e-9)
+
+
+#: The nominal-plant design of the paper's structure with its corners at 22.5/45 Hz
+#: (docs/eos_experiments.md: 36 directions refined to 1 degree): payload and bus gains.
+NOMINAL_22_45 = (21.10369181150321, 154.06070735429276)
+
+
+def test_the_structure_reaches_the_papers_80_percent_on_the_nominal_plant(model):
+    """What does not stop the gap: within the paper's structure (corners read as
+    approximate, 22.5/45 Hz) a law at 6 dB on the nominal plant removes about the paper's
+    80 % ("about" is +-5 points, verdicts.ABOUT_PCT), below the upper bound."""
+    plant = td.linear_plant(model)
+    law = td._design_law(*NOMINAL_22_45, band=(22.5, 45.0))
+    assert 20 * np.log10(tr.stability_limit(plant, (3,), law=law)) >= 6.0 - 0.05
+    red = td.boresight_reduction(plant, (3,), law=law)
+    assert 75.0 <= red <= td.strut_bounds(plant, (3,))["upper_bound"]
+    # ... and over the testbed's uncertainty that law is unstable: the worst corner
+    corners = tr.perturbed_plants(model)
+    assert min(tr.stability_limit(p, (3,), law=law) for p in corners.values()) < 1.0
+
+
+def test_the_damping_not_the_frequency_sets_the_robust_gain(model):
+    """What stops the gap, measured on the shipped direction: the frequencies alone
+    (x0.95-1.05) leave 0.89 of its nominal stability limit, the damping alone halved
+    0.33 (docs/eos_experiments.md); the thresholds sit between the two."""
+    plants = tr.perturbed_plants(model)
+    lim = {k: tr.stability_limit(plants[k], (3,), 1.0)
+           for k in ("f1 z1", "f0.95 z1", "f1.05 z1", "f1 z0.5")}
+    assert min(lim["f0.95 z1"], lim["f1.05 z1"]) > 0.8 * lim["f1 z1"]
+    assert lim["f1 z0.5"] < 0.4 * lim["f1 z1"]

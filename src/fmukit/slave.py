@@ -44,7 +44,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from pythonfmu import Fmi2Slave
-from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 from pythonfmu.variables import Boolean, Integer, Real, String
 
 from fmukit.modeldesc import complete_model_description
@@ -118,6 +118,10 @@ def _finite(value: Any) -> bool:
     return True
 
 
+#: The longest step one ``do_step`` takes (s), as the native FMUs' ``JF_MAX_STEP``.
+MAX_STEP = 1e4
+
+
 def _enum(enum_type, value):
     return None if value is None else enum_type[value]
 
@@ -151,6 +155,26 @@ class FmuSlave(Fmi2Slave):
     state_attributes: ClassVar[tuple[str, ...]] = ()
     model_identifier: ClassVar[str | None] = None
     description: ClassVar[str | None] = None
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Bound the work of a subclass's ``do_step``: a step that is not positive and
+        finite, or longer than :data:`MAX_STEP`, is refused (logged, ``False``) before
+        the slave loops over its samples (``doStep(t, 1e15)`` never returned)."""
+        super().__init_subclass__(**kwargs)
+        step = cls.__dict__.get("do_step")
+        if step is None or getattr(step, "bounded", False):
+            return
+
+        def do_step(self, current_time, step_size):
+            if not (0.0 < step_size <= MAX_STEP and math.isfinite(current_time)):
+                self.log(f"doStep: a step of {step_size!r} s from t = {current_time!r} s; "
+                         f"expected a positive step of at most {MAX_STEP:g} s (step in "
+                         "pieces)", Fmi2Status.error)
+                return False
+            return step(self, current_time, step_size)
+
+        do_step.__doc__, do_step.bounded = step.__doc__, True
+        cls.do_step = do_step
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

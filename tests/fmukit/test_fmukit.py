@@ -311,3 +311,19 @@ def test_build_uses_the_installed_pythonfmu_after_an_fmu_bundled_one_was_loaded(
         for n in [n for n in sys.modules if n.split(".")[0] == "pythonfmu"]:
             del sys.modules[n]
         sys.modules.update(saved)
+
+
+# ---------------------------------------------------------------- bounded steps
+@pytest.mark.parametrize("h", [1e15, 0.0, -1e-3, float("nan"), float("inf")])
+def test_a_step_longer_than_the_maximum_or_not_positive_is_refused_at_once(h):
+    """Every slave's do_step is bounded (a controller looping over 2.5e17 samples of
+    doStep(t, 1e15) never returned): refused with a logged sentence, nothing stepped."""
+    from fmukit.slave import MAX_STEP
+
+    s = ToyFilter(instance_name="t")
+    before = s.y_state
+    assert s.do_step(0.0, h) is False
+    assert s.y_state == before
+    assert [m.status.name for m in s.log_queue] == ["error"]
+    assert f"expected a positive step of at most {MAX_STEP:g} s" in s.log_queue[0].msg
+    assert s.do_step(0.0, 1e-3) is True       # a step within the bound is taken

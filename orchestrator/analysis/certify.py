@@ -311,7 +311,7 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
                   f"proven stable for every point of the set scaled by {k_g:.4g} about "
                   f"nominal ({what}), on {nu.size} frequencies")
     # the modes whose own loop comes nearest to 1: where a search should look
-    top = [int(j) for j in np.argsort(self_bound)[::-1][:3] if self_bound[j] >= 0.3]
+    top = [int(j) for j in np.argsort(self_bound)[::-1][:8] if self_bound[j] >= 0.3]
     if worst is not None:      # and the modes nearest the tightest frequency
         top += [int(j) for j in np.argsort(np.abs(md.w0 - 2 * math.pi * worst))[:3]]
     out["tight_modes"] = [int(U[j]) for j in dict.fromkeys(top)]

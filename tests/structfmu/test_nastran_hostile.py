@@ -222,3 +222,30 @@ def test_the_unread_cards_warning_is_shown_when_the_import_then_fails(tmp_path, 
     assert code == 2
     assert "cards this import does not interpret: CFAKE (1, unknown to pyNastran)" in err
     assert "holds nan at row 4, column 4" in err
+
+
+def _op2_with(vectors, eigenvalues=None):
+    """An object shaped as pyNastran's OP2, holding tables of the given class names."""
+    from types import SimpleNamespace
+
+    def table(name, **attrs):
+        return type(name, (), attrs)()
+    return SimpleNamespace(
+        eigenvectors={i: table(n, **a) for i, (n, a) in enumerate(vectors)},
+        eigenvalues={i: table(n) for i, n in enumerate(eigenvalues or [])},
+        op2_results=SimpleNamespace(vg_vf_response=None))
+
+
+@pytest.mark.parametrize("op2, message", [
+    (_op2_with([("RealEigenvectorArray", {"analysis_code": 7})]), r"holds buckling modes "
+     r"\(SOL 105\), whose eigenvalues are load factors"),
+    (_op2_with([("ComplexEigenvectorArray", {})], ["ComplexEigenvalues"]),
+     r"holds complex eigenvalues or responses \(SOL 107/110 complex modes"),
+])
+def test_an_op2_of_buckling_or_complex_modes_is_named_for_what_it_is(op2, message):
+    """SOL 105 failed with "'RealEigenvectorArray' object has no attribute 'eigns'"; SOL
+    107 complex modes were called aeroelastic."""
+    from structfmu.nastran.modes import _real_eigenvectors
+
+    with pytest.raises(nas.NastranError, match=message + r".*rerun the bulk data as SOL 103"):
+        _real_eigenvectors(op2, "m.op2")

@@ -6,8 +6,9 @@ POINT-normalised shapes come out mass-normalised.  Without LAMA the generalized 
 unknown: it is taken as 1 (MASS normalisation) with a warning.  Residual vectors
 (RESVEC) are what NASTRAN appends to the eigenvectors it was asked for: the vectors
 past the BDF's EIGRL range (beyond ND roots, or above V2) are flagged as residual
-vectors, with the generalized stiffness and mass LAMA lists for them.  An OP2 of an aeroelastic run (SOL 145/146: complex
-eigenvalues or responses) is refused with what to rerun.
+vectors, with the generalized stiffness and mass LAMA lists for them.  An OP2 of
+buckling (SOL 105) or of complex eigenvalues or responses (SOL 107/110 complex modes,
+SOL 145/146) is refused with what to rerun.
 """
 
 from __future__ import annotations
@@ -46,9 +47,15 @@ def _real_eigenvectors(op2, path):
         or any(type(v).__name__ == "ComplexEigenvalues" for v in op2.eigenvalues.values()) \
         or bool(getattr(op2.op2_results, "vg_vf_response", None))
     if aero:
-        raise NastranError(f"OP2 {str(path)!r} holds aeroelastic results (complex eigenvalues "
-                           "of SOL 145 flutter or SOL 146 responses), not the structure's "
-                           f"normal modes; {RERUN}")
+        raise NastranError(f"OP2 {str(path)!r} holds complex eigenvalues or responses "
+                           "(SOL 107/110 complex modes, SOL 145 flutter or SOL 146), not the "
+                           f"structure's normal modes; {RERUN}")
+    # analysis code 2: real eigenvalues; 7 and 8: pre- and post-buckling (SOL 105)
+    buckling = [k for k, v in real.items() if getattr(v, "analysis_code", 2) in (7, 8)]
+    if buckling:
+        raise NastranError(f"OP2 {str(path)!r} holds buckling modes (SOL 105), whose "
+                           "eigenvalues are load factors, not the structure's normal modes; "
+                           f"{RERUN}")
     if not real:
         raise NastranError(f"OP2 {str(path)!r} has neither eigenvectors nor stiffness and mass "
                            f"matrices; {RERUN}, or write the matrices into it ({MATRICES})")

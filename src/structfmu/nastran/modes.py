@@ -217,5 +217,7 @@ def _check_same_model(deck, nodes, gtype, path):
     absent = sorted(set(deck.grids) - ids)
     if absent:
         raise NastranError(f"{deck.path} has {len(absent)} grids the OP2 {str(path)!r} has no "
-                           f"eigenvector for (first {absent[0]}): the OP2 is of another model or "
-                           "its DISP output set is partial; rerun with DISP(PLOT)=ALL")
+                           f"eigenvector for (first {absent[0]}): the OP2 is of another model, "
+                           "or the grid was added to the BDF after the run (one no element "
+                           "uses: remove it, or rerun with it), or its DISP output set is "
+                           "partial (rerun with DISP(PLOT)=ALL)")

@@ -7,6 +7,8 @@ every summary cell; a rail or a nonlinear element is refused in one sentence.
 
 from __future__ import annotations
 
+import math
+
 import dataclasses
 import json
 
@@ -473,7 +475,8 @@ def test_the_growing_eos_pole_is_the_acs_taking_damping_from_one_flexible_mode(e
     # the ACS as it was shipped before its redesign: 0.1 Hz, designed on 1/(J s^2)
     old = copy.deepcopy(case.scenario)
     old["fmus"]["acs"]["parameters"].update(
-        bandwidth=0.1, notch_hz_x=0.0, lowpass_hz_x=0.0, lowpass_hz_y=0.0, lowpass_hz_z=0.0)
+        bandwidth=0.1, bandwidth_x=0.0, bandwidth_y=0.0, phase_margin=math.radians(50.0),
+        notch_hz_x=0.0, lowpass_hz_x=0.0, lowpass_hz_y=0.0, lowpass_hz_z=0.0)
     fr = runner.compiled(old)
     lin = fr.lin
     T = fr.P * lin.base

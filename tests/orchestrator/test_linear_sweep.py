@@ -8,6 +8,8 @@ own wrench for its spectral lines.
 
 from __future__ import annotations
 
+import math
+
 import dataclasses
 import json
 import warnings
@@ -218,7 +220,8 @@ def test_rwa_sweep_with_the_old_acs_is_refused(rwa_sweep):
     camp, out, _, runner = rwa_sweep
     sc = copy.deepcopy(camp.wheel_sweeps[0]["scenario"])
     sc["fmus"]["acs"]["parameters"].update(
-        bandwidth=0.1, notch_hz_x=0.0, lowpass_hz_x=0.0, lowpass_hz_y=0.0, lowpass_hz_z=0.0)
+        bandwidth=0.1, bandwidth_x=0.0, bandwidth_y=0.0, phase_margin=math.radians(50.0),
+        notch_hz_x=0.0, lowpass_hz_x=0.0, lowpass_hz_y=0.0, lowpass_hz_z=0.0)
     sw = dict(camp.wheel_sweeps[0], open=(), scenario=sc)
     camp2 = dataclasses.replace(camp, wheel_sweeps=(sw,))
     with pytest.raises(AnalysisError, match=r"unstable \(a pole at \|z\| = 1\.000"):

@@ -10,6 +10,8 @@ budget (isolation off and on) and of the ten-bay truss.
 
 from __future__ import annotations
 
+import math
+
 import copy
 import dataclasses
 
@@ -137,7 +139,8 @@ def test_unstable_samples_have_the_same_poles(eos_loops):
     _, runner, cases = eos_loops
     old = copy.deepcopy(cases["isolation off"].scenario)
     old["fmus"]["acs"]["parameters"].update(
-        bandwidth=0.1, notch_hz_x=0.0, lowpass_hz_x=0.0, lowpass_hz_y=0.0, lowpass_hz_z=0.0)
+        bandwidth=0.1, bandwidth_x=0.0, bandwidth_y=0.0, phase_margin=math.radians(50.0),
+        notch_hz_x=0.0, lowpass_hz_x=0.0, lowpass_hz_y=0.0, lowpass_hz_z=0.0)
     fr = runner.compiled(old)
     f = fr.lin.blocks["structure"].model.frequencies_hz
     mode = int(np.argmin(np.abs(f - 2.58)))

@@ -169,3 +169,42 @@ def exponent(rows: list, key: str) -> float:
     y = np.array([r[key] for r in rows], float)
     return float(np.polyfit(np.log(s), np.log(y), 1)[0])
 
+
+
+def verdicts(camp, ctx, n: int) -> dict:
+    """Per configuration, over samples ``0 .. n-1`` of the campaign's draws: how many
+    stability verdicts of the structured loops equal the dense loops' eigenvalues',
+    the unstable counts of each, and the seconds of each (loop and poles)."""
+    from orchestrator.analysis.sweep import unstable_poles
+
+    items = camp.uncertainty["parameters"]
+    draws = _draws(camp, ctx, n)
+    out = {cf: {"agree": 0, "unstable_structured": 0, "unstable_dense": 0,
+                "structured_s": 0.0, "dense_s": 0.0} for cf in ctx["configs"]}
+    for s in range(n):
+        for cf in ctx["configs"]:
+            lin, structs, fr0 = ctx["base"][cf]
+            b = lin.blocks[structs[0]]
+            lin_s = lin.with_block(structure_block(
+                mcm._perturbed(b.model, draws, items, s), structs[0], b.period,
+                b.period * lin.base, b.feedthrough, blockwise=True))
+            t0 = time.perf_counter()
+            a = bool(unstable_poles(respond(lin_s, ctx["refs"], fr0)))
+            t1 = time.perf_counter()
+            d = bool(unstable_poles(FastResponse(lin_s, ctx["refs"], like=fr0)))
+            r = out[cf]
+            r["structured_s"] += t1 - t0
+            r["dense_s"] += time.perf_counter() - t1
+            r["agree"] += a == d
+            r["unstable_structured"] += a
+            r["unstable_dense"] += d
+    return out
+
+
+def dgemm_rate(n: int = 400) -> float:
+    """This machine's one-thread square dgemm rate (GFlop/s), best of 5."""
+    from _measure import best_of
+
+    rng = np.random.default_rng(0)
+    A, B = rng.standard_normal((n, n)), rng.standard_normal((n, n))
+    return 2.0 * n ** 3 * 20 / best_of(lambda: [A @ B for _ in range(20)], 5)[0] / 1e9

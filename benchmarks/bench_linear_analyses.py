@@ -3,7 +3,7 @@
 Run::
 
     .venv/bin/python benchmarks/bench_linear_analyses.py [--samples 20] [--core-samples 6]
-        [--repeat 3] [--modes 70,140,280,500] [--no-sweep] [--json FILE]
+        [--repeat 3] [--modes 70,140,280,500] [--no-sweep] [--verdicts 1000] [--json FILE]
 
 * **RWA sweep**: 500 wheel speeds 0-6000 rpm, all 5 instruments x 3 axes, isolation off
   and on (``campaigns/eos_rwa_sweep.toml``), steady state on the linear engine; beside it
@@ -216,6 +216,8 @@ def main(argv=None) -> int:
     ap.add_argument("--modes", default="70,140,280,500",
                     help="mode counts of the scaling comparison ('' leaves it out)")
     ap.add_argument("--json", default=None, help="write the numbers to this file")
+    ap.add_argument("--verdicts", type=int, default=0,
+                    help="samples whose stability verdicts both engines give (0: none)")
     args = ap.parse_args(argv)
     if args.samples < 1 or args.core_samples < 1:
         ap.error("--samples and --core-samples count samples; give at least 1 each")
@@ -274,6 +276,7 @@ def main(argv=None) -> int:
         s_gflop, s_rows = _structured.structured_flops(camp, lrun, ctx)
         modes = [int(m) for m in args.modes.split(",") if m.strip()]
         scale = _structured.scaling(camp, lrun, ctx, modes, 2) if modes else []
+        votes = _structured.verdicts(camp, ctx, args.verdicts) if args.verdicts else {}
         with _structured.engine(ctx, "dense"):
             floor = exact_floor(camp, lrun) if args.floor else None
             forms = formulations(ctx) if args.floor else []
@@ -311,7 +314,7 @@ def main(argv=None) -> int:
         print("what rules out cheaper exact formulations (nominal loops):")
         for r in forms:
             print(f"  {r}")
-    rate = floor[1] if floor is not None else float("nan")
+    rate = floor[1] if floor is not None else _structured.dgemm_rate()
     print("structured against dense, the same samples, one core, interleaved:")
     print(f"  a sample: structured {side['structured_s']:.3f} s, dense {side['dense_s']:.3f} s "
           f"({side['dense_s'] / side['structured_s']:.2f}x), median of {side['samples']}; "
@@ -334,6 +337,11 @@ def main(argv=None) -> int:
         if len(scale) > 1:
             print(f"  cost ~ s^{_structured.exponent(scale, 'structured_s'):.2f} structured, "
                   f"s^{_structured.exponent(scale, 'dense_s'):.2f} dense (s the memory state)")
+    for cf, v in votes.items():
+        print(f"  stability of {args.verdicts} samples, {cf}: {v['agree']} verdicts equal; "
+              f"unstable {v['unstable_structured']} structured, {v['unstable_dense']} dense "
+              f"(eigenvalues); loop and poles {v['structured_s']:.1f} s against "
+              f"{v['dense_s']:.1f} s")
     if args.json:
         import json
         Path(args.json).write_text(json.dumps({
@@ -342,7 +350,7 @@ def main(argv=None) -> int:
             "peak_rss_mb": {str(k): v for k, v in rss.items()}, **side,
             "structured_gflop": s_gflop, "dgemm_gflops": rate,
             "dense_floor_gflop": floor[0] if floor is not None else None,
-            "scaling": scale}, indent=1))
+            "scaling": scale, "verdicts": votes}, indent=1))
     return 0
 
 

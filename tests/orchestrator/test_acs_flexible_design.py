@@ -2,7 +2,8 @@
 
 The plant is taken with a probe in the ACS's place; closed with the ACS's law it must
 give back the loop the linear engine breaks at the ACS's torques.  The design must
-reproduce or beat the redesign measured by hand in docs/robustness.md (0.04 Hz on
+reproduce or beat the first redesign made by hand (docs/robustness.md, the table of the
+ACS designs; 0.04 Hz on
 every axis, roll notch at the 0.5 Hz array mode, low-passes; every flexible mode
 gain-stabilised, MIMO disk margin 4.4 dB), its margins measured in the scenario by
 loops.margins_of, not by the design's own frequency checks.

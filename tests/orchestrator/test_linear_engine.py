@@ -461,8 +461,8 @@ def test_the_growing_eos_pole_is_the_acs_taking_damping_from_one_flexible_mode(e
     and that mode's damping alone moves it across the unit circle (x0.5 grows faster,
     x1.5 decays). The threshold factor lies between 1 and 1.5: what made a Monte Carlo
     with damping x0.5-2 per mode count about 40 % of its isolation-off samples unstable
-    with that ACS (docs/linear_engine.md). The shipped ACS (0.04 Hz, a notch and
-    low-passes, designed on the flexible plant) leaves no growing pole."""
+    with that ACS (docs/linear_engine.md). The shipped ACS (designed on the flexible plant)
+    leaves no growing pole."""
     import copy
 
     from orchestrator.analysis.blocks import structure_block

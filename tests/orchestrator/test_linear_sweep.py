@@ -232,7 +232,7 @@ def test_rwa_sweep_with_the_shipped_acs_closed_meets_its_aliases(rwa_sweep):
     """The shipped ACS is stable, so the sweep runs with it closed; then the worst speed
     is an alias, not a structural resonance: the ACS samples the structure's attitude
     and rate at 10 Hz without an analogue anti-alias filter, so a wheel line near a
-    multiple of 10 Hz reaches it as a line near 0 Hz, inside its 0.04 Hz loop, which
+    multiple of 10 Hz reaches it as a line near 0 Hz, inside its loop, which
     moves the whole spacecraft.  Asserted: the worst SWIR roll speed's fundamental lies
     within 0.1 Hz of a multiple of 10 Hz, and there the jitter is many times the
     opened ACS's worst (why campaigns/eos_rwa_sweep.toml opens the ACS; the values are

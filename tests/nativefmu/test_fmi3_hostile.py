@@ -209,3 +209,19 @@ def test_a_host_that_reads_every_float64_as_fmusim_does_runs_every_fmu(dirs, mod
     finally:
         s.freeInstance()
         shutil.rmtree(unzip, ignore_errors=True)
+
+
+@pytest.mark.parametrize("stop", [8.0, 12.0])
+def test_fmuchecks_last_step_and_its_rounding_remainder_are_taken(host, stop):
+    """fmuCheck adds t += h and shortens its last step to land on the stop time: at 8 s
+    that step is 1 ms less 1e-12 s, at 12 s its time falls 1.2e-12 s short and it takes
+    one more step of 1.2e-12 s (nothing to do: the FMU is already there).  The FMU's time
+    is its own end plus the host's step (jf_end_time), so after the shortened step it
+    stands within the host's 1e-12 s drift of the stop time."""
+    from .test_container_hosts import fmucheck_steps
+
+    h = host("controller_truss10_strain_diag")
+    steps = fmucheck_steps(stop)
+    for t, step in steps:
+        h.s.doStep(currentCommunicationPoint=t, communicationStepSize=step)
+    assert h.s.getFloat64([h.vr["time"]])[0] == pytest.approx(stop, rel=0, abs=2e-12)

@@ -249,3 +249,19 @@ def test_an_op2_of_buckling_or_complex_modes_is_named_for_what_it_is(op2, messag
 
     with pytest.raises(nas.NastranError, match=message + r".*rerun the bulk data as SOL 103"):
         _real_eigenvectors(op2, "m.op2")
+
+
+def test_an_op4_holding_a_stack_of_matrices_is_named(tmp_path, monkeypatch):
+    """A QHH (aerodynamic matrices per Mach number and frequency) read as one 3-D array
+    failed with scipy's "CSR arrays don't yet support 3D"; pyNastran's reader stands in
+    for such a file here (it returns what it read from a QHH OP4: a 3-D array)."""
+    from types import SimpleNamespace
+
+    bdf, op4, K, M = write_model(tmp_path, rigid=False)
+    OP4 = nas.pynastran()[2]
+    stack = np.zeros((3, 4, 4), complex)
+    monkeypatch.setattr(OP4, "read_op4", lambda self, *a, **k: {
+        "KGG": SimpleNamespace(data=K), "QHH": SimpleNamespace(data=stack)})
+    with pytest.raises(nas.NastranError, match=r"holds QHH, an array of 3 dimensions "
+                                               r"\(3, 4, 4\) .*not a stiffness or mass"):
+        nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none")

@@ -70,6 +70,13 @@ def read_op4(op4_path) -> dict:
     out = {}
     for name, m in mats.items():
         data = m.data
+        if not sp.issparse(data) and np.ndim(data) != 2:
+            # a QHH-like stack of matrices (one per Mach number and frequency): not a
+            # stiffness or mass, and not a matrix a sparse array holds
+            raise NastranError(f"OP4 {str(path)!r} holds {name.strip()}, an array of "
+                               f"{np.ndim(data)} dimensions {np.shape(data)} (aerodynamic "
+                               "matrices?), not a stiffness or mass matrix; write KGG and "
+                               "MGG (or KAA and MAA) into an OP4 of their own")
         A = sp.csc_matrix(data) if sp.issparse(data) else sp.csc_matrix(np.asarray(data))
         out[name.strip()] = A.astype(complex if np.iscomplexobj(A.data) else float)
     return out

@@ -20,7 +20,7 @@ from orchestrator.cli import main
 from structfmu import nastran as nas
 from structfmu.reduce import Damping
 
-from .test_nastran_rigid import XYZ, write_model
+from .test_nastran_rigid import write_dmig, write_model
 
 SECRET = "zzsecretzz:x:0:0:hidden:/home:/bin/sh"
 
@@ -51,22 +51,7 @@ def test_the_same_op4_without_the_nan_imports(tmp_path):
 
 
 def _write_dmig(tmp_path, K, M, names=("KAAX", "MAAX")):
-    BDF = nas.pynastran()[0]
-    d = BDF(log=nas.pyn.QuietLog().log)
-    dofs = [(g, c) for g in XYZ if g != 1 for c in range(1, 7)]
-    idx = [6 * (g - 1) + c - 1 for g, c in dofs]
-    for name, A in zip(names, (K, M)):
-        A = A[np.ix_(idx, idx)]
-        GCj, GCi, Real = [], [], []
-        for j, dj in enumerate(dofs):
-            for i, di in enumerate(dofs[:j + 1]):
-                if A[i, j] != 0:
-                    GCj.append(dj)
-                    GCi.append(di)
-                    Real.append(float(A[i, j]))
-        d.add_dmig(name, 6, 1, 2, 0, len(dofs), GCj, GCi, Real)
-    d.write_bdf(str(tmp_path / "m.pch"), size=16, is_double=True, enddata=False)
-    return tmp_path / "m.pch"
+    return write_dmig(tmp_path / "m.pch", K, M, names)
 
 
 def test_a_nan_in_a_dmig_is_named(tmp_path):

@@ -53,6 +53,26 @@ def write_model(tmp_path, rigid=True, extra=""):
     return tmp_path / "rigid.bdf", tmp_path / "rigid.op4", K, M
 
 
+def write_dmig(path, K, M, names=("KAAX", "MAAX")):
+    """K and M on the free DOFs (grid 1 is clamped) as symmetric DMIG cards (IFO 6, upper
+    triangle, TIN 1 with 16 digits: the PARAM,EXTOUT,DMIGPCH layout) in ``path``."""
+    BDF = nas.pynastran()[0]
+    d = BDF(log=nas.pyn.QuietLog().log)
+    dofs = [(g, c) for g in XYZ if g != 1 for c in range(1, 7)]
+    idx = [6 * (g - 1) + c - 1 for g, c in dofs]
+    for name, A in zip(names, (K[np.ix_(idx, idx)], M[np.ix_(idx, idx)])):
+        GCj, GCi, Real = [], [], []
+        for j, dj in enumerate(dofs):
+            for i, di in enumerate(dofs[:j + 1]):
+                if A[i, j] != 0:
+                    GCj.append(dj)
+                    GCi.append(di)
+                    Real.append(float(A[i, j]))
+        d.add_dmig(name, 6, 1, 2, 0, len(dofs), GCj, GCi, Real)
+    d.write_bdf(str(path), size=16, is_double=True, enddata=False)
+    return path
+
+
 def reference_constraints():
     """Rows over the g-set (6 per grid, ids 1..6), native units (in, rad)."""
     R = rotation()
@@ -129,20 +149,7 @@ def test_dmig_punch_gives_the_same_model_as_the_op4(tmp_path):
     files give the same model to round-off (float32 would differ by ~1e-8).
     """
     bdf, op4, K, M = write_model(tmp_path, rigid=False)
-    BDF = nas.pynastran()[0]
-    d = BDF(log=nas.pyn.QuietLog().log)
-    dofs = [(g, c) for g in XYZ if g != 1 for c in range(1, 7)]
-    idx = [6 * (g - 1) + c - 1 for g, c in dofs]
-    for name, A in (("KAAX", K[np.ix_(idx, idx)]), ("MAAX", M[np.ix_(idx, idx)])):
-        GCj, GCi, Real = [], [], []
-        for j, dj in enumerate(dofs):
-            for i, di in enumerate(dofs[:j + 1]):  # upper triangle, symmetric (IFO 6)
-                if A[i, j] != 0:
-                    GCj.append(dj)
-                    GCi.append(di)
-                    Real.append(float(A[i, j]))
-        d.add_dmig(name, 6, 1, 2, 0, len(dofs), GCj, GCi, Real)
-    d.write_bdf(str(tmp_path / "rigid.pch"), size=16, is_double=True, enddata=False)
+    write_dmig(tmp_path / "rigid.pch", K, M)
     via_dmig = nas.import_nastran(bdf, units="SI", dmig=tmp_path / "rigid.pch", n_modes=6,
                                   loads=[nas.parse_point("f=6:1", "force")])
     via_op4 = nas.import_nastran(bdf, units="SI", op4=op4, n_modes=6,

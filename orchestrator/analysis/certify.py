@@ -61,6 +61,7 @@ from .certify_model import _Components, _model_check, _StructureResponse
 __all__ = ["certify", "loop_members", "dh_bound"]
 
 _CHUNK = 256
+_WORKERS = 2          # threads over the frequency chunks
 
 
 def _port_dependence(block) -> np.ndarray:
@@ -247,35 +248,50 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
                        "over its period)", model_check=mcheck)
     self_bound = np.zeros(U.size)
 
+    def chunk(nu_c, k_test, k_box):
+        z = np.exp(1j * nu_c * P)
+        K, P0 = Kresp(z, ui, yi), sresp(z) @ gmap
+        M = np.einsum("nu,zuy->zny", beta, np.linalg.solve(np.eye(len(u_ch)) - K @ P0, K))
+        b = _Bound(md, nu_c, M, k_box)
+        return b, b.rho(k_test) >= 1.0
+
     def scan(nu, k_test, k_box):
         """The grid points of ``nu`` not proven at ``k_test`` (their bounds kept), each
-        chunk with the largest scale known to hold on it."""
+        chunk with the largest scale known to hold on it.  The chunks are independent:
+        two threads share them (numpy releases the interpreter in its kernels)."""
+        from concurrent.futures import ThreadPoolExecutor
+
         kept = []
-        for c0 in range(0, nu.size, _CHUNK):
-            z = np.exp(1j * nu[c0:c0 + _CHUNK] * P)
-            K, P0 = Kresp(z, ui, yi), sresp(z) @ gmap
-            M = np.einsum("nu,zuy->zny", beta,
-                          np.linalg.solve(np.eye(len(u_ch)) - K @ P0, K))
-            b = _Bound(md, nu[c0:c0 + _CHUNK], M, k_box)
-            fail = b.rho(k_test) >= 1.0
-            np.maximum(self_bound, b.self_bound, out=self_bound)
-            if fail.any():
-                b.k_ok = 0.0
-                kept.append(b.take(fail))
+        starts = range(0, nu.size, _CHUNK)
+        with ThreadPoolExecutor(max_workers=_WORKERS) as pool:
+            done = pool.map(lambda c0: chunk(nu[c0:c0 + _CHUNK], k_test, k_box), starts)
+            for b, fail in done:
+                np.maximum(self_bound, b.self_bound, out=self_bound)
+                if fail.any():
+                    b.k_ok = 0.0
+                    kept.append(b.take(fail))
         return kept
 
     def bisect(kept, lo, hi):
-        while hi - lo > tol * max(hi, 1e-3):
-            mid = 0.5 * (lo + hi)
-            bad = False
-            for b in sorted(kept, key=lambda b: b.k_ok):
-                if mid <= b.k_ok:
-                    continue             # proven there already (the bound grows with k)
-                if (b.rho(mid) >= 1.0).any():
-                    bad = True
-                    break
-                b.k_ok = mid
-            lo, hi = (lo, mid) if bad else (mid, hi)
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=_WORKERS) as pool:
+            while hi - lo > tol * max(hi, 1e-3):
+                mid = 0.5 * (lo + hi)
+                # proven there already where k_ok >= mid (the bound grows with k); the
+                # rest in pairs, the least proven first, until one fails
+                todo = [b for b in sorted(kept, key=lambda b: b.k_ok) if mid > b.k_ok]
+                bad = False
+                for i in range(0, len(todo), _WORKERS):
+                    group = todo[i:i + _WORKERS]
+                    fails = list(pool.map(lambda b: bool((b.rho(mid) >= 1.0).any()), group))
+                    for b, f in zip(group, fails):
+                        if not f:
+                            b.k_ok = mid
+                    if any(fails):
+                        bad = True
+                        break
+                lo, hi = (lo, mid) if bad else (mid, hi)
         return lo, hi
 
     nu = _grid(md, k_hi, ev_cl)
@@ -311,7 +327,7 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
                   f"proven stable for every point of the set scaled by {k_g:.4g} about "
                   f"nominal ({what}), on {nu.size} frequencies")
     # the modes whose own loop comes nearest to 1: where a search should look
-    top = [int(j) for j in np.argsort(self_bound)[::-1][:8] if self_bound[j] >= 0.3]
+    top = [int(j) for j in np.argsort(self_bound)[::-1][:16] if self_bound[j] >= 0.3]
     if worst is not None:      # and the modes nearest the tightest frequency
         top += [int(j) for j in np.argsort(np.abs(md.w0 - 2 * math.pi * worst))[:3]]
     out["tight_modes"] = [int(U[j]) for j in dict.fromkeys(top)]

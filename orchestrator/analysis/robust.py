@@ -297,11 +297,13 @@ def _point(uset, d, fw: float, side: int) -> dict:
 
 
 def _ray_limit(lin, uset, vals, k_max: float, below: float, like=None,
-               tol: float = 0.01, start: float = 0.0) -> float:
+               tol: float = 0.01, start: float = 0.0, step: float = 0.1) -> float:
     """Smallest scale along the ray through ``vals`` at which the loop is unstable
-    (``inf`` if none up to ``k_max``; the search stops at ``below``)."""
+    (``inf`` if none up to ``k_max``; the search stops at ``below``).  The ray is stepped
+    by ``step``: instability along a ray can be a window (a mode moved through a phase
+    band and out again), which a coarser step steps over."""
     prev = start
-    for k in np.arange(start + 0.25, min(k_max, below) + 1e-9, 0.25):
+    for k in np.arange(start + step, min(k_max, below) + 1e-9, step):
         pt = _scaled(uset, vals, k)
         if any(np.any(v <= 0) for n, v in pt.items()
                if any(it.name == n and it.kind != "gain" for it in uset.items)):

@@ -250,3 +250,20 @@ def test_an_op4_holding_a_stack_of_matrices_is_named(tmp_path, monkeypatch):
     with pytest.raises(nas.NastranError, match=r"holds QHH, an array of 3 dimensions "
                                                r"\(3, 4, 4\) .*not a stiffness or mass"):
         nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none")
+
+
+def test_a_removed_grid_still_named_by_a_card_is_one_line(tmp_path):
+    """pyNastran's KeyError came through as its repr: the missing id and then every
+    other grid id, across lines; now its first line only."""
+    from structfmu.models import truss10
+
+    bdf, op4 = nas.write_truss_deck(truss10.build(), tmp_path / "t.bdf", tmp_path / "t.op4")
+    lines = bdf.read_text().splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith("GRID*") and ln.split()[1] == "5")
+    del lines[i:i + 2]                 # the large-field GRID 5 and its continuation
+    bdf.write_text("\n".join(lines) + "\n")
+    with pytest.raises(nas.NastranError) as info:
+        nas.import_nastran(bdf, units="SI", op4=op4, n_modes=4, ritz="none")
+    msg = str(info.value)
+    assert "nids=[5] are not a GRID" in msg and "\\n" not in msg and "\n" not in msg
+    assert " 46]" not in msg           # not the list of every other grid

@@ -142,7 +142,9 @@ def reason(exc: BaseException, log: QuietLog | None = None) -> str:
     log : QuietLog, optional
         The log the reader wrote to.
     """
-    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    # a KeyError's str() is the repr of its message: newlines as "\n" inside quotes
+    text = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     dup = re.fullmatch(r"(\w+)=(\S+)", lines[0]) if lines else None
     if dup and len(lines) > 1 and lines[1].startswith("old_"):   # a repeated id
         card = next((ln.split()[0].split(",")[0].rstrip("*") for ln in lines[2:]

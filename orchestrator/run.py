@@ -190,6 +190,7 @@ class _OutputFolder:
 
     def _keep_earlier_results(self, overwrite: bool) -> None:
         """Refuse to drop a killed run's rows; move a complete result to ``previous/``."""
+        self._mark_killed()
         rows = _partial_rows(self.partial)
         if rows and not overwrite:
             raise OutputError(
@@ -204,6 +205,19 @@ class _OutputFolder:
             previous.mkdir()
             for name in old:
                 os.replace(self.path / name, previous / name)
+
+    def _mark_killed(self) -> None:
+        """A ``run.json`` that says ``running`` while this process holds the folder's lock
+        was left by a run that was killed (SIGKILL, power loss): it says so from now on."""
+        path = self.path / "run.json"
+        try:
+            meta = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return
+        if isinstance(meta, dict) and meta.get("status") == "running":
+            write_metadata(dict(meta, status="killed", error=(
+                "the process writing this run ended before it finished (killed); the rows "
+                f"it flushed are in {PARTIAL_DIR}/")), path)
 
     def start(self, meta: dict) -> None:
         """Write ``run.json`` with status ``running`` (proves the folder is writable)."""

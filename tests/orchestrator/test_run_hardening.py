@@ -101,6 +101,9 @@ def test_rows_of_an_unfinished_run_are_refused_not_deleted(fmu_dir, tmp_path):
                        r"\(results.partial/.*pass --overwrite to discard them"):
         run_scenario(integrator(), out, fmu_dir=fmu_dir)
     assert len(read_table(out / PARTIAL_DIR)["time"]) == 1234
+    # the folder's lock was free, so no process writes that run: run.json says killed
+    left = json.loads((out / "run.json").read_text())
+    assert left["status"] == "killed" and "ended before it finished" in left["error"]
     run_scenario(integrator(), out, fmu_dir=fmu_dir, overwrite=True)
     assert not (out / PARTIAL_DIR).exists()
     assert json.loads((out / "run.json").read_text())["status"] == "ok"

@@ -225,3 +225,54 @@ def test_fmuchecks_last_step_and_its_rounding_remainder_are_taken(host, stop):
     for t, step in steps:
         h.s.doStep(currentCommunicationPoint=t, communicationStepSize=step)
     assert h.s.getFloat64([h.vr["time"]])[0] == pytest.approx(stop, rel=0, abs=2e-12)
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_a_huge_finite_input_never_gives_nan_with_ok_under_either_fmi_version(
+        dirs, suite_fmu_dir, fmi):  # noqa: F811
+    """1.7e308 on the controller's strain input from t = 0: its state overflows and the
+    command became NaN with status OK (FMI 2.0: u1 = 1000, nan, nan, ...).  Both builds
+    now end that step with an error naming the output."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi3 import FMU3Slave
+
+    model = "controller_truss10_strain_diag"
+    fmu = (suite_fmu_dir if fmi == 2 else dirs[3]) / f"{model}.fmu"
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    unzip = extract(str(fmu))
+    log = []
+    cls = FMU2Slave if fmi == 2 else FMU3Slave
+    s = cls(guid=md.guid, unzipDirectory=unzip, instanceName="h",
+            modelIdentifier=md.coSimulation.modelIdentifier)
+    try:
+        if fmi == 2:
+            s.instantiate(loggingOn=True)
+            s.setReal([vr["t_on"]], [0.0])
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            s.exitInitializationMode()
+            s.setReal([vr["y1"]], [1.7e308])
+            read = s.getReal
+        else:
+            s.instantiate(logMessage=lambda env, st, cat, msg: log.append(
+                msg.decode() if isinstance(msg, bytes) else str(msg)))
+            s.setFloat64([vr["t_on"]], [0.0])
+            s.enterInitializationMode(startTime=0.0)
+            s.exitInitializationMode()
+            s.setFloat64([vr["y1"]], [1.7e308])
+            read = s.getFloat64
+        seen = []
+        with pytest.raises(FMICallException):
+            for k in range(50):
+                s.doStep(k * 4e-3, 4e-3)
+                seen.append(read([vr["u1"]])[0])
+        assert seen and all(np.isfinite(seen))       # every step that said OK was finite
+    finally:
+        s.freeInstance()
+        shutil.rmtree(unzip, ignore_errors=True)
+    if fmi == 3:
+        assert any(re.match(r"fmi3DoStep: output u1 = -?nan is not a finite number", m)
+                   for m in log), log

@@ -309,10 +309,14 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
+    int st;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (c == NULL) return fmi2Error;
-    return STATUS(jf_do_step(INST, currentCommunicationPoint, communicationStepSize,
-                             "fmi2DoStep"));
+    st = jf_do_step(INST, currentCommunicationPoint, communicationStepSize, "fmi2DoStep");
+    /* never NaN or inf with OK; the declared ranges the master checks itself, naming the
+     * diverging loop */
+    if (st == JF_OK) st = jf_check_outputs(INST, "fmi2DoStep", 0);
+    return STATUS(st);
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {

@@ -331,7 +331,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     st = jf_do_step(INST, currentCommunicationPoint, communicationStepSize, "fmi3DoStep");
     /* FMI 3.0: an output the model cannot vouch for is an error, never NaN with OK (the
      * FMI 2.0 build leaves that check to its master, which names the diverging loop) */
-    if (st == JF_OK) st = jf_check_outputs(INST, "fmi3DoStep");
+    if (st == JF_OK) st = jf_check_outputs(INST, "fmi3DoStep", 1);
     if (lastSuccessfulTime != NULL)
         *lastSuccessfulTime = st == JF_OK ? currentCommunicationPoint + communicationStepSize
                                           : currentCommunicationPoint;

@@ -39,9 +39,9 @@ int jf_check_refs(JfInstance *inst, const unsigned int *vr, size_t nvr, int type
  * range; JF_ERROR (logged, naming the variable) otherwise. */
 int jf_check_reals(JfInstance *inst, const unsigned int *vr, size_t nvr, const double *v,
                    const char *fn);
-/* JF_OK when every Real output is finite and inside its declared range; else JF_ERROR
- * (logged) and the instance failed. */
-int jf_check_outputs(JfInstance *inst, const char *fn);
+/* JF_OK when every Real output is finite (and, with `ranges`, inside its declared
+ * range); else JF_ERROR (logged) and the instance failed. */
+int jf_check_outputs(JfInstance *inst, const char *fn, int ranges);
 /* After a set of nvr values: let the kernel refresh its direct feedthrough. */
 int jf_after_set(JfInstance *inst, size_t nvr);
 /* Replace String value reference vr by a copy of s; JF_ERROR if out of memory. */

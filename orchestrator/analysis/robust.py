@@ -33,12 +33,14 @@ import math
 import numpy as np
 
 from .blocks import AnalysisError
+from ._threads import map_threads
 from .modalset import UncertainSet, _factors, loop_at, uncertain_set
 from .uncertainty import UncertaintyError, draw
 
 __all__ = ["UncertainSet", "uncertain_set", "robust_stability", "loop_at", "pole_radius"]
 
 _RIGID_TOL = 1e-6
+_PAIR = 2            # loops judged side by side (threads, one BLAS thread each)
 
 
 def pole_radius(lin, like=None) -> float:
@@ -179,10 +181,15 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
     tick()
     d = draw(list(uset.items), samples, seed, model.omega / (2 * math.pi))
     radii = np.empty(samples)
-    for s in range(samples):
-        vals = {name: d.values[name][s] for name in d.values}
-        radii[s] = pole_radius(loop_at(lin, uset, vals), like)
-        tick()
+    # independent loops: two threads (eigenvalues and products release the interpreter)
+    for s0 in range(0, samples, _PAIR):
+        part = range(s0, min(samples, s0 + _PAIR))
+        radii[list(part)] = map_threads(
+            lambda s: pole_radius(loop_at(lin, uset, {name: d.values[name][s]
+                                                      for name in d.values}), like),
+            part, workers=_PAIR)
+        for _ in part:
+            tick()
     unstable = int((radii >= 1.0).sum())
     # corners: every damping bound over a grid of common frequency factors
     fw_items = [it for it in uset.items if it.kind == "modal_frequency"]
@@ -191,9 +198,9 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
     hi_w = max([uset.bounds(it.name)[1] for it in fw_items], default=1.0)
     corners = []
     for fw in np.linspace(lo_w, hi_w, grid):
-        for side in (0, 1):
-            vals = _point(uset, d, fw, side)
-            r = pole_radius(loop_at(lin, uset, vals), like)
+        rs = map_threads(lambda side, fw=fw: pole_radius(
+            loop_at(lin, uset, _point(uset, d, fw, side)), like), (0, 1), workers=_PAIR)
+        for side, r in zip((0, 1), rs):
             corners.append({"frequency_factor": float(fw),
                             "damping": "low" if side == 0 else "high",
                             "damping_factor": [uset.bounds(it.name)[side] for it in zt_items],
@@ -221,10 +228,13 @@ def robust_stability(lin, items, *, samples: int = 200, seed: int = 0, grid: int
     # below a whole-loop certificate no point can be unstable: the rays start there
     k0 = cert["margin_guaranteed"] or 0.0
     found, point = math.inf, None
-    for vals in rays:
-        k = _ray_limit(lin, uset, vals, k_max, found, like, start=k0)
-        if k < found:
-            found, point = k, _scaled(uset, vals, k * 1.001)
+    for i in range(0, len(rays), _PAIR):     # two rays at a time, each below the found
+        pair = rays[i:i + _PAIR]
+        ks = map_threads(lambda v, below=found: _ray_limit(lin, uset, v, k_max, below, like,
+                                                           start=k0), pair, workers=_PAIR)
+        for vals, k in zip(pair, ks):
+            if k < found:
+                found, point = k, _scaled(uset, vals, k * 1.001)
     found_point = None
     if point is not None:
         r = pole_radius(loop_at(lin, uset, point), like)

@@ -40,6 +40,12 @@ def test_nastran_deck_and_mat_laws_to_a_report(tmp_path, suite_fmus, suite_fmu_d
             "InputUnit": np.array(list(law.input_units), dtype=object),
             "u_min": law.u_min, "u_max": law.u_max})
     mine = tmp_path / "myfmus"
+    # the suite's stacks and excitation, as `jitterfmu build` puts them in a user's folder
+    # (on a fresh clone nothing else is on the search path)
+    mine.mkdir()
+    kept = sorted(n for n in FMUS if not n.startswith(("truss10_structure", "controller_")))
+    for n in kept:
+        __import__("shutil").copy2(suite_fmu_dir / f"{n}.fmu", mine / f"{n}.fmu")
     npz = tmp_path / "truss10.npz"
     steps = [
         ["import-nastran", str(bdf), "--op4", str(op4), *cli_args("in-lbf-s"),
@@ -58,7 +64,7 @@ def test_nastran_deck_and_mat_laws_to_a_report(tmp_path, suite_fmus, suite_fmu_d
         assert main(args) == 0, (args, capsys.readouterr().err)
     assert {p.name for p in mine.glob("*.fmu")} == {
         "truss10_structure.fmu", "controller_truss10_strain_diag.fmu",
-        "controller_truss10_strain_long.fmu"}
+        "controller_truss10_strain_long.fmu"} | {f"{n}.fmu" for n in kept}
     assert "<table class=\"verdict\">" in (tmp_path / "mine" / "report.html").read_text()
 
     def budget(folder):

@@ -21,11 +21,12 @@ TRUSS = ["truss10_structure", "piezo_p243_40", "piezo_p243_30", "controller_trus
 
 @pytest.fixture()
 def own(suite_fmus, suite_fmu_dir, tmp_path):
-    """A private copy of the truss FMUs and its scenario (a failing test damages no other)."""
-    suite_fmus(*TRUSS)
+    """A private copy of the truss FMUs and its scenario (a failing test damages no other),
+    with the disturbance FMU that the String-parameter tests add."""
+    suite_fmus(*TRUSS, "disturbance")
     d = tmp_path / "D"
     d.mkdir()
-    for name in TRUSS:
+    for name in TRUSS + ["disturbance"]:
         shutil.copy2(suite_fmu_dir / f"{name}.fmu", d / f"{name}.fmu")
     s = tmp_path / "s.toml"
     shutil.copy2(REPO / "scenarios" / "truss10_closed_loop.toml", s)

@@ -102,7 +102,11 @@ def run(args) -> int:
         lin = lin.opened(args.open)
     if args.transfer:
         return _spectra(lin, args)
+    if args.uncertainty:
+        stage(f"analyze {shown(args.scenario)}: robust stability over the uncertainty set")
     robust = _robust(lin, args) if args.uncertainty else None
+    if not args.no_margins:
+        stage(f"analyze {shown(args.scenario)}: the margins of every loop")
     groups = [] if args.no_margins else scenario_margins(lin)
     print(report(lin, modes=args.mode, margins=groups if groups else not args.no_margins,
                  band=args.band))

@@ -145,12 +145,8 @@ class MasterRunner:
         """
         sc = self._scenario(scenario)
         inst, var = ref.split(".", 1)
-        fmu = next((i.fmu for i in sc.instances if i.name == inst), None)
-        if fmu is None:
-            return None
-        try:
-            info = read_fmu_info(self._find_fmu(fmu, sc))
-        except (ScenarioError, ValueError, OSError):
+        info = self._instance_info(sc, inst)
+        if info is None:
             return None
         v = info.variables.get(var)
         if v is None:
@@ -165,6 +161,17 @@ class MasterRunner:
             except ScenarioError as exc:
                 return str(exc)
         return None
+
+    def _instance_info(self, sc, inst: str):
+        """The FMU information of instance ``inst`` of ``sc``; None when there is no such
+        instance or its FMU cannot be found or read (left to the cases, which say so)."""
+        fmu = next((i.fmu for i in sc.instances if i.name == inst), None)
+        if fmu is None:
+            return None
+        try:
+            return read_fmu_info(self._find_fmu(fmu, sc))
+        except (ScenarioError, ValueError, OSError):
+            return None
 
     def output_problem(self, scenario: dict, ref: str, recorded: bool = True) -> str | None:
         """Why a case's record cannot give ``ref`` (an instrument's axis); None if it can.
@@ -197,10 +204,8 @@ class MasterRunner:
         if inst not in names:
             return (f"{ref!r} names instance {inst!r}, which the base scenario does not "
                     f"have{closest(inst, names)}")
-        fmu = next(i.fmu for i in sc.instances if i.name == inst)
-        try:
-            info = read_fmu_info(self._find_fmu(fmu, sc))
-        except (ScenarioError, ValueError, OSError):
+        info = self._instance_info(sc, inst)
+        if info is None:
             return None
         if var not in info.variables:
             return (f"FMU {info.path.name} of instance {inst!r} has no variable {var!r}"

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import trapezoid
-from scipy.signal import welch
 
 from ._checks import as_record, check_dt, intervals
 
@@ -286,5 +285,7 @@ def one_sided_psd(x, dt: float, segment: float, *, axis: int = -1):
     arr = np.moveaxis(as_record(x), axis, -1)
     dt = check_dt(dt)
     nper = min(intervals(segment, dt, "segment"), arr.shape[-1])
+    from scipy.signal import welch   # imported here: scipy.signal takes ~1 s to import
+
     f, p = welch(arr, fs=1.0 / dt, nperseg=nper, detrend="constant", axis=-1)
     return f, np.moveaxis(p, -1, 0)

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import control
 import numpy as np
-from scipy import signal
 
 from fmukit.units import INCH
 
@@ -329,6 +328,8 @@ def testbed_isolation(*, payload_gain: float | None = None, bus_gain: float | No
     if not (0 < f1 < f2 < 0.5 / dt):
         raise ValueError(f"band edges must satisfy 0 < f1 < f2 < Nyquist, got {band_hz}")
     w1, w2 = _prewarp([f1, f2], dt)
+    from scipy import signal   # imported here: scipy.signal takes ~1 s to import
+
     z, p, k = signal.butter(bp_order, [w1, w2], btype="bandpass", analog=True, output="zpk")
     a, b, c, d = signal.zpk2ss(z, p, k)
     bp = control.ss(a, b, c, d)
@@ -413,6 +414,8 @@ def eos_isolation(*, strain_gain: float | None = None, rate_gain: float | None =
     if rate_gain is None:
         rate_gain = EOS_RATE_TIME * ISOLATOR_LENGTH / ISOLATOR_STROKE_PER_VOLT
     wc = float(_prewarp(lowpass_hz, dt))
+    from scipy import signal   # imported here: scipy.signal takes ~1 s to import
+
     z, p, k = signal.butter(lowpass_order, wc, btype="lowpass", analog=True, output="zpk")
     a, b, c, d = signal.zpk2ss(z, p, k)
     lp = control.ss(a, b, c, d)

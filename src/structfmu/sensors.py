@@ -17,7 +17,6 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 __all__ = ["SensorLowpass", "filter_blocks"]
 
@@ -56,6 +55,8 @@ class SensorLowpass:
         b : ndarray, shape (order, 1)
         c : ndarray, shape (1, order)
         """
+        from scipy import signal   # imported here: scipy.signal takes ~1 s to import
+
         z, p, k = signal.butter(self.order, 2 * np.pi * self.cutoff_hz, analog=True,
                                 output="zpk")
         a, b, c, d = signal.zpk2ss(z, p, k)

@@ -67,6 +67,11 @@ def sampled_data(lin: LinearScenario) -> LinearScenario:
                   and lin.blocks[src].outputs[i] == "force"]
         if not drives:
             continue
+        for _, src, _ in drives:
+            if lin.blocks[src].continuous is None:
+                raise AnalysisError(f"{src} has its stack's servo loop on (servo_bandwidth > "
+                                    "0); the sampled-data reference models the amplifier "
+                                    "alone: set servo_bandwidth = 0 to compare")
         A, B, C, D = st.continuous
         n, m = A.shape[0], B.shape[1]
         nz = sum(lin.blocks[src].continuous[0].shape[0] for _, src, _ in drives)

@@ -13,7 +13,8 @@ from typing import Callable
 import numpy as np
 
 from fmutools.archive import ArchiveError, unpack
-from piezofmu.amplifier import linear_map
+from piezofmu.amplifier import substeps
+from piezofmu.actuator import linear_map
 from structfmu.discrete import discretize, step_matrices
 from structfmu.statespace import first_order
 
@@ -49,7 +50,8 @@ class Block:
         The continuous-time model the block samples, for the sampled-data reference
         (:mod:`orchestrator.reference`): ``(A, B, C, D)`` of a structure (Eq. 9-10), or
         ``(A, B, ch)`` of a piezo amplifier in force units (input ``ch v_cmd``, first
-        state the force ``ch v`` on the structure).
+        state the force ``ch v`` on the structure); None for a piezo whose servo loop is
+        on (the reference does not model it).
     """
 
     name: str
@@ -141,8 +143,8 @@ def _piezo_block(slave, name, period, h, ft):
     ins = ("v_cmd", "elongation")
     outs = ("force", "voltage", "current", "free_stroke", "strain")
     gl = act.gauge.length
-    A1, B1, cx, cu = linear_map(amp, h)
-    A, B = A1, np.hstack([B1, np.zeros((A1.shape[0], 1))])
+    # state [v] or [v, dv/dt], then the servo's integrator z when it is on
+    A, B, cx, cu = linear_map(act, h)
     if amp.order == 1:
         w = amp.omega
         C = np.array([[ch], [1.0], [-cap * w], [act.stroke_per_volt], [0.0]])
@@ -151,10 +153,19 @@ def _piezo_block(slave, name, period, h, ft):
         C = np.array([[ch, 0], [1.0, 0], [0, cap], [act.stroke_per_volt, 0], [0, 0]])
         D = np.zeros((5, 2))
         D[4, 1] = 1.0 / gl
+    servo = act.servo_bandwidth > 0
+    if servo:
+        C = np.hstack([C, np.zeros((5, 1))])
+        if amp.order == 1:
+            # the rate of the last sub-step: w (command - v), its command z - dz / 2
+            _, hs = substeps(h, amp.internal_step)
+            kd = hs * act.servo_gain * np.array([act.stroke_per_volt, -1.0])
+            C[2, -1] = cap * w
+            D[2] = -0.5 * cap * w * kd
     if coupling == 1:
         # force = trapezoidal mean over the coming step (piezofmu.actuator.step_mean)
         C[0] = ch * cx
-        D[0, 0] = ch * cu
+        D[0] = ch * cu
     w = amp.omega
     if amp.order == 1:   # f' = w (ch v_cmd - f)
         amp_c = (np.array([[-w]]), np.array([[w]]), ch)
@@ -172,7 +183,8 @@ def _piezo_block(slave, name, period, h, ft):
     if act.gauge.resolution > 0:
         unmodelled.append(f"instance {name!r} quantises its strain (resolution = "
                           f"{act.gauge.resolution}); set resolution = 0")
-    return Block(name, "piezo", period, A, B, C, D, ins, outs, ft, continuous=amp_c,
+    return Block(name, "piezo", period, A, B, C, D, ins, outs, ft,
+                 continuous=None if servo else amp_c,
                  limits=tuple(limits), unmodelled=tuple(unmodelled),
                  flags=("sat_voltage", "sat_slew", "sat_stroke"))
 

@@ -5,6 +5,16 @@ Signal chain of one step (pure functions on frozen dataclasses, SI units)::
     v_cmd --amplifier (bandwidth, slew, rails)--> v --Bouc-Wen (optional)--> v_eff = v - h
     v_eff --stroke limit (optional)--> f_c = c h v_eff                          (Eq. 1)
 
+With ``servo_bandwidth > 0`` the stack's built-in servo loop is on: a strain gauge on the
+stack measures its expansion (the ``elongation`` input, m), and an integrator drives the
+amplifier (inside the loop) with ``dz/dt = k_i (d0 / V0 * v_cmd - elongation)``, so that
+``v_cmd`` commands an expansion ``d0 / V0 * v_cmd`` instead of a voltage.  ``k_i = 2 pi
+servo_bandwidth / servo_plant_gain`` (V/(m s)) sets the loop's crossover at
+``servo_bandwidth`` for a mount whose expansion per volt at low frequency is
+``servo_plant_gain`` (m/V; the free stroke per volt ``d0 / V0`` when 0).  The integrator
+moves every internal sub-step with the elongation held over the caller step, clipped to
+the rails (anti-windup); `linear_map` gives the same step as a linear map.
+
 ``f_c`` (N) is the force the active member applies to the structure: positive voltage
 extends the stack and pushes its two end nodes apart.  The stroke limit clips the free
 stroke ``d0 / V0 * v_eff`` to ``+-stroke_limit``.
@@ -52,6 +62,7 @@ __all__ = [
     "actuator_preset",
     "gaussian",
     "initial_state",
+    "linear_map",
     "outputs",
     "step",
     "step_mean",
@@ -115,6 +126,12 @@ class PiezoActuator:
         Bouc–Wen hysteresis between applied voltage and free stroke; ``None`` disables it.
     stroke_limit : float
         Largest free-stroke magnitude (m); ``inf`` disables the limit.
+    servo_bandwidth : float
+        Crossover of the stack's built-in servo loop (Hz); 0: no servo, ``v_cmd`` drives
+        the amplifier directly.
+    servo_plant_gain : float
+        Expansion per volt of the mounted stack at low frequency (m/V) that the servo's
+        integrator is set for; 0: the free stroke per volt ``d0 / V0``.
     """
 
     stack: PiezoStack
@@ -122,6 +139,8 @@ class PiezoActuator:
     gauge: StrainGauge
     hysteresis: BoucWen | None = None
     stroke_limit: float = math.inf
+    servo_bandwidth: float = 0.0
+    servo_plant_gain: float = 0.0
 
     def __post_init__(self):
         if not self.stroke_limit > 0:
@@ -129,6 +148,19 @@ class PiezoActuator:
                 f"actuator {self.stack.name!r}: stroke_limit must be positive, "
                 f"got {self.stroke_limit!r}"
             )
+        for name, zero in (("servo_bandwidth", "no servo"), ("servo_plant_gain", "d0/V0")):
+            value = getattr(self, name)
+            if not (value >= 0 and math.isfinite(value)):
+                raise ValueError(f"actuator {self.stack.name!r}: {name} must be >= 0 and "
+                                 f"finite (0 for {zero}), got {value!r}")
+
+    @property
+    def servo_gain(self) -> float:
+        """The servo integrator's gain ``k_i`` (V/(m s)); 0 with the servo off."""
+        if self.servo_bandwidth == 0:
+            return 0.0
+        g = self.servo_plant_gain if self.servo_plant_gain > 0 else self.stroke_per_volt
+        return 2.0 * math.pi * self.servo_bandwidth / g
 
     @property
     def stroke_per_volt(self) -> float:
@@ -152,20 +184,24 @@ class ActuatorState:
         Bouc–Wen state (V); 0 when hysteresis is off.
     tick : int
         Internal sub-steps taken since the start (keys the strain-gauge noise).
+    z : float
+        The servo integrator, the amplifier's command (V); 0 with the servo off.
     """
 
     amp: AmplifierState = field(default_factory=AmplifierState)
     h_bw: float = 0.0
     tick: int = 0
+    z: float = 0.0
 
     #: Length of `to_array`.
-    SIZE = 6
+    SIZE = 7
 
     def to_array(self) -> np.ndarray:
-        """Pack into ``[v, dv/dt, sat_voltage, sat_slew, h_bw, tick]`` (float64, shape (6,))."""
+        """Pack into ``[v, dv/dt, sat_voltage, sat_slew, h_bw, tick, z]`` (float64,
+        shape (7,))."""
         a = self.amp
         return np.array([a.voltage, a.rate, float(a.sat_voltage), float(a.sat_slew),
-                         self.h_bw, float(self.tick)])
+                         self.h_bw, float(self.tick), self.z])
 
     @classmethod
     def from_array(cls, array) -> "ActuatorState":
@@ -178,7 +214,7 @@ class ActuatorState:
         if not np.all(np.isfinite(x)) or x[5] < 0 or x[5] != round(x[5]):
             raise StateArrayError(f"actuator state array {x.tolist()} is not a valid state")
         return cls(AmplifierState(float(x[0]), float(x[1]), bool(x[2]), bool(x[3])),
-                   float(x[4]), int(x[5]))
+                   float(x[4]), int(x[5]), float(x[6]))
 
 
 @dataclass(frozen=True)
@@ -221,9 +257,11 @@ def initial_state(act: PiezoActuator, voltage: float = 0.0) -> ActuatorState:
     Returns
     -------
     ActuatorState
-        With zero voltage rate, Bouc–Wen state 0 and tick 0.
+        With zero voltage rate, Bouc–Wen state 0, tick 0 and the servo integrator at the
+        voltage (0 with the servo off).
     """
-    return ActuatorState(amp_mod.initial_state(act.amplifier, voltage), 0.0, 0)
+    amp = amp_mod.initial_state(act.amplifier, voltage)
+    return ActuatorState(amp, 0.0, 0, amp.voltage if act.servo_bandwidth > 0 else 0.0)
 
 
 def outputs(act: PiezoActuator, state: ActuatorState) -> ActuatorOutputs:
@@ -259,8 +297,18 @@ def outputs(act: PiezoActuator, state: ActuatorState) -> ActuatorOutputs:
     )
 
 
+def _servo_path(act, state, v_cmd, dt, elongation):
+    """The amplifier's path over a step in the servo loop: ``(state, path, z)``."""
+    if not math.isfinite(elongation):
+        raise ValueError(f"actuator {act.stack.name!r}: elongation must be finite, "
+                         f"got {elongation!r}")
+    rate = act.servo_gain * (act.stroke_per_volt * float(v_cmd) - float(elongation))
+    return amp_mod.servo_path(act.amplifier, act.stack.capacitance, state.amp, state.z,
+                              rate, dt)
+
+
 def step(act: PiezoActuator, state: ActuatorState, v_cmd: float,
-         dt: float) -> tuple[ActuatorState, ActuatorOutputs]:
+         dt: float, elongation: float = 0.0) -> tuple[ActuatorState, ActuatorOutputs]:
     """Advance the actuator over one step with the voltage command held.
 
     Parameters
@@ -273,6 +321,9 @@ def step(act: PiezoActuator, state: ActuatorState, v_cmd: float,
         Voltage command (V), held over the step.
     dt : float
         Step size (s); see `piezofmu.amplifier` for the sub-stepping rule.
+    elongation : float
+        The stack's measured expansion (m), held over the step (the servo's feedback;
+        unused with the servo off).
 
     Returns
     -------
@@ -283,18 +334,24 @@ def step(act: PiezoActuator, state: ActuatorState, v_cmd: float,
     """
     n, _ = amp_mod.substeps(dt, act.amplifier.internal_step)
     cap = act.stack.capacitance
-    if act.hysteresis is None:
+    z = state.z
+    if act.servo_bandwidth > 0:
+        amp_state, path, z = _servo_path(act, state, v_cmd, dt, elongation)
+        h_bw = (state.h_bw if act.hysteresis is None else
+                hyst_mod.step(act.hysteresis, state.h_bw, state.amp.voltage, path))
+    elif act.hysteresis is None:
         amp_state, _ = amp_mod.step(act.amplifier, cap, state.amp, v_cmd, dt)
         h_bw = state.h_bw
     else:
         amp_state, path = amp_mod.step_path(act.amplifier, cap, state.amp, v_cmd, dt)
         h_bw = hyst_mod.step(act.hysteresis, state.h_bw, state.amp.voltage, path)
-    new = ActuatorState(amp_state, h_bw, state.tick + n)
+    new = ActuatorState(amp_state, h_bw, state.tick + n, z)
     return new, outputs(act, new)
 
 
 def step_mean(act: PiezoActuator, state: ActuatorState, v_cmd: float,
-              dt: float) -> tuple[ActuatorState, ActuatorOutputs, float]:
+              dt: float, elongation: float = 0.0
+              ) -> tuple[ActuatorState, ActuatorOutputs, float]:
     """Advance like `step` and also return the mean force over the step (N).
 
     The mean is the trapezoidal rule on the force at the start and at every internal
@@ -313,6 +370,9 @@ def step_mean(act: PiezoActuator, state: ActuatorState, v_cmd: float,
         Voltage command (V), held over the step.
     dt : float
         Step size (s); see `piezofmu.amplifier` for the sub-stepping rule.
+    elongation : float
+        The stack's measured expansion (m), held over the step (the servo's feedback;
+        unused with the servo off).
 
     Returns
     -------
@@ -325,7 +385,11 @@ def step_mean(act: PiezoActuator, state: ActuatorState, v_cmd: float,
     """
     n, _ = amp_mod.substeps(dt, act.amplifier.internal_step)
     cap = act.stack.capacitance
-    amp_state, path = amp_mod.step_path(act.amplifier, cap, state.amp, v_cmd, dt)
+    z = state.z
+    if act.servo_bandwidth > 0:
+        amp_state, path, z = _servo_path(act, state, v_cmd, dt, elongation)
+    else:
+        amp_state, path = amp_mod.step_path(act.amplifier, cap, state.amp, v_cmd, dt)
     ch, limit, bw = float(act.stack.ch), act.stroke_limit / act.stroke_per_volt, act.hysteresis
     h_bw, v_prev = state.h_bw, state.amp.voltage
     # summed in order, one sub-step at a time, as the native kernel does (bit for bit)
@@ -337,8 +401,42 @@ def step_mean(act: PiezoActuator, state: ActuatorState, v_cmd: float,
         f = ch * min(max(v - h_bw, -limit), limit)
         total += 0.5 * (f_prev + f)
         f_prev, v_prev = f, v
-    new = ActuatorState(amp_state, h_bw, state.tick + n)
+    new = ActuatorState(amp_state, h_bw, state.tick + n, z)
     return new, outputs(act, new), total / n
+
+
+def linear_map(act: PiezoActuator, dt: float):
+    """One caller step of the actuator with no limit active, as a linear map.
+
+    ``s+ = A s + B w`` with ``w = [v_cmd, elongation]`` held, composed of the internal
+    sub-steps as `step_mean` takes them, on the amplifier's state (``[v]`` or ``[v,
+    dv/dt]``) followed, with the servo on, by its integrator ``z``; and the trapezoidal
+    mean of ``v`` over the sub-step ends, ``cx @ s + cu @ w``.
+
+    Parameters
+    ----------
+    act : PiezoActuator
+        Actuator model (its hysteresis is ignored).
+    dt : float
+        Step size (s).
+
+    Returns
+    -------
+    A : ndarray, shape (n, n)
+    B : ndarray, shape (n, 2)
+    cx : ndarray, shape (n,)
+    cu : ndarray, shape (2,)
+    """
+    amp = act.amplifier
+    n_sub, h = amp_mod.substeps(dt, amp.internal_step)
+    As, Bs = amp_mod.sub_step_map(amp, h)
+    m = As.shape[0]
+    if act.servo_bandwidth == 0:
+        return amp_mod.compose(As, np.hstack([Bs, np.zeros((m, 1))]), n_sub)
+    kd = h * act.servo_gain * np.array([[act.stroke_per_volt, -1.0]])   # dz = kd @ w
+    Asub = np.block([[As, Bs], [np.zeros((1, m)), np.ones((1, 1))]])
+    Bsub = np.vstack([0.5 * Bs @ kd, kd])   # the amplifier follows z + dz / 2
+    return amp_mod.compose(Asub, Bsub, n_sub)
 
 
 _MASK64 = (1 << 64) - 1

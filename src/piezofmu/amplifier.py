@@ -45,9 +45,13 @@ __all__ = [
     "AmplifierState",
     "amplifier_preset",
     "initial_state",
+    "compose",
+    "linear_map",
     "outputs",
+    "servo_path",
     "step",
     "step_path",
+    "sub_step_map",
     "substeps",
 ]
 
@@ -243,7 +247,12 @@ def _coefficients(amp: Amplifier, h: float) -> tuple[float, ...]:
 
 
 def _advance(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: float,
-             dt: float, path: list | None) -> AmplifierState:
+             dt: float, path: list | None, servo: list | None = None) -> AmplifierState:
+    """The sub-steps of one caller step.  With ``servo = [z, rate]`` the command is not
+    ``v_cmd`` but a servo integrator ``z`` (V) rising by ``rate`` (V/s) held over the step:
+    each sub-step ``z+ = clip(z + h rate)`` (clipped to the rails: anti-windup) and the
+    amplifier follows the sub-step's mean ``(z + z+) / 2``; ``servo[0]`` ends as the
+    final ``z``."""
     if not (capacitance > 0 and math.isfinite(capacitance)):
         raise AmplifierError(
             f"amplifier {amp.name!r}: load capacitance must be positive and finite, "
@@ -265,7 +274,13 @@ def _advance(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: f
         w = amp.omega
     else:
         a11, a12, a21, a22, b1, b2 = coef
+    if servo is not None:
+        z, dz = servo[0], h * servo[1]
     for _ in range(n):
+        if servo is not None:
+            z_new = min(max(z + dz, v_lo), v_hi)
+            u = 0.5 * (z + z_new)
+            z = z_new
         if first:
             v_new = u + (v - u) * a
             r_new = 0.0  # set below
@@ -296,6 +311,8 @@ def _advance(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: f
         v, r = v_new, r_new
         if path is not None:
             path.append(v)
+    if servo is not None:
+        servo[0] = z
     return AmplifierState(voltage=v, rate=r, sat_voltage=sat_v, sat_slew=sat_s)
 
 
@@ -377,6 +394,99 @@ def step_path(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: 
     return new, np.asarray(path)
 
 
+def servo_path(amp: Amplifier, capacitance: float, state: AmplifierState, z: float,
+               rate: float, dt: float) -> tuple[AmplifierState, np.ndarray, float]:
+    """Advance like `step_path` with the command a servo integrator (V).
+
+    Each internal sub-step of size ``h`` the integrator moves ``z+ = z + h rate``,
+    clipped to the rails (anti-windup), and the amplifier follows the sub-step's mean
+    ``(z + z+) / 2`` (the exact mean of the unclipped ramp).
+
+    Parameters
+    ----------
+    amp : Amplifier
+        Amplifier parameters.
+    capacitance : float
+        Load capacitance ``C`` (F).
+    state : AmplifierState
+        State at the start of the step.
+    z : float
+        Integrator (the amplifier's command) at the start of the step (V).
+    rate : float
+        The integrator's rate, held over the step (V/s).
+    dt : float
+        Step size (s).
+
+    Returns
+    -------
+    state : AmplifierState
+        State at the end of the step.
+    path : numpy.ndarray, shape (n,)
+        Output voltage at the end of each internal sub-step (V).
+    z : float
+        Integrator at the end of the step (V).
+    """
+    if not math.isfinite(rate):
+        raise AmplifierError(f"amplifier {amp.name!r}: servo rate must be finite, got {rate!r}")
+    path: list[float] = []
+    servo = [float(z), float(rate)]
+    new = _advance(amp, capacitance, state, 0.0, dt, path, servo)
+    return new, np.asarray(path), servo[0]
+
+
+def sub_step_map(amp: Amplifier, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """One internal sub-step ``h`` (s) with no limit active: ``s+ = As s + Bs u``.
+
+    Parameters
+    ----------
+    amp : Amplifier
+        Amplifier parameters.
+    h : float
+        Sub-step (s).
+
+    Returns
+    -------
+    As : ndarray, shape (m, m)
+        On the state ``[v]`` (order 1) or ``[v, dv/dt]`` (order 2).
+    Bs : ndarray, shape (m, 1)
+    """
+    coef = _coefficients(amp, h)
+    if amp.order == 1:
+        return np.array([[coef[0]]]), np.array([[1.0 - coef[0]]])
+    a11, a12, a21, a22, b1, b2 = coef
+    return np.array([[a11, a12], [a21, a22]]), np.array([[b1], [b2]])
+
+
+def compose(As: np.ndarray, Bs: np.ndarray, n_sub: int):
+    """``n_sub`` sub-steps ``s+ = As s + Bs u`` with ``u`` held, and the trapezoidal mean
+    of the first state over the sub-step ends.
+
+    Parameters
+    ----------
+    As : ndarray, shape (m, m)
+    Bs : ndarray, shape (m, k)
+    n_sub : int
+        Number of sub-steps.
+
+    Returns
+    -------
+    A : ndarray, shape (m, m)
+    B : ndarray, shape (m, k)
+    cx : ndarray, shape (m,)
+    cu : ndarray, shape (k,)
+        The mean of ``s[0]`` is ``cx @ s + cu @ u``.
+    """
+    m = As.shape[0]
+    A, B = np.eye(m), np.zeros_like(Bs, dtype=float)
+    cx, cu = np.zeros(m), np.zeros(Bs.shape[1])
+    for _ in range(n_sub):
+        An, Bn = As @ A, As @ B + Bs
+        cx += 0.5 * (A[0] + An[0])
+        cu += 0.5 * (B[0] + Bn[0])
+        A, B = An, Bn
+    return A, B, cx / n_sub, cu / n_sub
+
+
 def linear_map(amp: Amplifier, dt: float):
     """One caller step of the amplifier with no limit active, as a linear map.
 
@@ -400,21 +510,8 @@ def linear_map(amp: Amplifier, dt: float):
     cu : float
     """
     n_sub, h = substeps(dt, amp.internal_step)
-    coef = _coefficients(amp, h)
-    if amp.order == 1:
-        As, Bs = np.array([[coef[0]]]), np.array([[1.0 - coef[0]]])
-    else:
-        a11, a12, a21, a22, b1, b2 = coef
-        As, Bs = np.array([[a11, a12], [a21, a22]]), np.array([[b1], [b2]])
-    m = As.shape[0]
-    A, B = np.eye(m), np.zeros((m, 1))
-    cx, cu = np.zeros(m), 0.0
-    for _ in range(n_sub):
-        An, Bn = As @ A, As @ B + Bs
-        cx += 0.5 * (A[0] + An[0])
-        cu += 0.5 * (B[0, 0] + Bn[0, 0])
-        A, B = An, Bn
-    return A, B, cx / n_sub, cu / n_sub
+    A, B, cx, cu = compose(*sub_step_map(amp, h), n_sub)
+    return A, B, cx, float(cu[0])
 
 
 # Amplifier presets.  Voltage and current limits are from the paper (see docs/piezo.md);

@@ -6,7 +6,7 @@ Variables
 ---------
 inputs
     ``v_cmd`` (V) voltage command, held over a step; ``elongation`` (m) of the active member.
-outputs (direct feedthrough from ``v_cmd``)
+outputs (direct feedthrough from ``v_cmd``, and from ``elongation`` through the servo)
     ``force`` (N): with ``coupling = 1`` (the default) the mean force over the coming
     step of ``hold_step`` with ``v_cmd`` held (`piezofmu.actuator.step_mean`), the force a
     structure holding it over that step must see so that a command reaches it after the
@@ -20,8 +20,10 @@ outputs (direct feedthrough from ``elongation``)
     ``strain`` (-): recomputed whenever an input is set, so a Gauss–Seidel master reads the
     strain of the elongation it has just set.
 parameters
-    amplifier, hysteresis, stroke-limit and strain-gauge settings (see `PiezoSlave`); the
-    voltage and current limits, stroke limit and gauge noise are tunable between steps.
+    amplifier, hysteresis, stroke-limit, strain-gauge and servo settings (see
+    `PiezoSlave`); the voltage and current limits, stroke limit and gauge noise are
+    tunable between steps.  ``servo_bandwidth`` > 0 (Hz) closes the stack's built-in
+    servo loop on ``elongation`` (`piezofmu.actuator`); 0, the default, leaves it open.
 
 The FMU state is every variable plus the actuator state array
 (`piezofmu.actuator.ActuatorState.to_array`).
@@ -90,6 +92,10 @@ class PiezoSlave(FmuSlave):
           description="strain gauge noise standard deviation")
         p("resolution", 0.0, unit="1", description="strain quantisation step, 0 for none")
         p("seed", 0, description="seed of the strain gauge noise, >= 0")
+        p("servo_bandwidth", 0.0, unit="Hz", description="crossover of the stack's built-in "
+          "servo loop on the measured expansion (elongation); 0 for no servo")
+        p("servo_plant_gain", 0.0, unit="m/V", description="expansion per volt of the "
+          "mounted stack at low frequency that the servo is set for; 0 for d0/V0")
         p("coupling", 1, description="force held by the structure: 1 = mean force over the "
           "coming step of hold_step with v_cmd held (feedthrough, no added delay); 0 = "
           "force at the end of the last step (one step of delay, for comparison)")
@@ -97,7 +103,7 @@ class PiezoSlave(FmuSlave):
           "which the structure holds the force (coupling = 1 steps only with it)")
         self.add_input("v_cmd", unit="V", description="voltage command to the amplifier")
         self.add_input("elongation", unit="m", description="active-member elongation")
-        self.add_output("force", unit="N", depends_on=["v_cmd"],
+        self.add_output("force", unit="N", depends_on=["v_cmd", "elongation"],
                         description="actuator force on the structure f_c = c h v_eff, "
                         "held over the step (coupling = 1: its mean over the coming step)")
         self.add_output("voltage", unit="V", depends_on=[], description="applied voltage")
@@ -124,7 +130,8 @@ class PiezoSlave(FmuSlave):
         return (self.v_min, self.v_max, self.i_max, self.bandwidth, self.amp_order,
                 self.damping, self.internal_step, self.hysteresis, self.bw_alpha,
                 self.bw_beta_v0, self.bw_gamma_v0, self.stroke_limit, self.gauge_length,
-                self.noise_std, self.resolution, self.seed)
+                self.noise_std, self.resolution, self.seed, self.servo_bandwidth,
+                self.servo_plant_gain)
 
     def actuator(self) -> PiezoActuator:
         """The actuator model for the current parameter values (rebuilt when they change)."""
@@ -136,7 +143,7 @@ class PiezoSlave(FmuSlave):
 
     def _build(self, key) -> PiezoActuator:
         (v_min, v_max, i_max, bandwidth, order, damping, h, hyst, alpha, beta_v0, gamma_v0,
-         stroke_limit, gauge_length, noise_std, resolution, seed) = key
+         stroke_limit, gauge_length, noise_std, resolution, seed, servo_hz, servo_g) = key
         if stroke_limit < 0:
             raise PiezoParameterError(f"parameter stroke_limit of {self.instance_name!r} is "
                                       f"{stroke_limit!r}; expected >= 0 (0 for no limit)")
@@ -148,8 +155,13 @@ class PiezoSlave(FmuSlave):
         v0 = self._stack.rated_voltage
         bw = BoucWen.scaled(float(alpha), float(beta_v0), float(gamma_v0), v0) if hyst else None
         gauge = StrainGauge(float(gauge_length), float(noise_std), float(resolution), int(seed))
+        for name, value in (("servo_bandwidth", servo_hz), ("servo_plant_gain", servo_g)):
+            if not (float(value) >= 0 and math.isfinite(float(value))):
+                raise PiezoParameterError(f"parameter {name} of {self.instance_name!r} is "
+                                          f"{value!r}; expected >= 0 and finite")
         return PiezoActuator(self._stack, amp, gauge, bw,
-                             float(stroke_limit) if stroke_limit > 0 else math.inf)
+                             float(stroke_limit) if stroke_limit > 0 else math.inf,
+                             float(servo_hz), float(servo_g))
 
     def _coupling(self) -> int:
         c, h = int(self.coupling), float(self.hold_step)
@@ -164,10 +176,11 @@ class PiezoSlave(FmuSlave):
 
     def _step_ahead(self, dt: float):
         """The coming step with ``v_cmd`` held: ``(state, outputs, mean force)``, cached."""
-        key = (self.x.tobytes(), float(self.v_cmd), float(dt), self._parameter_key())
+        key = (self.x.tobytes(), float(self.v_cmd), float(self.elongation), float(dt),
+               self._parameter_key())
         if self._ahead is None or self._ahead[0] != key:
             state, out, mean = ac.step_mean(self.actuator(), ActuatorState.from_array(self.x),
-                                            self.v_cmd, dt)
+                                            self.v_cmd, dt, self.elongation)
             self._ahead = (key, state, out, mean)
         return self._ahead[1:]
 
@@ -277,7 +290,8 @@ class PiezoSlave(FmuSlave):
                     "communication step (or coupling = 0)")
             state, out, _ = self._step_ahead(h)
         else:
-            state, out = ac.step(act, ActuatorState.from_array(self.x), self.v_cmd, step_size)
+            state, out = ac.step(act, ActuatorState.from_array(self.x), self.v_cmd, step_size,
+                                 self.elongation)
         self.x[...] = state.to_array()
         self._write_outputs(out)
         self.strain = ac.strain(act, state, self.elongation)

@@ -200,6 +200,11 @@ PIEZO_OUTPUTS = ["force", "voltage", "current", "free_stroke", "strain", "sat_vo
     ("piezo_p243_40", {"hysteresis": True, "noise_std": 1e-7, "resolution": 1e-8, "seed": 7}),
     ("piezo_p243_30", {"amp_order": 1, "stroke_limit": 2e-5, "v_max": 600.0, "v_min": -100.0}),
     ("piezo_p243_40", {"internal_step": 3e-5, "hysteresis": True, "i_max": 0.5}),
+    # the stacks' servo loop on the elongation (rails and slew reached by the integrator)
+    ("piezo_p243_30", {"servo_bandwidth": 100.0, "servo_plant_gain": 2e-8}),
+    ("piezo_p243_40", {"servo_bandwidth": 40.0, "amp_order": 1, "hysteresis": True,
+                       "v_max": 300.0}),
+    ("piezo_p845_37", {"servo_bandwidth": 150.0, "coupling": 0}),
 ])
 def test_piezo_equals_python(fmus, model, params):
     v_cmd = 1200 * np.sin(2 * np.pi * 30 * T) + 200 * RNG.standard_normal(N)

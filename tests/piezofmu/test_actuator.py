@@ -121,7 +121,7 @@ def test_state_array_round_trip_and_errors():
     with pytest.raises(StateArrayError, match="shape"):
         ActuatorState.from_array(np.zeros(5))
     with pytest.raises(StateArrayError, match="not a valid state"):
-        ActuatorState.from_array([0, 0, 0, 0, 0, 1.5])
+        ActuatorState.from_array([0, 0, 0, 0, 0, 1.5, 0])
 
 
 def test_presets():

@@ -105,7 +105,8 @@ def test_strain_and_force_feed_through_and_state_outputs_do_not():
     assert get(slave, STATE_OUTPUTS) == before
     specs_by_name = {s.name: s for s in slave.variable_specs}
     assert specs_by_name["strain"].depends_on == ("elongation",)
-    assert specs_by_name["force"].depends_on == ("v_cmd",)
+    # the force depends on the elongation through the stack's servo loop (when it is on)
+    assert specs_by_name["force"].depends_on == ("v_cmd", "elongation")
     for name in STATE_OUTPUTS:
         assert specs_by_name[name].depends_on == ()
 

@@ -4,7 +4,10 @@
  * rule, same order of the limits, same Taylor-series exponential for the second-order
  * amplifier, same SplitMix64 + Box-Muller gauge noise keyed by (seed, tick)), so that
  * the native and the Python FMU give the same numbers to round-off.
- * State: [v, dv/dt, sat_voltage, sat_slew, h_bw, tick] as ActuatorState.to_array.
+ * State: [v, dv/dt, sat_voltage, sat_slew, h_bw, tick, z] as ActuatorState.to_array.
+ * With servo_bandwidth > 0 the stack's servo loop is closed on the elongation input: the
+ * amplifier follows an integrator z, dz/dt = k_i (d0/V0 v_cmd - elongation), moved every
+ * sub-step and clipped to the rails (piezofmu.amplifier.servo_path).
  * With coupling = 1 the force output is the trapezoidal mean of the force over the coming
  * step of hold_step with v_cmd held (piezofmu.actuator.step_mean), recomputed after every
  * set of an input and after every step; the step itself is the same computation.
@@ -28,6 +31,8 @@ typedef struct {
     uint64_t seed;
     int coupling;
     double hold_step;
+    int servo;
+    double servo_ki;
 } Params;
 
 /* The sub-steps of an advance over dt and their map (amplifier._coefficients). */
@@ -41,14 +46,14 @@ typedef struct {
     long v_min, v_max, i_max, bandwidth, amp_order, damping, internal_step, hysteresis,
         bw_alpha, bw_beta_v0, bw_gamma_v0, stroke_limit, gauge_length, noise_std, resolution,
         seed, v_cmd, elongation, force, voltage, current, free_stroke, strain, sat_voltage,
-        sat_slew, sat_stroke, coupling, hold_step;
+        sat_slew, sat_stroke, coupling, hold_step, servo_bandwidth, servo_plant_gain;
     int ready;
     /* the coming step as write_force computed it: reused by the step when the state,
      * the command and the parameters are still those it started from */
     int ahead_ok;
     long ahead_n;
     Params ahead_q;
-    double ahead_u, ahead_x0[6], ahead_x1[6];
+    double ahead_u, ahead_e, ahead_x0[7], ahead_x1[7];
     /* the sub-step map of the last advance, kept for the same (dt, h_int, w, zeta,
      * order): the same numbers give the same coefficients, so they are computed once */
     int coef_ok, coef_order;
@@ -81,12 +86,12 @@ int model_instantiate(JfInstance *inst) {
         R(noise_std) || R(resolution) || I(seed, JF_INTEGER) || R(v_cmd) || R(elongation) ||
         R(force) || R(voltage) || R(current) || R(free_stroke) || R(strain) ||
         R(sat_voltage) || R(sat_slew) || R(sat_stroke) || I(coupling, JF_INTEGER) ||
-        R(hold_step))
+        R(hold_step) || R(servo_bandwidth) || R(servo_plant_gain))
         return JF_ERROR;
 #undef R
 #undef I
-    inst->n_state = 6;
-    inst->state = (double *)jf_alloc(inst, 6, sizeof(double));
+    inst->n_state = 7;
+    inst->state = (double *)jf_alloc(inst, 7, sizeof(double));
     return inst->state ? JF_OK : JF_ERROR;
 }
 
@@ -117,6 +122,19 @@ static int params(JfInstance *inst, Params *q) {
     q->seed = (uint64_t)(inst->iv[p->seed] < 0 ? 0 : inst->iv[p->seed]);
     q->coupling = inst->iv[p->coupling];
     q->hold_step = r[p->hold_step];
+    if (!(r[p->servo_bandwidth] >= 0 && isfinite(r[p->servo_bandwidth])) ||
+        !(r[p->servo_plant_gain] >= 0 && isfinite(r[p->servo_plant_gain]))) {
+        jf_log(inst, 3, "parameters servo_bandwidth and servo_plant_gain of %s are %g and "
+               "%g; expected >= 0 and finite (0 for no servo, 0 for d0/V0)",
+               inst->instance_name, r[p->servo_bandwidth], r[p->servo_plant_gain]);
+        return JF_ERROR;
+    }
+    q->servo = r[p->servo_bandwidth] > 0;
+    if (q->servo) {
+        /* as PiezoActuator.servo_gain */
+        double g = r[p->servo_plant_gain] > 0 ? r[p->servo_plant_gain] : p->stroke_per_volt;
+        q->servo_ki = 2.0 * PI * r[p->servo_bandwidth] / g;
+    }
     if (q->coupling != 0 && q->coupling != 1) {
         jf_log(inst, 3, "parameter coupling of %s is %d; expected 1 (mean force over the "
                "step) or 0 (force at the end of the last step)", inst->instance_name,
@@ -267,11 +285,14 @@ static Coef coefficients(const Params *q, double dt) {
 }
 
 /* amplifier._advance on the state x, with the Bouc-Wen state driven along the sub-step
- * path; with mean != NULL also the trapezoidal mean force (actuator.step_mean).
+ * path; with mean != NULL also the trapezoidal mean force (actuator.step_mean).  With
+ * the servo on, the command of each sub-step is the mean of the servo integrator x[6]
+ * over it, the integrator driven by the expansion error (d0/V0 u - e).
  * Returns the number of sub-steps. */
-static long advance(JfInstance *inst, const Params *q, double *x, double u, double dt,
-                    double *mean) {
-    double v = x[0], r = x[1], h_bw = x[4], hsub, a = 0.0, f_prev = 0.0, total = 0.0;
+static long advance(JfInstance *inst, const Params *q, double *x, double u, double e,
+                    double dt, double *mean) {
+    double v = x[0], r = x[1], h_bw = x[4], z = x[6], dz = 0.0, hsub, a = 0.0, f_prev = 0.0,
+           total = 0.0;
     double a11 = 0, a12 = 0, a21 = 0, a22 = 0, b1 = 0, b2 = 0, s_max, dv_max;
     int sat_v = 0, sat_s = 0, first = q->order == 1;
     long n, i;
@@ -297,9 +318,17 @@ static long advance(JfInstance *inst, const Params *q, double *x, double u, doub
     b2 = p->coef.b2;
     s_max = q->i_max / P->capacitance;
     dv_max = s_max * hsub;
+    if (q->servo) dz = hsub * (q->servo_ki * (P->stroke_per_volt * u - e));
     if (mean != NULL) f_prev = stack_force(P, q, v - h_bw);
     for (i = 0; i < n; i++) {
         double v_new, r_new = 0.0, dv;
+        if (q->servo) {
+            double z_new = z + dz;
+            if (z_new < q->v_min) z_new = q->v_min;   /* anti-windup: held at the rails */
+            if (z_new > q->v_max) z_new = q->v_max;
+            u = 0.5 * (z + z_new);
+            z = z_new;
+        }
         if (first) {
             v_new = u + (v - u) * a;
         } else {
@@ -352,6 +381,7 @@ static long advance(JfInstance *inst, const Params *q, double *x, double u, doub
     x[2] = sat_v;
     x[3] = sat_s;
     x[4] = h_bw;
+    x[6] = z;
     return n;
 }
 
@@ -415,8 +445,9 @@ static void write_force(JfInstance *inst, const Params *q) {
     memcpy(p->ahead_x0, inst->state, sizeof p->ahead_x0);
     memcpy(p->ahead_x1, inst->state, sizeof p->ahead_x1);
     p->ahead_u = inst->r[p->v_cmd];
+    p->ahead_e = inst->r[p->elongation];
     p->ahead_q = *q;
-    p->ahead_n = advance(inst, q, p->ahead_x1, p->ahead_u, q->hold_step, &mean);
+    p->ahead_n = advance(inst, q, p->ahead_x1, p->ahead_u, p->ahead_e, q->hold_step, &mean);
     p->ahead_ok = 1;
     inst->r[p->force] = mean;
 }
@@ -435,6 +466,7 @@ int model_exit_initialization(JfInstance *inst) {
     inst->state[3] = 0.0;
     inst->state[4] = 0.0;
     inst->state[5] = 0.0;
+    inst->state[6] = q.servo ? v : 0.0;
     write_outputs(inst, &q);
     P->ready = 1;
     write_strain(inst, &q);
@@ -448,6 +480,7 @@ int model_inputs_changed(JfInstance *inst) {
     if (params(inst, &q) != JF_OK) return JF_ERROR;
     write_strain(inst, &q);
     if (!isfinite(inst->r[P->v_cmd])) return JF_OK;   /* refused at the step */
+    if (q.servo && !isfinite(inst->r[P->elongation])) return JF_OK;
     write_force(inst, &q);
     return JF_OK;
 }
@@ -466,11 +499,15 @@ int model_state_restored(JfInstance *inst) {
 
 int model_do_step(JfInstance *inst, double t, double h) {
     Params q;
-    double u = inst->r[P->v_cmd];
+    double u = inst->r[P->v_cmd], e = inst->r[P->elongation];
     (void)t;
     if (params(inst, &q) != JF_OK) return JF_ERROR;
     if (!isfinite(u)) {
         jf_log(inst, 3, "amplifier command v_cmd must be finite, got %g", u);
+        return JF_ERROR;
+    }
+    if (q.servo && !isfinite(e)) {
+        jf_log(inst, 3, "elongation must be finite with the servo on, got %g", e);
         return JF_ERROR;
     }
     if (q.coupling == 1) {
@@ -482,13 +519,13 @@ int model_do_step(JfInstance *inst, double t, double h) {
         }
         h = q.hold_step;
     }
-    if (q.coupling == 1 && P->ahead_ok && u == P->ahead_u &&
+    if (q.coupling == 1 && P->ahead_ok && u == P->ahead_u && (!q.servo || e == P->ahead_e) &&
         memcmp(P->ahead_x0, inst->state, sizeof P->ahead_x0) == 0 &&
         memcmp(&P->ahead_q, &q, sizeof q) == 0) {
         memcpy(inst->state, P->ahead_x1, sizeof P->ahead_x1);  /* the same computation */
         inst->state[5] += (double)P->ahead_n;
     } else {
-        inst->state[5] += (double)advance(inst, &q, inst->state, u, h, NULL);
+        inst->state[5] += (double)advance(inst, &q, inst->state, u, e, h, NULL);
     }
     write_outputs(inst, &q);
     write_strain(inst, &q);

@@ -33,8 +33,12 @@ def run(args) -> int:
     # deferred: the parser imports every subcommand (orchestrator.cli)
     from nativefmu.container import export_fmu
 
+    from ..progress import stage
     from . import report_warnings
+    from ._options import shown
 
+    stage(f"export-fmu {shown(args.scenario)}: compiling its native FMUs and the master's "
+          f"schedule into {shown(args.out)} (FMI {args.fmi}.0)")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         path = export_fmu(args.scenario, args.out, outputs=args.output,

@@ -71,7 +71,13 @@ def run(args: argparse.Namespace) -> int:
     from structfmu.reduce import Damping
 
     bands = [_band(b) for b in args.zeta_band]
+    from ..progress import stage
     from . import report_warnings
+    from ._options import shown
+
+    matrices = "OP4" if args.op4 else "OP2" if args.op2 else "DMIG"
+    stage(f"import-nastran {shown(args.bdf)}: reading the deck and the {matrices} file, "
+          f"reducing to {args.modes} modes")
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", nastran.NastranWarning)

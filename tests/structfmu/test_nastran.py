@@ -143,7 +143,7 @@ def test_wrong_units_change_the_model(deck, native):
     assert np.max(np.abs(model.omega / native.omega - 1)) > 1e-3
 
 
-def test_cli_import_and_band_damping(deck, native, tmp_path):
+def test_cli_import_and_band_damping(deck, native, tmp_path, capsys):
     from orchestrator.cli import main
 
     out = tmp_path / "truss10.npz"
@@ -151,6 +151,11 @@ def test_cli_import_and_band_damping(deck, native, tmp_path):
                "--zeta", "0.005", "--zeta-ritz", "0.02",
                "--zeta-band", "0:9=0.0018", "--zeta-band", "9:9.9=0.004", "--out", str(out)])
     assert rc == 0
+    said = capsys.readouterr()   # a line when it starts, the summary when it is done
+    first = said.err.splitlines()[0]
+    assert first.startswith("jitterfmu: import-nastran '") and first.endswith(
+        "truss10.bdf': reading the deck and the OP4 file, reducing to 6 modes"), said.err
+    assert said.out.startswith(f"{out}: ") and " Ritz vectors, " in said.out
     assert_same_model(ReducedModel.load(out), native)
 
 
@@ -484,7 +489,8 @@ def test_cli_errors_are_one_line(deck, tmp_path, capsys):
                        (["--zeta-band", "9-10=0.1"], "expected F1:F2=ZETA")):
         (tmp_path / "short.dofs").write_text("1 1\n1 2\n")
         assert main(base + ["--units", "in-lbf-s", *extra]) == 2
-        err = capsys.readouterr().err.splitlines()
+        err = [x for x in capsys.readouterr().err.splitlines()   # but the start line
+               if not x.startswith("jitterfmu: import-nastran '")]
         assert err[0].startswith("jitterfmu: error: ") and msg in err[0]
         assert err[1:] == ["(run with --debug for the traceback)"]
     assert not (tmp_path / "m.npz").exists()

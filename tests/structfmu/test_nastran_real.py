@@ -372,8 +372,10 @@ def test_beam_structure_fmu_static_deflection(tmp_path):
 
 def test_cli_imports_the_superelement_with_its_boundary_fixed(tmp_path, capfd):
     """``import-nastran se.pch --op4 se.op4 --boundary fixed``: 39 fixed-interface modes,
-    nothing printed but the summary (the punch file needs no ENDDATA, EXTRN is read)."""
+    nothing printed but the start line and the summary (the punch file needs no ENDDATA,
+    EXTRN is read)."""
     from orchestrator.cli import main
+    from orchestrator.cli._options import shown
     from structfmu.reduced import ReducedModel
 
     out = tmp_path / "se.npz"
@@ -382,7 +384,9 @@ def test_cli_imports_the_superelement_with_its_boundary_fixed(tmp_path, capfd):
                "--sensor", "q1=20111101:0", "--out", str(out)])
     assert rc == 0
     captured = capfd.readouterr()
-    assert captured.err == "" and captured.out.count("\n") == 1
+    assert captured.err.splitlines() == [
+        f"jitterfmu: import-nastran {shown(SE / 'se_test_n11.pch')}: reading the deck and the "
+        "OP4 file, reducing to 39 modes"] and captured.out.count("\n") == 1
     assert "39 modes (365.3-1976 Hz)" in captured.out
     assert ReducedModel.load(out).meta["boundary"] == "fixed"
     # fixed boundary and a load on it: one sentence

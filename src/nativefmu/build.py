@@ -46,8 +46,11 @@ __all__ = ["CFLAGS", "C_STRING_MAX", "FMI_VERSIONS", "c_string", "NativeBuildErr
            "build_native_structure",
            "compile_sources", "mingw_compiler", "native_model_description", "source_files"]
 
-#: Flags the sources must compile with (libc and libm only).
-CFLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
+#: Flags the sources must compile with (libc and libm only); no fused multiply-add and
+#: no fast-math rewriting, so that with jfmath.c's own sin, exp, log, ... the Linux and
+#: the Windows binaries give the same bits.
+CFLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-ffp-contract=off",
+          "-fno-fast-math")
 #: The linker version script of a Linux binary: the FMI functions global, the rest local.
 EXPORTS_SCRIPT = "{\n  global: fmi2*; fmi3*;\n  local: *;\n};\n"
 #: The FMI 2.0 and 3.0 headers shipped with fmpy (Modelica Association, BSD licence).
@@ -57,7 +60,7 @@ _FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform
 FMI_VERSIONS = (2, 3)
 #: Binary folders (Linux, Windows) of each FMI version.
 _PLATFORMS = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}
-_COMMON = ("jfcore.c", "data.c", "linalg.c")
+_COMMON = ("jfcore.c", "data.c", "linalg.c", "jfmath.c")
 #: Headers of the API layer of each FMI version (fmi3.c's refused functions).
 _LAYER_HEADERS = {2: (), 3: ("fmi3_refusals.h",)}
 _GENERATION_TOOL = "jitterfmu nativefmu 1"
@@ -222,7 +225,8 @@ def _sources(root: ET.Element, kernel: str, fmi: int = 2) -> dict[str, bytes]:
     ``root``), and for FMI 3.0 ``buildDescription.xml``."""
     csrc = _res.files("nativefmu") / "csrc"
     out = {name: (_fmi_header_dir() / name).read_bytes() for name in _FMI_HEADERS[fmi]}
-    for name in (*source_files(kernel, fmi), "jfmu.h", "jfcore.h", "jfstate.h", *_LAYER_HEADERS[fmi]):
+    for name in (*source_files(kernel, fmi), "jfmu.h", "jfmath.h", "jfcore.h", "jfstate.h",
+                 *_LAYER_HEADERS[fmi]):
         out[name] = (csrc / name).read_bytes()
     config = root if fmi == 2 else _with_guid(root, fmi3_model_description(root)
                                                .get("instantiationToken"))

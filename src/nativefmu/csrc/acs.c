@@ -90,7 +90,7 @@ void model_free(JfInstance *inst) {
 /* acsfmu.filters.prewarped_biquad: num = (n2, n1, n0), den = (d2, d1, d0) in s / w. */
 static void prewarped_biquad(const double num[3], const double den[3], double f, double T,
                              double c_out[5]) {
-    double w = 2.0 * PI * f, c = 1.0 / tan(0.5 * w * T), c2 = c * c;
+    double w = 2.0 * PI * f, c = 1.0 / jm_tan(0.5 * w * T), c2 = c * c;
     double a0 = den[0] * c2 + den[1] * c + den[2];
     c_out[0] = (num[0] * c2 + num[1] * c + num[2]) / a0;
     c_out[1] = 2.0 * (num[2] - num[0] * c2) / a0;
@@ -234,9 +234,9 @@ static int configure(JfInstance *inst) {
                    "must be within (0, 85) deg", inst->instance_name);
             return JF_ERROR;
         }
-        a->kp[i] = j * (wc * wc) * cos(phi);
+        a->kp[i] = j * (wc * wc) * jm_cos(phi);
         ti = INTEGRAL_RATIO / wc;
-        td = (tan(phi) + 1.0 / INTEGRAL_RATIO) / wc;
+        td = (jm_tan(phi) + 1.0 / INTEGRAL_RATIO) / wc;
         a->ki[i] = a->kp[i] / ti;
         a->kd[i] = a->kp[i] * td;
     }

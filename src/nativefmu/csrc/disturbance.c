@@ -345,8 +345,8 @@ static int random_record(JfInstance *inst, Term *t) {
             double amp = (k == 0 || k == half) ? 0.0
                          : sqrt(2.0 * interp((double)k * df, f, S, m, 0.0, 0.0) * df);
             double a = 0.5 * (double)n * amp;
-            re[k] = a * cos(phase);
-            im[k] = a * sin(phase);
+            re[k] = a * jm_cos(phase);
+            im[k] = a * jm_sin(phase);
             if (k > 0 && k < half) { /* Hermitian: irfft of the half spectrum */
                 re[n - k] = re[k];
                 im[n - k] = -im[k];
@@ -354,8 +354,8 @@ static int random_record(JfInstance *inst, Term *t) {
         }
         im[0] = im[half] = 0.0;
         for (k = 0; k < half; k++) {
-            wr[k] = cos(2 * PI * (double)k / (double)n);
-            wi[k] = sin(2 * PI * (double)k / (double)n);
+            wr[k] = jm_cos(2 * PI * (double)k / (double)n);
+            wi[k] = jm_sin(2 * PI * (double)k / (double)n);
         }
         inverse_fft(re, im, wr, wi, n);
         for (k = 0; k < n; k++) re[k] = re[k] / (double)n;
@@ -503,7 +503,7 @@ static void harmonic(const double *p, double t, double w[6]) {
     size_t i, n = (size_t)p[6];
     const double *a = p + 7, *h = a + n, *phi = h + n;
     double s = 0.0, wf = 2 * PI * p[1];
-    for (i = 0; i < n; i++) s += sin(wf * (t * h[i]) + phi[i]) * a[i];
+    for (i = 0; i < n; i++) s += jm_sin(wf * (t * h[i]) + phi[i]) * a[i];
     along(s, p + 3, p[2], w);
 }
 
@@ -550,8 +550,8 @@ static void slew(const double *p, double t, double w[6]) {
 
 static void stepper(const double *p, double t, double w[6]) {
     double rate = p[1], peak = p[2], width = p[3], x = pymod(t, 1.0 / rate);
-    double s = x < width ? sin(PI * x / width) : 0.0;
-    if (p[7] != 0.0) s -= (x >= width && x < 2 * width) ? sin(PI * (x - width) / width) : 0.0;
+    double s = x < width ? jm_sin(PI * x / width) : 0.0;
+    if (p[7] != 0.0) s -= (x >= width && x < 2 * width) ? jm_sin(PI * (x - width) / width) : 0.0;
     along(peak * s, p + 4, 1.0, w);
 }
 
@@ -562,7 +562,7 @@ static void wheel_at(const double *p, double theta, double omega, double w[6]) {
     double sC = 0, cC = 0, sA = 0, sD = 0, cD = 0, w2 = omega * omega, lf[3], lm[3];
     int j;
     for (i = 0; i < n; i++) {
-        double arg = theta * h[i] + phi[i], s = sin(arg), c = cos(arg);
+        double arg = theta * h[i] + phi[i], s = jm_sin(arg), c = jm_cos(arg);
         sC += s * C[i];
         cC += c * C[i];
         sA += s * A[i];

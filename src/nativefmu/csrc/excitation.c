@@ -53,7 +53,7 @@ static void write_outputs(JfInstance *inst, double t, double h) {
     for (i = 0; i < 2; i++) {
         double a = r[m->amp[i]], f = r[m->freq[i]];
         int on = jf_reached(t, t0, h) && !jf_reached(t, t1, h);
-        inst->r[m->out[i]] = on ? a * sin(2 * PI * f * (t - t0)) : 0.0;
+        inst->r[m->out[i]] = on ? a * jm_sin(2 * PI * f * (t - t0)) : 0.0;
     }
 }
 

@@ -12,6 +12,8 @@
 
 #include <stddef.h>
 
+#include "jfmath.h" /* sin, exp, log, ... with the same bits everywhere */
+
 enum { JF_REAL = 0, JF_INTEGER = 1, JF_BOOLEAN = 2, JF_STRING = 3 };
 enum { JF_PARAMETER = 0, JF_INPUT = 1, JF_OUTPUT = 2, JF_LOCAL = 3, JF_OTHER = 4 };
 

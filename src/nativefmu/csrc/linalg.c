@@ -89,7 +89,7 @@ int jf_expm(const double *a, size_t n, double *out) {
         for (i = 0; i < n; i++) col += fabs(a[i * n + j]);
         if (col > norm) norm = col;
     }
-    if (norm > theta13) s = (int)ceil(log2(norm / theta13));
+    if (norm > theta13) s = jm_ceil_log2(norm / theta13);
     if (s < 0) s = 0;
     scale = ldexp(1.0, -s);
     for (i = 0; i < nn; i++) A[i] = a[i] * scale;

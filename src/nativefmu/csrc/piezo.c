@@ -208,7 +208,7 @@ static void expm3(const double *a, double *out) {
         double row = fabs(a[3 * i]) + fabs(a[3 * i + 1]) + fabs(a[3 * i + 2]);
         if (row > norm) norm = row;
     }
-    if (norm > 0.25) squarings = (int)ceil(log2(norm / 0.25));
+    if (norm > 0.25) squarings = jm_ceil_log2(norm / 0.25);
     if (squarings < 0) squarings = 0;
     for (i = 0; i < 9; i++) {
         x[i] = a[i] / ldexp(1.0, squarings);
@@ -232,7 +232,7 @@ static void expm3(const double *a, double *out) {
 static double segment(const Params *q, double h, double s, double w, double sigma) {
     double k = q->beta + s * sigma * q->gamma;
     double h_inf = s * q->alpha / k;
-    return h_inf + (h - h_inf) * exp(-k * w);
+    return h_inf + (h - h_inf) * jm_exp(-k * w);
 }
 
 static double bw_increment(const Params *q, double h, double dv) {
@@ -242,7 +242,7 @@ static double bw_increment(const Params *q, double h, double dv) {
     w = fabs(dv);
     if (h * s < 0.0) {
         double sigma = -s, k = q->beta + s * sigma * q->gamma;
-        double h_inf = s * q->alpha / k, w0 = log1p(-h / h_inf) / k;
+        double h_inf = s * q->alpha / k, w0 = jm_log1p(-h / h_inf) / k;
         if (w0 >= w) return segment(q, h, s, w, sigma);
         h = 0.0;
         w = w - w0;
@@ -262,7 +262,7 @@ static Coef coefficients(const Params *q, double dt) {
     Coef c = {0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
     substeps(dt, q->h_int, &c.n, &c.hsub);
     if (q->order == 1) {
-        c.a = exp(-q->w * c.hsub);
+        c.a = jm_exp(-q->w * c.hsub);
     } else {
         /* as piezofmu.amplifier._coefficients: the scaled state (v, r / w) */
         double m[9], e[9], wh = q->w * c.hsub;
@@ -399,7 +399,7 @@ static double gaussian(uint64_t seed, uint64_t counter) {
     uint64_t h1 = splitmix64(splitmix64(seed) ^ counter), h2 = splitmix64(h1);
     double u1 = (double)((h1 >> 11) + 1) * ldexp(1.0, -53);
     double u2 = (double)(h2 >> 11) * ldexp(1.0, -53);
-    return sqrt(-2.0 * log(u1)) * cos(2.0 * PI * u2);
+    return sqrt(-2.0 * jm_log(u1)) * jm_cos(2.0 * PI * u2);
 }
 
 /* Python's round(): half to even. */

@@ -312,17 +312,17 @@ static int discretize(JfInstance *inst, double h) {
         double w = m->omega[i], cc = m->cdamp[i];
         if (w == 0.0) {
             double x = cc * h, em, gg;
-            em = cc > 0 ? -expm1(-x) / cc : h;
+            em = cc > 0 ? -jm_expm1(-x) / cc : h;
             gg = cc > 0 ? (h - em) / cc : h * h / 2;
             m->a11[i] = 1.0;
             m->a12[i] = em;
             m->a21[i] = 0.0;
-            m->a22[i] = exp(-x);
+            m->a22[i] = jm_exp(-x);
             g1 = gg;
             g2 = em;
         } else if (cc < 2 * w && w * h >= 1e-2) {
-            double s = cc / 2, wd = sqrt(w * w - s * s), e = exp(-s * h);
-            double co = cos(wd * h), si = sin(wd * h);
+            double s = cc / 2, wd = sqrt(w * w - s * s), e = jm_exp(-s * h);
+            double co = jm_cos(wd * h), si = jm_sin(wd * h);
             m->a11[i] = e * (co + s / wd * si);
             m->a12[i] = e * si / wd;
             m->a21[i] = -(w * w) * e * si / wd;

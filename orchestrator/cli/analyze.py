@@ -16,6 +16,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("scenario", help="scenario file (.toml) or SSP archive (.ssp)")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="INST.VAR=VALUE", help="set a start value (repeatable)")
+    parser.add_argument("--period", dest="periods", action="append", default=[],
+                        metavar="INST=SECONDS",
+                        help="step an instance every SECONDS instead of its scenario "
+                             "period (repeatable; a piezo with coupling 1 also needs "
+                             "--set INST.hold_step=SECONDS)")
     add_fmu_dir(parser)
     parser.add_argument("--open", action="append", default=[], metavar="INST",
                         help="take an instance out of the loop (its outputs held at zero), "
@@ -88,16 +93,18 @@ def run(args) -> int:
     overrides = dict(parse_override(s) for s in args.overrides)
     from ._options import shown
 
+    scenario = _with_periods(args.scenario, args.periods) if args.periods else args.scenario
+
     stage(f"analyze {shown(args.scenario)}: linearising the closed loop"
           + (" and co-simulating it" if args.reference else ""))
     if args.reference:
         from orchestrator import reference
 
-        res = reference.check(args.scenario, args.output or None, stop_time=args.stop,
+        res = reference.check(scenario, args.output or None, stop_time=args.stop,
                               overrides=overrides, fmu_dir=args.fmu_dir, opened=args.open)
         print(reference.report(res))
         return 0
-    lin = linearize(args.scenario, overrides=overrides, fmu_dir=args.fmu_dir)
+    lin = linearize(scenario, overrides=overrides, fmu_dir=args.fmu_dir)
     if args.open:
         lin = lin.opened(args.open)
     if args.transfer:
@@ -134,6 +141,20 @@ def run(args) -> int:
                     "point, not a bound")
             print(f"  {c.reduction_pct:6.1f} %  {what}")
     return 0
+
+
+def _with_periods(path, items):
+    """The scenario at ``path`` with ``--period INST=SECONDS`` applied."""
+    from orchestrator.scenario import ScenarioError, load_scenario
+
+    periods = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise ScenarioError(f"--period {item!r} is not INST=SECONDS; e.g. "
+                                "--period structure=0.0005")
+        periods[name.strip()] = value.strip()
+    return load_scenario(path).with_periods(periods)
 
 
 def _spectra(lin, args) -> int:

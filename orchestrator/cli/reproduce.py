@@ -32,6 +32,9 @@ def add_arguments(parser):
                              "default) or the hybrid isolator (stack + elastomer); "
                              "swir-isolation: the paper's law on each leg (decentralized, "
                              "default) or one controller on all twelve strains (central)")
+    parser.add_argument("--servo-hz", type=float, default=None, dest="servo_hz",
+                        help="testbed-servo: crossover of the MISR stacks' built-in servo "
+                             "loops (Hz; default 100, assumed)")
 
 
 def run(args) -> int:
@@ -52,7 +55,8 @@ def run(args) -> int:
     if workers is None and args.name == "eos-budget":
         workers = cpu_workers()
     options = {k: v for k, v in (("workers", workers), ("campaign", args.campaign),
-                                 ("variant", args.variant), ("fmu_kind", args.fmu_kind))
+                                 ("variant", args.variant), ("fmu_kind", args.fmu_kind),
+                                 ("servo_hz", args.servo_hz))
                if v is not None}
     out = args.out or f"out/{args.name}"
     t0 = time.monotonic()

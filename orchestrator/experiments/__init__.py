@@ -33,6 +33,7 @@ EXPERIMENTS = {
     "eos-budget": "orchestrator.experiments.eos_budget",
     "swir-isolation": "orchestrator.experiments.swir_isolation",
     "testbed-isolation": "orchestrator.experiments.testbed_isolation",
+    "testbed-servo": "orchestrator.experiments.testbed_servo",
 }
 
 

@@ -130,10 +130,9 @@ def servo_plant(model, servo_hz=None, stroke_per_volt=ISOLATOR_STROKE_PER_VOLT,
         Ac[n + k, n + k] = -wa
     Bc[:n, 3] = B[:, ii[3]]
     if servo_hz:
+        gains = servo_plant_gains(model)
         for k in range(3):
-            # the loop from the integrator to the expansion, at low frequency
-            g0 = _static_gain(A, B[:, ii[k]] * ch[k], C[ee[k]], wa)
-            ki = 2 * np.pi * servo_hz / g0
+            ki = 2 * np.pi * servo_hz / gains[k]
             s = n + 3 + k
             Ac[n + k, s] = wa                        # the integrator drives the amplifier
             Ac[s, :n] = -ki * C[ee[k]]               # ... on the measured expansion
@@ -146,11 +145,59 @@ def servo_plant(model, servo_hz=None, stroke_per_volt=ISOLATOR_STROKE_PER_VOLT,
     return control.ss(Ad, Bd, Cc, np.zeros((len(oo), 4)), DT)
 
 
-def _static_gain(A, b, c, wa, f_hz=5.0):
-    """|c (s I - A)^-1 b| at ``f_hz`` (the strut's own expansion per volt, m/V, where the
-    structure is quasi-static: above the rigid-body and below the flexible modes)."""
+def servo_plant_gains(model, f_hz=5.0) -> list:
+    """Each MISR strut's own expansion per volt (m/V), what its servo is set for.
+
+    ``|c (s I - A)^-1 b ch|`` times the amplifier's gain at ``f_hz``, where the structure
+    is quasi-static (above the rigid-body and below the flexible modes): the loop from
+    the servo's integrator to the measured expansion at low frequency.  The piezo FMU's
+    ``servo_plant_gain`` for ``iso1..3``.
+
+    Parameters
+    ----------
+    model : ReducedModel
+        The reduced testbed.
+    f_hz : float
+        Frequency of the quasi-static gain (Hz).
+
+    Returns
+    -------
+    list of float
+        Struts 1, 2, 3 (m/V).
+    """
+    A, B, C, _ = first_order(model)
+    ins, outs = list(model.input_names), list(model.output_names)
     s = 2j * np.pi * f_hz
-    return float(abs(c @ np.linalg.solve(s * np.eye(A.shape[0]) - A, b)) * abs(wa / (s + wa)))
+    wa = 2 * np.pi * AMPLIFIER_HZ
+    out = []
+    for k in (1, 2, 3):
+        b = B[:, ins.index(_IN[k - 1])] * model.meta["actuators"][f"iso{k}"]["ch"]
+        c = C[outs.index(f"elong_iso{k}")]
+        out.append(float(abs(c @ np.linalg.solve(s * np.eye(A.shape[0]) - A, b))
+                         * abs(wa / (s + wa))))
+    return out
+
+
+def servo_overrides(model, servo_hz) -> dict:
+    """The scenario overrides that turn the MISR struts' servo loops on at ``servo_hz``.
+
+    Parameters
+    ----------
+    model : ReducedModel
+        The reduced testbed (:func:`servo_plant_gains`).
+    servo_hz : float
+        Crossover of each strut's servo (Hz).
+
+    Returns
+    -------
+    dict of str to float
+        ``piezo_iso{k}.servo_bandwidth`` and ``piezo_iso{k}.servo_plant_gain``.
+    """
+    ov = {}
+    for k, g in zip((1, 2, 3), servo_plant_gains(model)):
+        ov[f"piezo_iso{k}.servo_bandwidth"] = float(servo_hz)
+        ov[f"piezo_iso{k}.servo_plant_gain"] = g
+    return ov
 
 
 def sensor_noise_boresight(plant, mounts, gain, noise_rms=ACCEL_RESOLUTION / np.sqrt(12),

@@ -238,6 +238,29 @@ class Scenario:
         new = tuple(replace(i, parameters=_freeze(params[i.name])) for i in self.instances)
         return replace(self, instances=new)
 
+    def with_periods(self, periods) -> Scenario:
+        """Return a copy with some instances' communication periods replaced.
+
+        Parameters
+        ----------
+        periods : mapping of str to float, str or Fraction
+            Instance name to its new period (s), positive.
+        """
+        if not periods:
+            return self
+        names = {i.name for i in self.instances}
+        new = {}
+        for name, value in periods.items():
+            if name not in names:
+                raise ScenarioError(f"period given for {name!r}, which is no instance of the "
+                                    f"scenario{closest(name, names)}")
+            new[name] = _time(value, f"period of {name}")
+            if not new[name] > 0:
+                raise ScenarioError(f"period of {name} is {value!r}; expected a positive "
+                                    "time in seconds")
+        return replace(self, instances=tuple(
+            replace(i, period=new.get(i.name, i.period)) for i in self.instances))
+
     def with_experiment(self, **changes) -> Scenario:
         """Return a copy with experiment fields replaced (stop, algorithm, ...)."""
         exp = self.experiment

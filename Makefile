@@ -21,10 +21,11 @@ $(STAMP): pyproject.toml
 
 # The win64 binaries of the native FMUs need the mingw-w64 cross compiler (Debian package,
 # root needed); `make setup` runs this when the compiler is missing.  Without it the
-# native FMUs carry linux64 binaries and sources only.
+# native FMUs carry linux64 binaries and sources only.  wine runs the win64 builds in
+# the tests (tests/nativefmu/test_jfmath.py: the same bits as linux64).
 native-deps:
-	apt-get install -y -q gcc-mingw-w64-x86-64 \
-	  || { apt-get update -q && apt-get install -y -q gcc-mingw-w64-x86-64; }
+	apt-get install -y -q gcc-mingw-w64-x86-64 wine wine64 \
+	  || { apt-get update -q && apt-get install -y -q gcc-mingw-w64-x86-64 wine wine64; }
 
 # The report is checked in a real browser (tests/orchestrator/browser.py): headless
 # Chromium, a Debian package (root needed); `make setup` runs this when it is missing.

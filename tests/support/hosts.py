@@ -119,7 +119,8 @@ def clean_env() -> dict[str, str]:
     return {"PATH": "/usr/bin:/bin", "LANG": "C.UTF-8"}
 
 
-def compile_c_host(out: str | Path, source: str | Path | None = None) -> Path:
+def compile_c_host(out: str | Path, source: str | Path | None = None, *,
+                   windows: bool = False) -> Path:
     """Compile the C host ``tests/support/c_host/host.c`` with gcc.
 
     Parameters
@@ -128,6 +129,8 @@ def compile_c_host(out: str | Path, source: str | Path | None = None) -> Path:
         Executable to write.
     source : str or Path, optional
         Host source; default: :data:`C_HOST_SOURCE`.
+    windows : bool
+        Cross-compile a Windows executable with mingw-w64 (it loads ``binaries/win64``).
 
     Returns
     -------
@@ -138,8 +141,9 @@ def compile_c_host(out: str | Path, source: str | Path | None = None) -> Path:
     if not source.is_file():
         raise FileNotFoundError(f"C host source {source} not found; pass source=")
     out = Path(out)
-    proc = subprocess.run(["gcc", "-O2", "-Wall", "-o", str(out), str(source), "-ldl"],
-                          capture_output=True, text=True)
+    cmd = (["x86_64-w64-mingw32-gcc", "-O2", "-Wall", "-o", str(out), str(source)] if windows
+           else ["gcc", "-O2", "-Wall", "-o", str(out), str(source), "-ldl"])
+    proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:
         raise HostError(f"compiling the C host failed: {proc.stderr.strip()}")
     return out
@@ -149,13 +153,15 @@ def run_c_host(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n_s
                inputs: Mapping[str, object] | None = None,
                parameters: Mapping[str, float] | None = None,
                host: str | Path | None = None, wrapper: Sequence[str] = (),
-               env: Mapping[str, str] | None = None) -> np.ndarray:
+               env: Mapping[str, str] | None = None, windows: bool = False) -> np.ndarray:
     """Run ``fmu`` in the plain C host, in a subprocess with :func:`clean_env`.
 
     Parameters are as in :func:`run_fmpy`; ``host`` is a compiled host executable
     (compiled into a temporary folder when None); ``wrapper`` is a command prefix the
     host runs under (e.g. ``["valgrind", "--log-file=vg.txt"]``); ``env`` adds variables
-    to the clean environment.
+    to the clean environment.  With ``windows`` the host is a Windows executable that
+    runs the FMU's win64 binary under ``wrapper`` (``["wine"]``), given ``Z:`` paths.
+    The host prints each output's bits, so the values returned are exactly the FMU's.
 
     Returns
     -------
@@ -173,14 +179,16 @@ def run_c_host(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n_s
     par_vrs = _vrs(variables, list(par), fmu)
     with tempfile.TemporaryDirectory(prefix="c_host_") as tmp:
         tmp = Path(tmp)
-        exe = Path(host) if host is not None else compile_c_host(tmp / "host")
+        exe = Path(host) if host is not None else compile_c_host(
+            tmp / ("host.exe" if windows else "host"), windows=windows)
+        here = (lambda p: "Z:" + str(p)) if windows else str
         unzip = tmp / "fmu"
         with zipfile.ZipFile(fmu) as zf:
             zf.extractall(unzip)
         input_file = tmp / "inputs.txt"
         np.savetxt(input_file, u.reshape(n_steps, -1), fmt="%.17g")
-        cmd = [*wrapper, str(exe), str(unzip), md.coSimulation.modelIdentifier, md.guid, repr(step_size),
-               str(n_steps), str(input_file),
+        cmd = [*wrapper, str(exe), here(unzip), md.coSimulation.modelIdentifier, md.guid,
+               repr(step_size), str(n_steps), here(input_file),
                ",".join(map(str, in_vrs)) or "-", ",".join(map(str, out_vrs)),
                ",".join(f"{vr}={float(v)!r}" for vr, v in zip(par_vrs, par.values()))]
         proc = subprocess.run(cmd, capture_output=True, text=True,
@@ -189,10 +197,17 @@ def run_c_host(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n_s
         raise HostError(f"C host run of {Path(fmu).name} failed with status {proc.returncode}: "
                         f"{proc.stderr.strip()[-2000:]}")
     rows = [line.split() for line in proc.stdout.splitlines() if line.strip()]
-    y = np.array([[float(v) for v in row] for row in rows], dtype=float)
+    y = np.array([[_value(v) for v in row] for row in rows], dtype=float)
     if y.shape != (n_steps, len(out_vrs)):
         raise HostError(f"C host printed {y.shape} values; expected {(n_steps, len(out_vrs))}")
     return y
+
+
+def _value(text: str) -> float:
+    """A host's printed output: a double's bits (``0x`` and 16 hex digits) or a number."""
+    if text.startswith("0x"):
+        return float(np.array(int(text, 16), dtype=np.uint64).view(np.float64))
+    return float(text)
 
 
 def run_libcosim(fmu: str | Path, *, outputs: Sequence[str], step_size: float, n_steps: int,

@@ -7,11 +7,29 @@
  *   IN_VRS      comma-separated Real value references of the inputs ("-" for none)
  *   OUT_VRS     comma-separated Real value references of the outputs
  *   PARAMS      optional "vr=value,vr=value" Real start values set before initialisation
- * Prints one line per step: the outputs after the step, "%.17g" separated by spaces.
+ * Prints one line per step: the outputs after the step separated by spaces, each as its
+ * bits, 0x and 16 hex digits (exact, whatever the C library's printf does with %.17g).
  * Exit status 0 on success, 1 on any FMI status above fmi2Warning.
+ * Built for Windows (mingw-w64) it loads binaries/win64/<id>.dll; FMU_DIR is then a
+ * Windows path such as Z:/tmp/fmu.
  */
+#ifdef _WIN32
+#include <windows.h>
+#define LIB_OPEN(path) ((void*)LoadLibraryA(path))
+#define LIB_SYM(lib, name) ((void*)GetProcAddress((HMODULE)(lib), name))
+#define LIB_ERROR() "LoadLibrary failed"
+#define BINARY "%s/binaries/win64/%s.dll"
+#define URI "file:///%s/resources"
+#else
 #include <dlfcn.h>
+#define LIB_OPEN(path) dlopen(path, RTLD_NOW | RTLD_LOCAL)
+#define LIB_SYM(lib, name) dlsym(lib, name)
+#define LIB_ERROR() dlerror()
+#define BINARY "%s/binaries/linux64/%s.so"
+#define URI "file://%s/resources"
+#endif
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -89,10 +107,10 @@ int main(int argc, char** argv)
     }
 
     char path[4096];
-    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, mid);
-    void* lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    snprintf(path, sizeof path, BINARY, dir, mid);
+    void* lib = LIB_OPEN(path);
     if (!lib) {
-        fprintf(stderr, "host: dlopen failed: %s\n", dlerror());
+        fprintf(stderr, "host: loading %s failed: %s\n", path, LIB_ERROR());
         return 1;
     }
     typedef fmi2Component (*instantiate_t)(const char*, int, const char*, const char*,
@@ -104,7 +122,7 @@ int main(int argc, char** argv)
     typedef fmi2Status (*do_step_t)(fmi2Component, double, double, int);
     typedef void (*free_t)(fmi2Component);
 #define LOAD(var, type, name)                                                \
-    type var = (type)dlsym(lib, name);                                       \
+    type var = (type)LIB_SYM(lib, name);                                       \
     if (!var) {                                                              \
         fprintf(stderr, "host: missing %s\n", name);                         \
         return 1;                                                            \
@@ -134,7 +152,7 @@ int main(int argc, char** argv)
     fclose(f);
 
     char uri[4200];
-    snprintf(uri, sizeof uri, "file://%s/resources", dir);
+    snprintf(uri, sizeof uri, URI, dir);
     fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL};
     fmi2Component c = instantiate("host", 1 /* fmi2CoSimulation */, guid, uri, &cb, 0, 0);
     if (!c) {
@@ -150,7 +168,12 @@ int main(int argc, char** argv)
         if (n_in) CHECK(set_real(c, in_vrs, n_in, &inputs[k * (long)n_in]));
         CHECK(do_step(c, (double)k * h, h, 1));
         CHECK(get_real(c, out_vrs, n_out, out));
-        for (size_t j = 0; j < n_out; ++j) printf(j ? " %.17g" : "%.17g", out[j]);
+        for (size_t j = 0; j < n_out; ++j) {
+            uint64_t b;
+            memcpy(&b, &out[j], sizeof b);
+            printf(j ? " 0x%08lx%08lx" : "0x%08lx%08lx", (unsigned long)(b >> 32),
+                   (unsigned long)(b & 0xffffffffu));
+        }
         printf("\n");
     }
     CHECK(terminate(c));

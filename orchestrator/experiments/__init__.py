@@ -34,6 +34,7 @@ EXPERIMENTS = {
     "swir-isolation": "orchestrator.experiments.swir_isolation",
     "testbed-isolation": "orchestrator.experiments.testbed_isolation",
     "testbed-servo": "orchestrator.experiments.testbed_servo",
+    "testbed-robust": "orchestrator.experiments.testbed_margins",
 }
 
 

@@ -101,7 +101,7 @@ MAX_T_ON = 13.2       # s: past it the experiment refuses
 #: nominal per-mount factors of design_mount_gains (0.262, -0.105, 1.049; each mount
 #: independent as in the paper) times 0.2866 (limit 2.027 nominal, 0.573 worst).  At the
 #: nominal factors (1 and the per-mount ones) the loops were unstable at points of the set
-#: (-4.8 dB).
+#: (-4.8 dB).  ``jitterfmu reproduce testbed-robust`` recomputes these limits and factors.
 GAINS = {"mount3": 0.288, "all_mounts": (0.0751, -0.0301, 0.3007)}
 #: Nominal-only factors (6 dB on the nominal plant, unstable over the set), for comparison.
 NOMINAL_GAINS = {"mount3": 1.0, "all_mounts": (0.262, -0.105, 1.049)}

@@ -130,3 +130,28 @@ def test_the_robust_design_of_the_structure_cosimulates_as_designed(suite_fmu_di
     assert 100 * (1 - after / before) == pytest.approx(lin, abs=1.0)
     assert 100 * (1 - after / ti._rms_in(off, w["after"])) == pytest.approx(lin, abs=1.0)
     assert lin > 30.0
+
+
+def test_the_robust_factors_command_gives_the_stored_gains(tmp_path, suite_fmu_dir):
+    """``jitterfmu reproduce testbed-robust --quick`` (nine corners and 4 per-mode
+    points): its limits are ordered as the set is nested (worst <= worst corner <= damping
+    halved; frequencies alone above the damping), its 6 dB factor is the worst limit less
+    6 dB, and the stored factors (testbed_isolation.GAINS over NOMINAL_GAINS) keep at
+    least 6 dB over the set it drew; the nominal limit is the experiment's own margin
+    search on the nominal plant (bisection to 0.5 %)."""
+    from orchestrator.experiments import run as run_experiment
+    from orchestrator.experiments import testbed_isolation as tb
+
+    res = run_experiment("testbed-robust", tmp_path, quick=True, fmu_dir=suite_fmu_dir)
+    plant = td.linear_plant(td.linear_model(suite_fmu_dir))
+    assert (tmp_path / "testbed-robust.json").exists()
+    for k in ("mount3", "all_mounts"):
+        r = res[k]
+        assert r["worst"]["limit"] <= r["worst_corner"] <= r["damping_halved"]
+        assert r["frequencies_alone"] > r["damping_halved"]
+        assert r["factor_6db"] == pytest.approx(r["worst"]["limit"] / 10 ** 0.3, rel=1e-12)
+        assert r["stored_margin_db"] >= 6.0
+        assert 20 * np.log10(r["nominal"]) == pytest.approx(
+            td.gain_margin_db(plant, tb.MOUNTS[k], tb.NOMINAL_GAINS[k]), abs=0.05)
+    red = res["reduction_at_6db_pct"]
+    assert red["worst"] < red["damping_halved"] < red["frequencies_alone"] < red["nominal"]

@@ -208,3 +208,45 @@ def dgemm_rate(n: int = 400) -> float:
     rng = np.random.default_rng(0)
     A, B = rng.standard_normal((n, n)), rng.standard_normal((n, n))
     return 2.0 * n ** 3 * 20 / best_of(lambda: [A @ B for _ in range(20)], 5)[0] / 1e9
+
+
+def stages(camp, runner, ctx, n: int) -> dict:
+    """Median seconds of each stage of a structured sample on one core, per
+    configuration, over samples ``1 .. n``: the perturbed structure block, the sample's
+    run types (``M^L``, the row and column Krylov products), the super-period map and
+    its poles (balancing and eigenvalues), and the 12 records (input sides, state
+    recursion, free and forced responses, limit bounds)."""
+    from orchestrator.analysis.steady import balance
+
+    items = camp.uncertainty["parameters"]
+    draws = _draws(camp, ctx, n + 1)
+    first = mcm.first_tick(camp, ctx["base"][ctx["configs"][0]][0])
+    out = {}
+    for cf in ctx["configs"]:
+        lin, structs, fr0 = ctx["base"][cf]
+        times = {k: [] for k in ("structure block", "run types", "poles", "records")}
+        for s in range(1, n + 1):
+            t0 = time.perf_counter()
+            b = lin.blocks[structs[0]]
+            blk = structure_block(mcm._perturbed(b.model, draws, items, s), structs[0],
+                                  b.period, b.period * lin.base, b.feedthrough,
+                                  blockwise=True)
+            fr = respond(lin.with_block(blk), ctx["refs"], fr0)
+            t1 = time.perf_counter()
+            for sig, L in fr._runs:
+                fr._type(sig, L)
+            t2 = time.perf_counter()
+            np.linalg.eigvals(balance(fr.period_map())[0])
+            t3 = time.perf_counter()
+            Ws, scales = zip(*(mcm._sample_input(runner, fr, *ctx["inputs"][(cf, ev)],
+                                                 draws, items, s) for ev in ctx["events"]))
+            acts = [ctx["actives"][(cf, ev)] if W is ctx["inputs"][(cf, ev)][1] else None
+                    for ev, W in zip(ctx["events"], Ws)]
+            fr.run_many(Ws, check=False, bound_limits=True, scales=scales, actives=acts,
+                        start=first)
+            t4 = time.perf_counter()
+            for k, v in zip(times, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
+                times[k].append(v)
+        out[cf] = {k: float(np.median(v)) for k, v in times.items()}
+        out[cf]["memory_state"] = fr.n_memory
+    return out

@@ -274,6 +274,7 @@ def main(argv=None) -> int:
         t_core = (time.perf_counter() - t0) / args.core_samples
         side = _structured.per_sample(camp, lrun, ctx, args.core_samples)
         s_gflop, s_rows = _structured.structured_flops(camp, lrun, ctx)
+        parts = _structured.stages(camp, lrun, ctx, args.core_samples)
         modes = [int(m) for m in args.modes.split(",") if m.strip()]
         scale = _structured.scaling(camp, lrun, ctx, modes, 2) if modes else []
         votes = _structured.verdicts(camp, ctx, args.verdicts) if args.verdicts else {}
@@ -324,6 +325,11 @@ def main(argv=None) -> int:
           f"{1000 * side['structured_s'] / cores:.0f} s, dense {1000 * side['dense_s'] / cores:.0f}"
           f" s; a co-simulated case on one core {t_case:.2f} s (a sample is "
           f"{side['structured_s'] / t_case:.2f} of it)")
+    print("  where a structured sample's time goes (median ms on one core):")
+    for cf, v in parts.items():
+        print(f"    {cf} (memory state {v['memory_state']}): " + ", ".join(
+            f"{k} {1e3 * v[k]:.1f}" for k in ("structure block", "run types", "poles",
+                                              "records")))
     print(f"  structured floor: {s_gflop:.2f} GFlop a sample at {rate:.0f} GFlop/s -> "
           f"{s_gflop / rate:.3f} s")
     for r in s_rows:
@@ -350,7 +356,7 @@ def main(argv=None) -> int:
             "peak_rss_mb": {str(k): v for k, v in rss.items()}, **side,
             "structured_gflop": s_gflop, "dgemm_gflops": rate,
             "dense_floor_gflop": floor[0] if floor is not None else None,
-            "scaling": scale, "verdicts": votes}, indent=1))
+            "stages_s": parts, "scaling": scale, "verdicts": votes}, indent=1))
     return 0
 
 

@@ -6,13 +6,29 @@ each FMU of the registry (and the EOS all-legs structure, through the experiment
 pytest-xdist (``make test`` runs two workers) the workers share that folder:
 ``ensure_fmus`` locks it, so one builds while the other waits.  Tests that check building itself, or that
 change an FMU, build into their own folders.
+
+The FMI 3.0 native builds (``suite_fmi3``) and the container FMUs of shipped scenarios
+(``suite_container``, written by ``jitterfmu export-fmu``) are made the same way: once
+per run in that folder, whichever worker asks first, the other waiting on a lock.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
 import pytest
 
 from fmutools.ensure import ensure_fmus
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX: one worker per run there
+    fcntl = None
 
 
 @pytest.fixture(scope="session")
@@ -29,6 +45,68 @@ def suite_fmus(suite_fmu_dir):
     one build (native in the folder, Python in its ``python/``), each built once."""
     def get(*names, kind="native"):
         return ensure_fmus(names, suite_fmu_dir, kind=kind)
+    return get
+
+
+def made_once(path: Path, build) -> Path:
+    """``path``, made by ``build(folder) -> file`` (a file of that name in a fresh folder)
+    unless a test of this run, in any worker, made it already; a lock per file makes
+    the second asker wait for the first, and a build that fails leaves nothing."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_name(path.name + ".lock"), "a+") as lock:
+        if fcntl is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        if not path.exists():
+            with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
+                os.replace(build(Path(tmp)), path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def suite_fmi3(suite_fmus, suite_fmu_dir):
+    """``suite_fmi3(*names) -> folder``: the FMI 3.0 native builds (no win64) of the named
+    registry FMUs, from the suite's Python twins, each built once per run."""
+    from fmutools.registry import collect_specs
+    from nativefmu.build import build_native
+
+    out = suite_fmu_dir / "fmi3"
+
+    def get(*names):
+        specs = collect_specs(list(names))
+        suite_fmus(*[s.model_identifier for s in specs])
+        for spec in specs:
+            twin = suite_fmu_dir / "python" / f"{spec.model_identifier}.fmu"
+            made_once(out / f"{spec.model_identifier}.fmu",
+                      lambda tmp, spec=spec, twin=twin: build_native(
+                          spec, tmp, python_fmu=twin, windows=False, fmi=3))
+        return out
+    return get
+
+
+@pytest.fixture(scope="session")
+def suite_container(suite_fmus, suite_fmu_dir):
+    """``suite_container(scenario, fmi=2) -> Path``: a scenario file exported by
+    ``jitterfmu export-fmu`` (with its win64 binary when mingw-w64 is installed), once
+    per run; the command's stderr and stdout are kept beside it, in ``<stem>.said``."""
+    from orchestrator import load_scenario
+    from orchestrator.cli import main
+
+    def get(scenario, fmi=2):
+        scenario = Path(scenario)
+        suite_fmus(*{i.fmu for i in load_scenario(scenario).instances})
+        path = suite_fmu_dir / "containers" / f"fmi{fmi}" / f"{scenario.stem}.fmu"
+
+        def export(tmp):
+            said = io.StringIO()
+            with contextlib.redirect_stderr(said), contextlib.redirect_stdout(said), \
+                    warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                code = main(["export-fmu", str(scenario), str(tmp / path.name),
+                             "--fmi", str(fmi), "--fmu-dir", str(suite_fmu_dir)])
+            assert code == 0, said.getvalue()
+            path.with_suffix(".said").write_text(said.getvalue())
+            return tmp / path.name
+        return made_once(path, export)
     return get
 
 

@@ -70,16 +70,11 @@ def _quiet(fn, *args, **kw):
 
 
 @pytest.fixture(scope="module")
-def truss(suite_fmus, suite_fmu_dir, tmp_path_factory):
-    """(scenario, master table over 12 s, FMI 3.0 container written by the CLI)."""
-    from orchestrator.cli import main
-
-    suite_fmus(*TRUSS)
-    tmp = tmp_path_factory.mktemp("container3")
+def truss(suite_container, suite_fmu_dir):
+    """(scenario, master table over 12 s, FMI 3.0 container written by the CLI: the
+    run's)."""
     path = REPO / "scenarios" / "truss10_closed_loop.toml"
-    out = tmp / "truss3.fmu"
-    assert _quiet(main, ["export-fmu", str(path), str(out), "--fmi", "3", "--no-windows",
-                         "--fmu-dir", str(suite_fmu_dir)]) == 0
+    out = suite_container(path, 3)
     sc = load_scenario(path)
     table, meta = _quiet(run_scenario, sc, stop_time=STOP, fmu_dir=suite_fmu_dir)
     assert meta["status"] == "ok"
@@ -88,12 +83,13 @@ def truss(suite_fmus, suite_fmu_dir, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def small(suite_fmus, suite_fmu_dir, tmp_path_factory):
-    """The small scenario as an FMI 3.0 container with ctrl_diag.gain exposed."""
+    """The small scenario as an FMI 3.0 container with ctrl_diag.gain exposed (its
+    Linux binary; the Windows one is checked on the truss's)."""
     suite_fmus(*TRUSS)
     tmp = tmp_path_factory.mktemp("container3_small")
     (tmp / "small.toml").write_text(SMALL)
     return _quiet(export_fmu, tmp / "small.toml", tmp / "small3.fmu", fmi=3,
-                  parameters=["ctrl_diag.gain"], fmu_dir=suite_fmu_dir, windows=None)
+                  parameters=["ctrl_diag.gain"], fmu_dir=suite_fmu_dir, windows=False)
 
 
 def _assert_master_table(table, times, columns, names, base=1e-3):
@@ -127,7 +123,7 @@ def test_fmpy_fmi3_validation_passes_and_the_description_is_fmi3(truss):
     assert by["structure.los_tip_pitch"].type == "Float64"
     with zipfile.ZipFile(fmu) as z:
         names = set(z.namelist())
-    assert {"binaries/x86_64-linux/truss3.so", "sources/container_fmi3.c",
+    assert {f"binaries/x86_64-linux/{fmu.stem}.so", "sources/container_fmi3.c",
             "sources/container.c", "sources/buildDescription.xml"} <= names
     assert not any(n.startswith("binaries/linux64/") for n in names)
 
@@ -257,7 +253,7 @@ def test_linux_binary_exports_every_fmi3_function_and_no_fmi2_one(truss, tmp_pat
     _, _, fmu = truss
     lib = tmp_path / "t.so"
     with zipfile.ZipFile(fmu) as z:
-        lib.write_bytes(z.read("binaries/x86_64-linux/truss3.so"))
+        lib.write_bytes(z.read(f"binaries/x86_64-linux/{fmu.stem}.so"))
     out = subprocess.run(["nm", "-D", "--defined-only", str(lib)], capture_output=True,
                          text=True, check=True).stdout
     names = {ln.split()[-1] for ln in out.splitlines() if len(ln.split()) == 3}
@@ -271,10 +267,11 @@ def test_linux_binary_exports_every_fmi3_function_and_no_fmi2_one(truss, tmp_pat
 
 @pytest.mark.skipif(mingw_compiler() is None, reason="x86_64-w64-mingw32-gcc is not "
                     "installed (make native-deps); the x86_64-windows binary is not built")
-def test_windows_dll_of_the_fmi3_container_exports_the_fmi3_functions(small, tmp_path):
+def test_windows_dll_of_the_fmi3_container_exports_the_fmi3_functions(truss, tmp_path):
+    _, _, fmu = truss
     dll = tmp_path / "c.dll"
-    with zipfile.ZipFile(small) as z:
-        dll.write_bytes(z.read("binaries/x86_64-windows/small3.dll"))
+    with zipfile.ZipFile(fmu) as z:
+        dll.write_bytes(z.read(f"binaries/x86_64-windows/{fmu.stem}.dll"))
     assert dll.read_bytes()[:2] == b"MZ"
     dump = subprocess.run(["x86_64-w64-mingw32-objdump", "-p", str(dll)], capture_output=True,
                           text=True).stdout

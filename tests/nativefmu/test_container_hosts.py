@@ -22,11 +22,26 @@ from fmpy import extract, read_model_description
 
 from orchestrator import load_scenario, run_scenario
 
-from .test_container_fmi3 import REPO, TRUSS, _assert_master_table
+from .test_container_fmi3 import REPO, _assert_master_table
 
 pytestmark = pytest.mark.slow
 
 STOPS = (8.0, 12.0)
+
+
+def test_export_fmu_says_when_it_starts_and_then_what_it_wrote(containers):
+    """The command compiles for seconds: a start line naming the scenario, what it
+    writes and the FMI version first, the file written last, and between them only the
+    one line on the truss's unconnected inputs."""
+    for fmi, fmu in containers[0].items():
+        lines = fmu.with_suffix(".said").read_text().splitlines()
+        assert len(lines) == 3, lines
+        assert lines[0].startswith("jitterfmu: export-fmu '") and lines[0].endswith(
+            f" (FMI {fmi}.0)"), lines
+        assert "truss10_closed_loop.toml': compiling its native FMUs and the master's " \
+            "schedule into '" in lines[0]
+        assert lines[1].startswith("jitterfmu: warning: 4 inputs are not connected"), lines
+        assert lines[2].startswith("wrote ") and lines[2].endswith(fmu.name), lines
 
 
 def fmucheck_steps(stop, h=1e-3):
@@ -40,20 +55,13 @@ def fmucheck_steps(stop, h=1e-3):
 
 
 @pytest.fixture(scope="module")
-def containers(suite_fmus, suite_fmu_dir, tmp_path_factory):
-    """{fmi: container FMU} of the truss closed loop, and the master's table over 12 s."""
-    from orchestrator.cli import main
-
-    suite_fmus(*TRUSS)
-    tmp = tmp_path_factory.mktemp("hosts")
+def containers(suite_container, suite_fmu_dir):
+    """{fmi: container FMU} of the truss closed loop (the run's, by ``jitterfmu
+    export-fmu``), and the master's table over 12 s."""
     path = REPO / "scenarios" / "truss10_closed_loop.toml"
-    out = {}
+    out = {fmi: suite_container(path, fmi) for fmi in (2, 3)}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        for fmi in (2, 3):
-            out[fmi] = tmp / f"truss{fmi}.fmu"
-            assert main(["export-fmu", str(path), str(out[fmi]), "--fmi", str(fmi),
-                         "--no-windows", "--fmu-dir", str(suite_fmu_dir)]) == 0
         sc = load_scenario(path)
         table, meta = run_scenario(sc, stop_time=max(STOPS), fmu_dir=suite_fmu_dir)
     assert meta["status"] == "ok"

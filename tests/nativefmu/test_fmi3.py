@@ -35,17 +35,10 @@ EOS_EVENTS = ["dist_swir.preset=swir_cryocooler", "dist_rwa.preset=rwa",
 
 
 @pytest.fixture(scope="module")
-def dirs(tmp_path_factory, suite_fmus, suite_fmu_dir):
-    """{2: folder of the FMI 2.0 native FMUs, 3: folder of their FMI 3.0 builds}."""
-    from fmutools.registry import collect_specs
-
-    specs = collect_specs(list(MODELS))
-    suite_fmus(*[s.model_identifier for s in specs])
-    out = tmp_path_factory.mktemp("fmi3")
-    for spec in specs:
-        twin = suite_fmu_dir / "python" / f"{spec.model_identifier}.fmu"
-        build_native(spec, out, python_fmu=twin, windows=False, fmi=3)
-    return {2: suite_fmu_dir, 3: out}
+def dirs(suite_fmi3, suite_fmu_dir):
+    """{2: folder of the FMI 2.0 native FMUs, 3: folder of their FMI 3.0 builds} (the
+    run's, built once for this file, test_fmi3_hostile and test_symbols)."""
+    return {2: suite_fmu_dir, 3: suite_fmi3(*MODELS)}
 
 
 def _md(path):

@@ -13,7 +13,6 @@ import re
 import shutil
 import subprocess
 import sys
-import warnings
 import zipfile
 from pathlib import Path
 
@@ -26,8 +25,6 @@ pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]
 NATIVE = ("truss10_structure", "controller_truss10_strain_diag", "piezo_p243_40",
           "excitation", "acs", "disturbance")
-TRUSS = ["truss10_structure", "piezo_p243_40", "piezo_p243_30", "controller_truss10_strain_diag",
-         "controller_truss10_strain_long", "excitation"]
 
 
 def _binary(fmu: Path, tmp: Path) -> Path:
@@ -46,21 +43,16 @@ def _exported(lib: Path) -> list:
 
 
 @pytest.fixture(scope="module")
-def binaries(suite_fmus, suite_fmu_dir, dirs, tmp_path_factory):  # noqa: F811
+def binaries(suite_fmus, suite_fmu_dir, dirs, suite_container,  # noqa: F811
+             tmp_path_factory):
     """{label: .so} of FMI 2.0 and 3.0 native FMUs and of both containers."""
-    from nativefmu.container import export_fmu
-
-    suite_fmus(*NATIVE, *TRUSS)
+    suite_fmus(*NATIVE)
     tmp = tmp_path_factory.mktemp("symbols")
     out = {f"{m} (FMI 2.0)": _binary(suite_fmu_dir / f"{m}.fmu", tmp / "2") for m in NATIVE}
     out.update({f"{m} (FMI 3.0)": _binary(dirs[3] / f"{m}.fmu", tmp / "3") for m in NATIVE})
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for fmi in (2, 3):
-            fmu = export_fmu(REPO / "scenarios" / "truss10_closed_loop.toml",
-                             tmp / f"truss_c{fmi}.fmu", fmu_dir=suite_fmu_dir, fmi=fmi,
-                             windows=False)
-            out[f"container (FMI {fmi}.0)"] = _binary(fmu, tmp / f"c{fmi}")
+    for fmi in (2, 3):
+        fmu = suite_container(REPO / "scenarios" / "truss10_closed_loop.toml", fmi)
+        out[f"container (FMI {fmi}.0)"] = _binary(fmu, tmp / f"c{fmi}")
     return out
 
 
@@ -110,19 +102,11 @@ def _dll_exports(dll: Path) -> list:
                     shutil.which("x86_64-w64-mingw32-objdump") is None,
                     reason="mingw-w64 is not installed (make native-deps): no win64 binary")
 @pytest.mark.parametrize("fmi", [2, 3])
-def test_a_windows_container_exports_only_its_fmi_functions(suite_fmus, suite_fmu_dir,
-                                                            tmp_path, fmi):
+def test_a_windows_container_exports_only_its_fmi_functions(suite_container, tmp_path, fmi):
     """A DLL exports what its sources mark dllexport: only the FMI functions (a guard:
     the inner units' renamed ones, u1_fmi2DoStep, are not marked; this held before the
-    Linux version script too)."""
-    from nativefmu.container import export_fmu
-
-    suite_fmus(*TRUSS)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        fmu = export_fmu(REPO / "scenarios" / "truss10_closed_loop.toml",
-                         tmp_path / f"w{fmi}.fmu", fmu_dir=suite_fmu_dir, fmi=fmi,
-                         windows=True)
+    Linux version script too).  The run's container, written with mingw-w64 installed."""
+    fmu = suite_container(REPO / "scenarios" / "truss10_closed_loop.toml", fmi)
     with zipfile.ZipFile(fmu) as z:
         name = next(n for n in z.namelist() if n.endswith(".dll"))
         (tmp_path / "x.dll").write_bytes(z.read(name))

@@ -52,8 +52,10 @@ test-full: setup
 build: setup
 	$(VENV)/bin/jitterfmu build
 
-# The paper's experiments at full length (the tests run them with --quick).
-EXPERIMENTS := truss-frf truss-decay testbed-isolation swir-isolation eos-budget
+# The paper's experiments at full length (the tests run them with --quick), and two
+# studies of the testbed: its stacks' servo loops and its gains' robust factors.
+EXPERIMENTS := truss-frf truss-decay testbed-isolation swir-isolation eos-budget \
+               testbed-servo testbed-robust
 reproduce: setup
 	for e in $(EXPERIMENTS); do $(VENV)/bin/jitterfmu reproduce $$e --out out/reproduce || exit 1; done
 	$(VENV)/bin/jitterfmu reproduce testbed-isolation --variant hybrid --out out/reproduce/hybrid

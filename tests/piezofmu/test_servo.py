@@ -125,3 +125,33 @@ def test_integrator_holds_at_the_rails():
     assert state.z == act.amplifier.v_max and out.voltage == pytest.approx(50.0, rel=1e-9)
     state, out = ac.step(act, state, 0.0, 1e-3, elongation=g * state.amp.voltage)
     assert out.voltage < act.amplifier.v_max - 10.0
+
+
+def test_servo_counters_the_hysteresis():
+    """What the paper's servo is for ("to help counter the hysteresis"): with Bouc-Wen on
+    and a 5 Hz command on a quasi-static mount, the expansion's distortion (what is left
+    after its 5 Hz line, the part no linear system makes) falls with a 100 Hz servo by
+    the loop's sensitivity |1 / (1 + L)| at the distortion's harmonics, 0.15 at 15 Hz to
+    0.33 at 35 Hz: at least threefold (1.5 % -> 0.38 % measured)."""
+    base = ac.actuator_preset("P-845.37", hysteresis=True)
+    g_frac = 0.5
+    t = np.arange(0, 0.6, 1e-4)
+    cmd = 20.0 * np.sin(2 * np.pi * 5.0 * t)    # the servo needs 40 V of the 50 V rails
+    keep = t >= 0.2                              # two whole periods after the start
+    basis = np.c_[np.sin(2 * np.pi * 5.0 * t[keep]), np.cos(2 * np.pi * 5.0 * t[keep]),
+                  np.ones(keep.sum())]
+    distortion = {}
+    for hz in (0.0, 100.0):
+        act = base.replace(servo_bandwidth=hz,
+                           servo_plant_gain=g_frac * base.stroke_per_volt if hz else 0.0)
+        state, e = ac.initial_state(act), 0.0
+        out = []
+        for u in cmd:
+            state, o = ac.step(act, state, u, 1e-4, elongation=e)
+            e = g_frac * o.free_stroke              # the mount takes half the free stroke
+            out.append(e)
+        y = np.array(out)[keep]
+        fit = basis @ np.linalg.lstsq(basis, y, rcond=None)[0]
+        distortion[hz] = np.sqrt(np.mean((y - fit) ** 2)) / np.sqrt(np.mean(fit ** 2))
+    assert distortion[0.0] > 0.01           # the hysteresis is there without the servo
+    assert distortion[100.0] < distortion[0.0] / 3

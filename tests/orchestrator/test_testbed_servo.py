@@ -84,3 +84,18 @@ def test_servo_through_the_fmus_costs_what_the_analog_design_says(testbed, tmp_p
     for key in ("no_servo", "servo"):
         assert abs(res[key]["off_change_pct"]) <= tb.SETTLED_PCT
     assert res["pole_radius"]["coupled_1ms"] > 1.5
+
+
+def test_the_reference_refuses_a_servo_it_does_not_model(testbed):
+    """The sampled-data reference models the amplifier alone: a piezo with its servo on
+    is refused in one sentence that says what to do."""
+    from orchestrator.analysis import AnalysisError
+    from orchestrator.reference import sampled_data
+
+    fdir, model = testbed
+    ov = ts.overrides(model, (3,), tb.GAINS["mount3"], 0.0, 100.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lin = linearize(ts.servo_scenario(), overrides=ov, fmu_dir=fdir)
+    with pytest.raises(AnalysisError, match="servo loop on.*set servo_bandwidth = 0"):
+        sampled_data(lin)

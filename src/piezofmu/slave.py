@@ -270,7 +270,8 @@ class PiezoSlave(FmuSlave):
         Parameters
         ----------
         current_time : float
-            Communication point at the start of the step (s); not used.
+            Communication point at the start of the step (s): where the host's rounding of
+            the step is judged.
         step_size : float
             Step (s), cut into the amplifier's internal sub-steps; with ``coupling = 1``
             it must be ``hold_step`` (to rounding), the step the force was the mean of.
@@ -283,7 +284,7 @@ class PiezoSlave(FmuSlave):
         act = self.actuator()
         if self._coupling() == 1:
             h = float(self.hold_step)
-            if not same_step(step_size, h):   # the host's rounding of the step
+            if not same_step(step_size, h, current_time + step_size):   # the host's rounding
                 raise PiezoParameterError(
                     f"{self.instance_name!r} was stepped by {step_size!r} s, but its force "
                     f"is the mean over hold_step = {h!r} s; set hold_step to the "

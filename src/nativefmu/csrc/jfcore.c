@@ -514,6 +514,8 @@ int jf_reached(double t, double event, double period) {
     return t >= event - JF_TIME_RTOL * fabs(period);
 }
 
-int jf_same_step(double h, double known) {
-    return fabs(h - known) <= JF_STEP_RTOL * fabs(known);
+int jf_same_step(double h, double known, double t) {
+    double k = fabs(known), tol = 4.0 * DBL_EPSILON * fabs(t) * (1.0 + fabs(t) / k);
+    if (tol < JF_STEP_RTOL * k) tol = JF_STEP_RTOL * k;
+    return fabs(h - known) <= (tol < 0.25 * k ? tol : 0.25 * k);
 }

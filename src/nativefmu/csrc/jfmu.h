@@ -99,8 +99,10 @@ double jf_end_time(double t, double h, double last);
 int jf_same_point(double t, double known, double h);
 /* t at or after event within JF_TIME_RTOL of period (fmukit.timing.reached). */
 int jf_reached(double t, double event, double period);
-/* h is the step known up to host rounding (fmukit.timing.same_step). */
-int jf_same_step(double h, double known);
+/* h is the step known up to host rounding (fmukit.timing.same_step): JF_STEP_RTOL of it,
+ * or for a step ending at t what a host's t += h accumulates there (its last step,
+ * shortened to land on its stop time), never a quarter of the step; t = 0: the first. */
+int jf_same_step(double h, double known, double t);
 
 /* Kernel interface. */
 int model_instantiate(JfInstance *inst);           /* read data, allocate, set n_state */

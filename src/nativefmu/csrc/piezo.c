@@ -511,7 +511,7 @@ int model_do_step(JfInstance *inst, double t, double h) {
         return JF_ERROR;
     }
     if (q.coupling == 1) {
-        if (!jf_same_step(h, q.hold_step)) { /* the host's rounding of the step */
+        if (!jf_same_step(h, q.hold_step, t + h)) { /* the host's rounding of the step */
             jf_log(inst, 3, "%s was stepped by %.17g s, but its force is the mean over "
                    "hold_step = %.17g s; set hold_step to the communication step (or "
                    "coupling = 0)", inst->instance_name, h, q.hold_step);

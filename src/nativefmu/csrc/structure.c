@@ -428,9 +428,9 @@ static int select_step(JfInstance *inst, double h) {
     Zoh *z;
     size_t j, nm = m->n_m, nr = m->n_r, nin = m->n_in;
     for (j = 0; j < m->n_steps; j++)
-        if (jf_same_step(h, m->pre[j].h)) return ready(inst, &m->pre[j]);
+        if (jf_same_step(h, m->pre[j].h, 0.0)) return ready(inst, &m->pre[j]);
     for (j = 0; j < m->n_cached; j++)
-        if (jf_same_step(h, m->cache[j].h)) return ready(inst, &m->cache[j]);
+        if (jf_same_step(h, m->cache[j].h, 0.0)) return ready(inst, &m->cache[j]);
     z = &m->cache[m->next_slot];
     zoh_free(z);
     z->a11 = (double *)jf_alloc(inst, 4 * nm + 1, sizeof(double));

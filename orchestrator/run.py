@@ -32,6 +32,7 @@ from .cosim import (
     prepare,
 )
 from .files import atomic_write
+from .linearcheck import UnstableLoopWarning, linear_verdict
 from .progress import ProgressBar
 from .results import (
     RunResult,
@@ -503,6 +504,11 @@ def _run_plan(plan, meta, folder, quiet, wall0):
         wall_time_s=_time.perf_counter() - wall0,
     )
     _report_saturation(sim, meta)
+    if meta["status"] == "ok":   # a loop the linear engine finds unstable is no result
+        meta["linear_check"], unstable = linear_verdict(plan)
+        if unstable:
+            meta.update(status="unstable", unstable=unstable)
+            warnings.warn(unstable["message"], UnstableLoopWarning, stacklevel=3)
     if error is None and sim.terminated:
         inst, t_end, message = sim.terminated
         meta["terminated"] = {"instance": inst, "time": t_end, "message": message,

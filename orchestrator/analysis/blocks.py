@@ -52,6 +52,9 @@ class Block:
         ``(A, B, ch)`` of a piezo amplifier in force units (input ``ch v_cmd``, first
         state the force ``ch v`` on the structure); None for a piezo whose servo loop is
         on (the reference does not model it).
+    t_on : float
+        Time (s) from which a controller's command is on (its law's ``t_on``); before it
+        the loop through the controller is open.
     """
 
     name: str
@@ -73,6 +76,7 @@ class Block:
     unmodelled: tuple = ()
     flags: tuple = ()
     model: object = field(default=None, repr=False)
+    t_on: float = 0.0
 
     @property
     def n(self) -> int:
@@ -216,7 +220,8 @@ def _law_block(law, name, period, h, ft, factor=1.0):
     D = np.hstack([Ds, np.eye(n_out)])   # r is added after the law
     return Block(name, "controller", period, As, B, Cs, D, ins, outs, ft,
                  rebuild=lambda f: _law_block(law, name, period, h, ft, factor * f),
-                 active=bool(factor != 0 and (np.any(law.C) or np.any(law.D))))
+                 active=bool(factor != 0 and (np.any(law.C) or np.any(law.D))),
+                 t_on=float(law.t_on))
 
 
 def _controller_block(slave, name, period, h, ft):

@@ -171,7 +171,22 @@ class FmuSlave(Fmi2Slave):
                          f"expected a positive step of at most {MAX_STEP:g} s (step in "
                          "pieces)", Fmi2Status.error)
                 return False
-            return step(self, current_time, step_size)
+            bad = self._first_nonfinite("input")
+            bad = (f"input {bad} is not a finite number" if bad is not None
+                   else None if self._refused is None
+                   else f"{self._refused} (refused by setReal)")
+            if bad is not None:   # never a NaN output reported with OK
+                self.log(f"doStep from t = {current_time!r} s: {bad}; nothing was stepped "
+                         "(set a finite value)", Fmi2Status.error)
+                return False
+            done = step(self, current_time, step_size)
+            bad = self._first_nonfinite("output") if done else None
+            if bad is not None:
+                self.log(f"doStep from t = {current_time!r} s: output {bad} after the step is "
+                         "not a finite number (an input or parameter far out of range?); the "
+                         "step ends with an error", Fmi2Status.error)
+                return False
+            return done
 
         do_step.__doc__, do_step.bounded = step.__doc__, True
         cls.do_step = do_step
@@ -192,7 +207,8 @@ class FmuSlave(Fmi2Slave):
         self._other_attr: dict[int, tuple[str, type]] = {}
         self._specs: dict[int, VariableSpec] = {}
         self._by_name: dict[str, VariableSpec] = {}
-        self._index_cache: dict[tuple[int, ...], np.ndarray] = {}
+        self._index_cache: dict[tuple, Any] = {}
+        self._refused: str | None = None   # the last setReal's non-finite value
         #: declared ``(min, max)`` of Real variables, by name (see :meth:`declare_range`)
         self.variable_ranges: dict[str, tuple[float, float]] = {}
 
@@ -580,6 +596,23 @@ class FmuSlave(Fmi2Slave):
         for block, (a, b) in self._real_blocks.items():
             object.__setattr__(self, block, self._real_values[a:b])
 
+    def _first_nonfinite(self, causality: str) -> str | None:
+        """``"name = value"`` of the first Real of ``causality`` that is not finite, or None."""
+        key = ("nonfinite", causality)
+        found = self._index_cache.get(key)
+        if found is None:
+            specs = [sp for sp in self._specs.values() if sp.type == "Real"
+                     and sp.causality == causality and sp.value_reference in self._real_slot]
+            found = (self._real_index([sp.value_reference for sp in specs]),
+                     [sp.name for sp in specs])
+            self._index_cache[key] = found
+        idx, names = found
+        values = self._real_values[idx]
+        if np.all(np.isfinite(values)):
+            return None
+        k = int(np.flatnonzero(~np.isfinite(values))[0])
+        return f"{names[k]} = {float(values[k])!r}"
+
     def _real_index(self, vrs) -> np.ndarray:
         key = tuple(vrs)
         idx = self._index_cache.get(key)
@@ -618,8 +651,23 @@ class FmuSlave(Fmi2Slave):
             Value references.
         values : list of float
             One value per reference, in the variable's unit.
+
+        A value that is not a finite number sets nothing: the call logs an error and the
+        next ``doStep`` ends with Discard naming it (pythonfmu turns an exception here into
+        Fatal), so no output is ever computed from it.
         """
-        self._real_values[self._real_index(vrs)] = values
+        idx = self._real_index(vrs)
+        values = np.asarray(values, dtype=float)
+        if not np.all(np.isfinite(values)):
+            k = int(np.flatnonzero(~np.isfinite(values))[0])
+            spec = self._specs.get(vrs[k])
+            name = spec.name if spec is not None else f"value reference {vrs[k]}"
+            self._refused = f"{name} = {float(values[k])!r} is not a finite number"
+            self.log(f"setReal: {self._refused}; nothing was set (set a finite value)",
+                     Fmi2Status.error)
+            return
+        self._refused = None
+        self._real_values[idx] = values
 
     def _get_other(self, vrs, var_type, py_type):
         out = []

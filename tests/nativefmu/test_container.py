@@ -88,8 +88,8 @@ def fmu_dir(suite_fmus, suite_fmu_dir):
 @pytest.fixture(scope="module")
 def cases(fmu_dir, tmp_path_factory, suite_container):
     """name -> (scenario, master table, container FMU).  The truss's is the run's
-    (``jitterfmu export-fmu``, win64 too with mingw-w64), the EOS one has its win64
-    binary too, the mixed one its Linux binary only (the same kernels as the truss)."""
+    (``jitterfmu export-fmu``, win64 too with mingw-w64, which one test reads); the EOS
+    and mixed ones have their Linux binary only (no test reads another)."""
     tmp = tmp_path_factory.mktemp("container")
     (tmp / "mixed.toml").write_text(MIXED)
     truss = REPO / "scenarios" / "truss10_closed_loop.toml"
@@ -104,8 +104,7 @@ def cases(fmu_dir, tmp_path_factory, suite_container):
         table, meta = _quiet(run_scenario, sc, stop_time=stops[name], fmu_dir=fmu_dir)
         assert meta["status"] == "ok"
         fmu = suite_container(truss, 2) if name == "truss" else \
-            _quiet(export_fmu, sc, tmp / f"{name}.fmu", fmu_dir=fmu_dir,
-                   windows=False if name == "mixed" else None)
+            _quiet(export_fmu, sc, tmp / f"{name}.fmu", fmu_dir=fmu_dir, windows=False)
         out[name] = (sc, table, fmu, stops[name])
     return out
 

@@ -4,7 +4,8 @@
 each FMU of the registry (and the EOS all-legs structure, through the experiments' own
 ``ensure_fmus``) is built there at most once, however many tests use it.  Under
 pytest-xdist (``make test`` runs two workers) the workers share that folder:
-``ensure_fmus`` locks it, so one builds while the other waits.  Tests that check building itself, or that
+``ensure_fmus`` locks it for each call, and the suite asks for one FMU a call, so one
+worker builds while the other waits for that FMU or builds another.  Tests that check building itself, or that
 change an FMU, build into their own folders.
 
 The FMI 3.0 native builds (``suite_fmi3``) and the container FMUs of shipped scenarios
@@ -42,9 +43,14 @@ def suite_fmu_dir(tmp_path_factory, request):
 @pytest.fixture(scope="session")
 def suite_fmus(suite_fmu_dir):
     """``suite_fmus(*names, kind="native") -> {name: path}``: the named registry FMUs of
-    one build (native in the folder, Python in its ``python/``), each built once."""
+    one build (native in the folder, Python in its ``python/``), each built once.  They
+    are ensured one at a time, so the folder's lock is held for one build: a worker
+    that needs other FMUs builds them meanwhile instead of waiting for the whole list."""
     def get(*names, kind="native"):
-        return ensure_fmus(names, suite_fmu_dir, kind=kind)
+        out = {}
+        for name in dict.fromkeys(names):
+            out.update(ensure_fmus([name], suite_fmu_dir, kind=kind))
+        return out
     return get
 
 

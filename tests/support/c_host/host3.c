@@ -8,12 +8,27 @@
  *   IN_VRS      comma-separated Real value references of the inputs ("-" for none)
  *   OUT_VRS     comma-separated Real value references of the outputs
  *   PARAMS      optional "vr=value,vr=value" Real start values set before initialisation
- * Prints one line per step: the outputs after the step, "%.17g" separated by spaces.
- * GUID is the instantiation token.  The binary is binaries/x86_64-linux/<id>.so.
+ * Prints one line per step: the outputs after the step separated by spaces, as bits.
+ * GUID is the instantiation token.  The binary is binaries/x86_64-linux/<id>.so, or built
+ * for Windows (mingw-w64) binaries/x86_64-windows/<id>.dll with FMU_DIR a Windows path
+ * such as Z:/tmp/fmu.  Outputs are printed as their bits, 0x and 16 hex digits.
  * Exit status 0 on success, 1 on any FMI status above fmi3Warning.
  */
+#ifdef _WIN32
+#include <windows.h>
+#define LIB_OPEN(path) ((void*)LoadLibraryA(path))
+#define LIB_SYM(lib, name) ((void*)GetProcAddress((HMODULE)(lib), name))
+#define LIB_ERROR() "LoadLibrary failed"
+#define BINARY "%s/binaries/x86_64-windows/%s.dll"
+#else
 #include <dlfcn.h>
+#define LIB_OPEN(path) dlopen(path, RTLD_NOW | RTLD_LOCAL)
+#define LIB_SYM(lib, name) dlsym(lib, name)
+#define LIB_ERROR() dlerror()
+#define BINARY "%s/binaries/x86_64-linux/%s.so"
+#endif
 #include <stdbool.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -78,10 +93,10 @@ int main(int argc, char** argv)
     }
 
     char path[4096];
-    snprintf(path, sizeof path, "%s/binaries/x86_64-linux/%s.so", dir, mid);
-    void* lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    snprintf(path, sizeof path, BINARY, dir, mid);
+    void* lib = LIB_OPEN(path);
     if (!lib) {
-        fprintf(stderr, "host: dlopen failed: %s\n", dlerror());
+        fprintf(stderr, "host: loading %s failed: %s\n", path, LIB_ERROR());
         return 1;
     }
     typedef fmi3Instance (*instantiate_t)(const char*, const char*, const char*, bool, bool,
@@ -97,7 +112,7 @@ int main(int argc, char** argv)
                                     double*);
     typedef void (*free_t)(fmi3Instance);
 #define LOAD(var, type, name)                                                \
-    type var = (type)dlsym(lib, name);                                       \
+    type var = (type)LIB_SYM(lib, name);                                       \
     if (!var) {                                                              \
         fprintf(stderr, "host: missing %s\n", name);                         \
         return 1;                                                            \
@@ -148,7 +163,12 @@ int main(int argc, char** argv)
             return 1;
         }
         CHECK(get_real(c, out_vrs, n_out, out, n_out));
-        for (size_t j = 0; j < n_out; ++j) printf(j ? " %.17g" : "%.17g", out[j]);
+        for (size_t j = 0; j < n_out; ++j) {
+            uint64_t b;
+            memcpy(&b, &out[j], sizeof b);
+            printf(j ? " 0x%08lx%08lx" : "0x%08lx%08lx", (unsigned long)(b >> 32),
+                   (unsigned long)(b & 0xffffffffu));
+        }
         printf("\n");
     }
     CHECK(terminate(c));

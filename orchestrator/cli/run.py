@@ -104,6 +104,9 @@ def _kept(out: Path) -> str:
 
 
 def _warn(caught) -> None:
+    from orchestrator.linearcheck import UnstableLoopWarning
+
     from . import report_warnings
 
-    report_warnings(caught)
+    # the linear engine's verdict is the run's "unstable:" line, said once
+    report_warnings([w for w in caught if not issubclass(w.category, UnstableLoopWarning)])

@@ -113,3 +113,16 @@ def test_feedback_is_a_cycle_of_connections():
     assert _has_feedback([C("a", "b"), C("b", "c"), C("c", "a")])
     assert not _has_feedback([C("a", "b"), C("b", "c"), C("a", "c")])
     assert not _has_feedback([])
+
+
+def test_the_command_line_says_it_in_one_line_and_exits_1(folder, tmp_path, capsys):
+    from orchestrator.cli import main
+
+    code = main(["run", TRUSS, "--out", str(tmp_path / "o"), "--fmu-dir", str(folder),
+                 "--set", "ctrl_diag.gain=2.9", "--stop", str(T_ON + 2.0), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1
+    said = [ln for ln in err.splitlines() if "unstable in the linear engine" in ln]
+    assert len(said) == 1
+    assert said[0].startswith("jitterfmu: unstable: the closed loop through ctrl_diag is ")
+    assert (tmp_path / "o" / "results.parquet").exists()

@@ -35,6 +35,9 @@ def add_arguments(parser):
     parser.add_argument("--servo-hz", type=float, default=None, dest="servo_hz",
                         help="testbed-servo: crossover of the MISR stacks' built-in servo "
                              "loops (Hz; default 100, assumed)")
+    parser.add_argument("--design", action="store_const", const=True, default=None,
+                        help="testbed-robust: also design mount #3's law within the "
+                             "paper's structure at each pair of corners (about 15 min)")
 
 
 def run(args) -> int:
@@ -56,7 +59,7 @@ def run(args) -> int:
         workers = cpu_workers()
     options = {k: v for k, v in (("workers", workers), ("campaign", args.campaign),
                                  ("variant", args.variant), ("fmu_kind", args.fmu_kind),
-                                 ("servo_hz", args.servo_hz))
+                                 ("servo_hz", args.servo_hz), ("design", args.design))
                if v is not None}
     out = args.out or f"out/{args.name}"
     t0 = time.monotonic()

@@ -155,3 +155,17 @@ def test_the_robust_factors_command_gives_the_stored_gains(tmp_path, suite_fmu_d
             td.gain_margin_db(plant, tb.MOUNTS[k], tb.NOMINAL_GAINS[k]), abs=0.05)
     red = res["reduction_at_6db_pct"]
     assert red["worst"] < red["damping_halved"] < red["frequencies_alone"] < red["nominal"]
+
+
+def test_the_refined_direction_is_no_worse_and_keeps_its_margin(model):
+    """testbed-robust --design refines the nominal design to 1 degree around its best
+    direction: never below the coarse best, and still 6 dB below its stability limit."""
+    from orchestrator.experiments import testbed_margins as tm
+
+    plant = td.linear_plant(model)
+    band = (22.5, 45.0)
+    coarse = tr.design_within_structure(plant, [plant], [band], n_dir=3)[0]
+    fine = tm._refined(plant, coarse, band, span_deg=6, step_deg=2)
+    assert fine["reduction_pct"] >= coarse["reduction_pct"]
+    law = td._design_law(*fine["gains"], band=band)
+    assert 20 * np.log10(tr.stability_limit(plant, (3,), law=law)) == pytest.approx(6.0, abs=0.05)

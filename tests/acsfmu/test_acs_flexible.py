@@ -58,13 +58,19 @@ def prewarped(num, den, f_hz):
     return signal.bilinear(num, den, fs=w / (2 * math.tan(w * T / 2)))
 
 
+# python-control evaluates a state space at an array of points in one call; point by
+# point (20001 calls) each call also retries a failing import (its optional slycot), which
+# walks the whole sys.path: seconds alone, 15-26 s late in a test worker whose sys.path
+# had grown.  Same values either way (checked: identical to the last bit).
+
+
 def loop_by_hand(choice, j, d, freqs, design_phase=50.0):
     """``L = -K(z) z^-1 P(z)`` of one axis from textbook forms (negative feedback)."""
     from acsfmu.design import pid_gains_for
 
     kp, ki, kd = pid_gains_for(j, choice.bandwidth, design_phase, T)
     z = np.exp(2j * math.pi * np.asarray(freqs) * T)
-    P = np.array([d(zz) for zz in z])[:, :, 0]                     # (n_f, 2)
+    P = d(z)[:, 0, :].T             # (n_f, 2): one call, see above
     K = -np.stack([kp + ki * T / (z - 1), kd * np.ones_like(z)], axis=1)
     H = np.ones_like(z)
     if choice.notch_hz:
@@ -85,7 +91,7 @@ def test_plant_response_is_the_sampled_model():
     z = np.exp(2j * math.pi * f * T)
     got = plant.response(f)
     for i, d in enumerate(blocks):
-        ref = np.array([d(zz) for zz in z])[:, :, 0] / z[:, None]   # one period later
+        ref = d(z)[:, 0, :].T / z[:, None]                           # one period later
         np.testing.assert_allclose(got[:, [i, 3 + i], i], ref, rtol=1e-9, atol=1e-14)
     assert abs(got[:, 0, 1]).max() == 0 and abs(got[:, 1, 0]).max() == 0
     modes = plant.modes()

@@ -13,14 +13,15 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[test,nastran]'
 	$(PY) -m pip install -q --no-deps 'pyNastran==1.4.1'  # declares numpy<2; see pyproject
-	@command -v x86_64-w64-mingw32-gcc >/dev/null 2>&1 || $(MAKE) --no-print-directory native-deps \
-	  || echo "note: no mingw-w64 cross compiler (needs root and apt-get): native FMUs get no win64 binaries and their test says so"
+	@{ command -v x86_64-w64-mingw32-gcc && command -v wine; } >/dev/null 2>&1 \
+	  || $(MAKE) --no-print-directory native-deps \
+	  || echo "note: no mingw-w64 cross compiler or wine (needs root and apt-get): native FMUs get no win64 binaries, or the same-bits tests cannot run them, and those tests say so"
 	@command -v chromium >/dev/null 2>&1 || $(MAKE) --no-print-directory browser-deps \
 	  || echo "note: no chromium (needs root and apt-get): the report's browser test skips and says so"
 	touch $(STAMP)
 
 # The win64 binaries of the native FMUs need the mingw-w64 cross compiler (Debian package,
-# root needed); `make setup` runs this when the compiler is missing.  Without it the
+# root needed); `make setup` runs this when the compiler or wine is missing.  Without it the
 # native FMUs carry linux64 binaries and sources only.  wine runs the win64 builds in
 # the tests (tests/nativefmu/test_jfmath.py: the same bits as linux64).
 native-deps:

@@ -117,6 +117,20 @@ def suite_container(suite_fmus, suite_fmu_dir):
 
 
 @pytest.fixture(autouse=True)
+def _import_path_kept():
+    """Every test leaves ``sys.path`` as it found it.  pythonfmu puts a Python FMU's
+    resources folder first on ``sys.path`` at each instantiation and never takes it
+    off; left so, a test worker's ``sys.path`` grew to about 90 entries, and each import
+    that fails walked them all (python-control retries its optional slycot at every
+    evaluation: a 2 s test took 15-26 s late in a worker)."""
+    import sys
+
+    before = list(sys.path)
+    yield
+    sys.path[:] = before
+
+
+@pytest.fixture(autouse=True)
 def _working_folder_kept():
     """Every test leaves the working folder where it found it: the suite runs from the
     repository root, and a test that moves it breaks every later relative path of its

@@ -26,8 +26,10 @@ When ``dt`` is not a multiple of ``h`` it is cut into ``n = ceil(dt / h)`` equal
 ``dt / n``; the linear part is still exact, only the instants at which the limits act move
 (by less than ``h``).
 
-Saturation flags and the current report the last internal sub-step of a call, so they are
-state values (independent of the caller's step) rather than "anywhere in the step" values.
+The current reports the last internal sub-step of a call.  The saturation flags say whether
+a limit acted at any internal sub-step of the call (set at the sub-step, kept to the call's
+end, cleared at the next call's start): a limit reached and released inside one step is
+reported by that step.
 """
 
 from __future__ import annotations
@@ -137,9 +139,9 @@ class AmplifierState:
         Output voltage rate ``dv/dt`` (V/s): a state for order 2, the rate at the end of the
         last sub-step (with its command) for order 1.
     sat_voltage : bool
-        A rail clipped the output in the last internal sub-step.
+        A rail clipped the output at some internal sub-step of the last step.
     sat_slew : bool
-        The current (slew) limit was active in the last internal sub-step.
+        The current (slew) limit was active at some internal sub-step of the last step.
     """
 
     voltage: float = 0.0
@@ -268,6 +270,7 @@ def _advance(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: f
     v, r = float(state.voltage), float(state.rate)
     u = float(v_cmd)
     sat_v = sat_s = False
+    any_v = any_s = False   # a limit that acted at any sub-step of this step
     first = amp.order == 1
     if first:
         (a,) = coef
@@ -308,12 +311,13 @@ def _advance(amp: Amplifier, capacitance: float, state: AmplifierState, v_cmd: f
             r_new = max(r_new, 0.0)
         elif first and ((v_new == v_hi and r_new > 0) or (v_new == v_lo and r_new < 0)):
             r_new, sat_v = 0.0, True
+        any_v, any_s = any_v or sat_v, any_s or sat_s
         v, r = v_new, r_new
         if path is not None:
             path.append(v)
     if servo is not None:
         servo[0] = z
-    return AmplifierState(voltage=v, rate=r, sat_voltage=sat_v, sat_slew=sat_s)
+    return AmplifierState(voltage=v, rate=r, sat_voltage=any_v, sat_slew=any_s)
 
 
 def outputs(amp: Amplifier, capacitance: float, state: AmplifierState) -> AmplifierOutputs:

@@ -219,6 +219,27 @@ def test_piezo_equals_python(fmus, model, params):
         assert np.any(python[:, 6] != 0)  # the slew limit acts: the comparison covers it
 
 
+@pytest.mark.parametrize("build", ["native", "py"])
+def test_piezo_flags_a_current_limit_reached_only_inside_a_step(fmus, build):
+    """A 100 V command step into the diagonal's Trek amplifier: its 50 mA limit acts in
+    the first 1 ms step only before the step's end (34 mA there).  The 1 ms step's flag
+    equals its 100 sub-steps run as 10 us steps (one sub-step a step), or-ed; the flag of
+    the last of them alone is clear (what a step's flags reported before)."""
+    fmu = fmus[build] / "piezo_p243_40.fmu"
+    outs = ["current", "sat_slew", "sat_voltage"]
+    coarse = run(fmu, outputs=outs, step_size=1e-3, n_steps=4, inputs={"v_cmd": 100.0})
+    fine = run(fmu, outputs=outs, step_size=1e-5, n_steps=400, inputs={"v_cmd": 100.0},
+               parameters={"hold_step": 1e-5})
+    per_step = fine[:, 1:].reshape(4, 100, 2).max(axis=1)
+    assert fine[99, 1] == 0.0 and abs(coarse[0, 0]) < 0.05   # inside the limit at the end
+    np.testing.assert_array_equal(coarse[:, 1:], per_step)
+    assert coarse[:, 1].tolist() == [1.0, 0.0, 0.0, 0.0]
+    if build == "native":   # and the two builds agree
+        py = run(fmus["py"] / "piezo_p243_40.fmu", outputs=outs, step_size=1e-3, n_steps=4,
+                 inputs={"v_cmd": 100.0})
+        assert_close(coarse, py)
+
+
 @pytest.mark.parametrize("step", [4e-3, 1e-3, 3e-3, 8e-3])
 def test_controller_equals_python_on_any_step(fmus, step):
     y = 1e-5 * np.sin(2 * np.pi * 8.4 * T)

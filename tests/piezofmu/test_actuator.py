@@ -73,12 +73,18 @@ def test_step_size_independence_of_the_whole_chain():
     seen = set()
     for u in cmds:
         a, out_a = ac.step(act, a, u, 0.004)
+        any_b = [False, False]   # the rail and current flags of the short steps, or-ed
         for _ in range(4):
             b, out_b = ac.step(act, b, u, 0.001)
-        np.testing.assert_allclose(a.to_array(), b.to_array(), rtol=1e-12, atol=1e-9)
+            any_b = [any_b[0] or out_b.sat_voltage, any_b[1] or out_b.sat_slew]
+        keep = [0, 1, 4, 5, 6]   # the state without its flags
+        np.testing.assert_allclose(a.to_array()[keep], b.to_array()[keep], rtol=1e-12,
+                                   atol=1e-9)
         assert ac.strain(act, a, 1e-6) == ac.strain(act, b, 1e-6)
-        assert (out_a.sat_voltage, out_a.sat_slew, out_a.sat_stroke) == \
-               (out_b.sat_voltage, out_b.sat_slew, out_b.sat_stroke)
+        # a step's rail and current flags: the limit acted at any of its sub-steps; the
+        # stroke flag is the end state's
+        assert [out_a.sat_voltage, out_a.sat_slew] == any_b
+        assert out_a.sat_stroke == out_b.sat_stroke
         seen.add((out_a.sat_voltage, out_a.sat_slew, out_a.sat_stroke))
     assert {flag for flags in seen for flag in flags} == {False, True}
     assert a.tick == 30 * 400

@@ -109,11 +109,14 @@ def test_step_size_independence_with_all_limits_active():
     flags = set()
     for u in cmds:
         s1, _ = amp.step(a, C, s1, u, 0.004)
+        seen = [False, False]   # the flags of the four short steps, or-ed
         for _ in range(4):
             s4, _ = amp.step(a, C, s4, u, 0.001)
+            seen = [seen[0] or s4.sat_voltage, seen[1] or s4.sat_slew]
         np.testing.assert_allclose([s1.voltage, s1.rate], [s4.voltage, s4.rate],
                                    rtol=1e-12, atol=1e-12 * 100)
-        assert (s1.sat_voltage, s1.sat_slew) == (s4.sat_voltage, s4.sat_slew)
+        # a step's flag says the limit acted at any of its sub-steps
+        assert [s1.sat_voltage, s1.sat_slew] == seen
         flags.add((s1.sat_voltage, s1.sat_slew))
     # The sequence did exercise the limits.
     assert (True, False) in flags or (True, True) in flags
@@ -197,3 +200,20 @@ def test_own_matrix_exponential_matches_scipy():
         scale = np.array([1.0, 1 / w, w, 1.0, 1.0, w])
         got = np.array(_coefficients(amp, h))
         assert np.all(np.abs(got - want) <= 1e-13 * scale), (bw, h, (got - want) / scale)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_a_limit_reached_and_released_inside_a_step_flags_that_step(order):
+    """A small command step: the current limit acts in the first sub-steps only and the
+    step ends below it.  The 1 ms step's flags are those of its 100 sub-steps taken one
+    call each, or-ed (an independent computation: one sub-step per call)."""
+    a = Amplifier(bandwidth=1000.0, order=order, damping=0.7, i_max=2e-3, v_min=-10.0,
+                  v_max=3.0)
+    s1, out = amp.step(a, C, amp.initial_state(a), 1.0, 1e-3)
+    fine, flags = amp.initial_state(a), [False, False]
+    for _ in range(100):
+        fine, o = amp.step(a, C, fine, 1.0, 1e-5)
+        flags = [flags[0] or o.sat_voltage, flags[1] or o.sat_slew]
+    assert flags[1] and not fine.sat_slew   # the limit acted mid-step only
+    assert abs(out.current) < a.i_max       # the step's end is inside the limit
+    assert [s1.sat_voltage, s1.sat_slew] == flags == [False, True]

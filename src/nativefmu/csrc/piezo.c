@@ -294,7 +294,7 @@ static long advance(JfInstance *inst, const Params *q, double *x, double u, doub
     double v = x[0], r = x[1], h_bw = x[4], z = x[6], dz = 0.0, hsub, a = 0.0, f_prev = 0.0,
            total = 0.0;
     double a11 = 0, a12 = 0, a21 = 0, a22 = 0, b1 = 0, b2 = 0, s_max, dv_max;
-    int sat_v = 0, sat_s = 0, first = q->order == 1;
+    int sat_v = 0, sat_s = 0, any_v = 0, any_s = 0, first = q->order == 1;
     long n, i;
     Piezo *p = P;
     if (!(p->coef_ok && p->coef_order == q->order && p->coef_key[0] == dt &&
@@ -366,6 +366,8 @@ static long advance(JfInstance *inst, const Params *q, double *x, double u, doub
             r_new = 0.0;
             sat_v = 1;
         }
+        any_v = any_v || sat_v;   /* a limit at any sub-step flags the step */
+        any_s = any_s || sat_s;
         if (q->hyst) h_bw = bw_increment(q, h_bw, v_new - v);
         v = v_new;
         r = r_new;
@@ -378,8 +380,8 @@ static long advance(JfInstance *inst, const Params *q, double *x, double u, doub
     if (mean != NULL) *mean = total / (double)n;
     x[0] = v;
     x[1] = r;
-    x[2] = sat_v;
-    x[3] = sat_s;
+    x[2] = any_v;
+    x[3] = any_s;
     x[4] = h_bw;
     x[6] = z;
     return n;

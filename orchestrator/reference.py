@@ -356,6 +356,7 @@ class ReferenceCheck:
     loops: tuple
     outputs: tuple
     stop: float
+    saturation: tuple = ()   # the co-simulation's run.json "saturation" entries
 
     def __iter__(self):
         return iter((self.loops, self.outputs))
@@ -410,7 +411,8 @@ def check(scenario, outputs=None, *, stop_time=None, overrides=None, fmu_dir=Non
     sc = replace(sc.with_experiment(output_interval=lin.base, stop=stop_time), record=tuple(rec))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        table = run_scenario(sc, fmu_dir=fmu_dir).table
+        run = run_scenario(sc, fmu_dir=fmu_dir)
+    table = run.table
     n = len(table["time"])
     src_rows = {}
     for name in lin.sources:
@@ -442,7 +444,8 @@ def check(scenario, outputs=None, *, stop_time=None, overrides=None, fmu_dir=Non
     if loops:
         lo = lin.opened(opened) if opened else lin
         lc = tuple(compare_loops(lo, sampled_data(lo)))
-    return ReferenceCheck(lc, tuple(comps), float(sc.experiment.stop))
+    return ReferenceCheck(lc, tuple(comps), float(sc.experiment.stop),
+                          tuple(run.metadata.get("saturation", ())))
 
 
 def report(result: ReferenceCheck) -> str:
@@ -471,4 +474,8 @@ def report(result: ReferenceCheck) -> str:
     if on:
         lines.append("  (after switch-on: from the last controller's switch-on to the end, "
                      "relative to the peak there)")
+    for s in result.saturation:   # a limit the linear model and the reference leave out
+        lines.append(f"  the co-simulation reached {s['instance']}.{s['flag']} for "
+                     f"{s['seconds']:.4g} s from t = {s['first']:.6g} s, a limit the linear "
+                     "model and the reference leave out: their differences include its effect")
     return "\n".join(lines)

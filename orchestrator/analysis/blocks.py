@@ -14,7 +14,7 @@ import numpy as np
 
 from fmutools.archive import ArchiveError, unpack
 from piezofmu.amplifier import substeps
-from piezofmu.actuator import linear_map
+from piezofmu.actuator import inner_rows, linear_map
 from structfmu.discrete import discretize, step_matrices
 from structfmu.statespace import first_order
 
@@ -55,6 +55,11 @@ class Block:
     t_on : float
         Time (s) from which a controller's command is on (its law's ``t_on``); before it
         the loop through the controller is open.
+    inner : tuple
+        Limits that act inside a step (a piezo amplifier's at each internal sub-step):
+        ``(output, G, lo, hi, what)``, the values ``G @ [x, u]`` (one row per sub-step)
+        of a step from the state ``x`` at its start and the inputs ``u`` held over it,
+        each to stay within ``[lo, hi]``.
     """
 
     name: str
@@ -77,6 +82,7 @@ class Block:
     flags: tuple = ()
     model: object = field(default=None, repr=False)
     t_on: float = 0.0
+    inner: tuple = ()
 
     @property
     def n(self) -> int:
@@ -180,6 +186,10 @@ def _piezo_block(slave, name, period, h, ft):
               ("current", -float(amp.i_max), float(amp.i_max), "current (slew) limit")]
     if math.isfinite(act.stroke_limit):
         limits.append(("free_stroke", -act.stroke_limit, act.stroke_limit, "stroke limit"))
+    # the rails and the current limit act at every internal sub-step, not at the ticks
+    rows = inner_rows(act, h)
+    inner = tuple((o, rows[o], lo, hi, what) for o, lo, hi, what in limits[:2]
+                  if math.isfinite(hi) or math.isfinite(lo))
     unmodelled = []
     if act.gauge.noise_std > 0:
         unmodelled.append(f"instance {name!r} has strain-gauge noise on (noise_std = "
@@ -190,7 +200,7 @@ def _piezo_block(slave, name, period, h, ft):
     return Block(name, "piezo", period, A, B, C, D, ins, outs, ft,
                  continuous=None if servo else amp_c,
                  limits=tuple(limits), unmodelled=tuple(unmodelled),
-                 flags=("sat_voltage", "sat_slew", "sat_stroke"))
+                 flags=("sat_voltage", "sat_slew", "sat_stroke"), inner=inner)
 
 
 def _law_block(law, name, period, h, ft, factor=1.0):

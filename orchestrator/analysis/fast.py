@@ -34,14 +34,14 @@ the instance and the first time, in one sentence (:class:`NonlinearError`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
 
 from .blocks import AnalysisError
-from .fastparts import (Record, _causal_conv, _doubling, _fft_length, _power, _powers,
-                        _relevant, _same_pattern, _tick_map)
+from .fastparts import (NonlinearError, Record, _causal_conv, _doubling, _fft_length,
+                        _inner_bound, _inner_checks, _power, _powers, _relevant, _RunType,
+                        _same_pattern, _tick_map)
 from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
@@ -57,29 +57,6 @@ _TOEPLITZ_TICKS = 24
 # tick times, (start, base, n_ticks, every) -> times: they depend on the grid's start and
 # base step alone, so every loop on that grid (a Monte Carlo's samples) shares them
 _TIMES: dict = {}
-
-
-class NonlinearError(AnalysisError):
-    """A record leaves the linear model: a rail or limit of an FMU is reached."""
-
-
-@dataclass(frozen=True)
-class _RunType:
-    """Matrices of a run of ``L`` ticks with one map (memory state ``s``, ``r`` rows).
-
-    The input side is per source channel and built on first use (:meth:`FastResponse.
-    _columns`): a record driven by a few channels pays the Krylov products of those
-    only."""
-
-    L: int
-    ML: np.ndarray      # (s, s)       M^L
-    O: np.ndarray       # (L * r_live, s)  C M^q, the rows that are not zero by structure
-    live: np.ndarray    # (r_live,)    those rows (e.g. a loop at gain 0 leaves its own out)
-    M: np.ndarray       # (s, s)       the tick map
-    N: np.ndarray       # (s, m)       its input columns
-    D: np.ndarray       # (r_live, m)  feedthrough of the live rows
-    cols: dict          # channel -> (M^(L-1-l) N_c (s, L), Markov parameters (L, r_live))
-    powers: tuple = ()  # M^(2^j) for 2^j < L: the doubling steps of the Krylov products
 
 
 class FastResponse(SteadyState):
@@ -133,7 +110,19 @@ class FastResponse(SteadyState):
         extra = [c[0] for c in self._checks if c[0] not in computed]
         self._check_col = [computed.index(c[0]) if c[0] in computed
                            else len(computed) + extra.index(c[0]) for c in self._checks]
-        rows = [lin.index(r) for r in computed] + [lin.index(r) for r in extra]
+        # limits inside a step: values at every sub-step, from the rows of the block's
+        # state (the previous tick's: its step's start) and inputs held (computed too)
+        basis, self._inner, r0 = [], [], len(computed) + len(extra)
+        for n, b in lin.blocks.items():
+            if b.inner:
+                sx, su, _ = lin.slots[n]
+                cols = r0 + len(basis) + np.arange(b.n + len(b.inputs))
+                basis += [*range(sx.start, sx.stop), *range(su.start, su.stop)]
+                self._inner += [(f"{n}.{o}", G, lo, hi, what, cols, b.n, b.period)
+                                for o, G, lo, hi, what in b.inner]
+        self._inner_cols = np.arange(r0, r0 + len(basis))
+        rows = [lin.index(r) for r in computed] + [lin.index(r) for r in extra] + basis
+        self._r = len(rows)
         # exogenous inputs: every source output, in block order
         self.inputs = [(n, j) for n in lin.sources for j in range(len(lin.blocks[n].outputs))]
         self._in_off = {}
@@ -456,7 +445,7 @@ class FastResponse(SteadyState):
         E, s = len(Ws), self.n_memory
         actives = [np.flatnonzero(np.any(W != 0.0, axis=0)) if a is None else
                    np.asarray(a, int) for W, a in zip(Ws, actives or [None] * E)]
-        r = len(self._computed) + len(set(self._check_col) - set(range(len(self._computed))))
+        r = self._r
         # the runs of the record, in order: (type key, start)
         units = []
         k = 0
@@ -517,6 +506,10 @@ class FastResponse(SteadyState):
                     room[c] = min(hi, -lo)
             # a margin far above the round-off of the bound itself
             skip = np.all(bounds * (1.0 + 1e-6) < room, axis=0)
+            skip[self._inner_cols] = True   # a block's sub-steps: all its limits cleared
+            for _, G, lo, hi, _, cols, _, _ in self._inner:
+                skip[cols] &= hi > 0 and lo < 0 and all(
+                    _inner_bound(G, b[cols]) * (1.0 + 1e-6) < min(hi, -lo) for b in bounds)
         # outputs: C M^q x_0 + (h * w), per run type
         # Y holds the computed rows alone (a bounded row is not), in row order
         need = np.flatnonzero(~skip)
@@ -524,6 +517,7 @@ class FastResponse(SteadyState):
         Y = np.zeros((E, K, need.size))
         checked = np.zeros(r, bool)
         checked[self._check_col] = True
+        checked[self._inner_cols] = True
         if start > 0:   # a reference no limit checks is not needed before start
             Y[:, :start, at[np.flatnonzero(~checked[:n_ref])]] = np.nan
         for key, idx in by_type.items():
@@ -583,6 +577,7 @@ class FastResponse(SteadyState):
                     f"{ref} reaches its {what} ({y[bad]:.4g} outside [{lo:.4g}, {hi:.4g}]) "
                     f"at t = {times[bad]:.6g} s, where the FMU leaves the linear model: "
                     "run this case with the co-simulation (--engine cosim)")
+        _inner_checks(self._inner, Y, at, bounds, limits, reached, times, check)
         if self._zero:
             values = np.zeros((K, len(self.refs)))
             values[:, self._computed] = Y[:, :n_ref]

@@ -9,7 +9,33 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft as sfft
 
-__all__ = ["Record"]
+from .blocks import AnalysisError
+
+__all__ = ["NonlinearError", "Record"]
+
+
+class NonlinearError(AnalysisError):
+    """A record leaves the linear model: a rail or limit of an FMU is reached."""
+
+
+@dataclass(frozen=True)
+class _RunType:
+    """Matrices of a run of ``L`` ticks with one map (memory state ``s``, ``r`` rows).
+
+    The input side is per source channel and built on first use (:meth:`FastResponse.
+    _columns`): a record driven by a few channels pays the Krylov products of those
+    only."""
+
+    L: int
+    ML: np.ndarray      # (s, s)       M^L
+    O: np.ndarray       # (L * r_live, s)  C M^q, the rows that are not zero by structure
+    live: np.ndarray    # (r_live,)    those rows (e.g. a loop at gain 0 leaves its own out)
+    M: np.ndarray       # (s, s)       the tick map
+    N: np.ndarray       # (s, m)       its input columns
+    D: np.ndarray       # (r_live, m)  feedthrough of the live rows
+    cols: dict          # channel -> (M^(L-1-l) N_c (s, L), Markov parameters (L, r_live))
+    powers: tuple = ()  # M^(2^j) for 2^j < L: the doubling steps of the Krylov products
+
 
 @dataclass(frozen=True)
 class Record:
@@ -77,6 +103,61 @@ def _relevant(maps: dict, rows) -> np.ndarray:
         if (more_reach == reach).all() and (more_need == need).all():
             return reach & need
         reach, need = more_reach, more_need
+
+
+def _inner_used(G: np.ndarray, Y: np.ndarray, lo: float, hi: float) -> tuple:
+    """A limit inside a step: the values ``G @ y`` at every sub-step of each step from
+    the rows ``Y`` (n_steps, k) of its start state and held inputs.
+
+    Returns
+    -------
+    used : float
+        The largest fraction of the allowed range used.
+    step : int
+        The first step that leaves ``[lo, hi]``, -1 if none.
+    value : float
+        The value there (0.0 if none).
+    """
+    top, bottom = np.full(Y.shape[0], -np.inf), np.full(Y.shape[0], np.inf)
+    for a in range(0, Y.shape[0], 4096):   # (ticks, sub-steps) in slices
+        V = Y[a:a + 4096] @ G.T
+        top[a:a + 4096], bottom[a:a + 4096] = V.max(axis=1), V.min(axis=1)
+    used = max(top.max() / hi if hi > 0 else 0.0, bottom.min() / lo if lo < 0 else 0.0)
+    bad = np.flatnonzero((top > hi) | (bottom < lo))
+    if not bad.size:
+        return float(used), -1, 0.0
+    k = int(bad[0])
+    return float(used), k, float(top[k] if top[k] > hi else bottom[k])
+
+
+def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, check: bool):
+    """The limits inside a step of a record's rows ``Y`` (see `FastResponse._record`):
+    ``limits`` and ``reached`` updated; with ``check``, the first one reached raises
+    :class:`NonlinearError`.  The step of a block due at tick ``k`` starts from its state
+    after tick ``k - 1`` (at rest before tick 0) with its inputs held from tick ``k``."""
+    for ref, G, lo, hi, what, c, nx, period in inner:
+        if bounds is not None and not np.isnan(bounds[c]).any():   # bounded, not computed
+            limits[ref] = max(limits[ref], _inner_bound(G, bounds[c]) / min(hi, -lo))
+            continue
+        Yc = Y[:, c if at is None else at[c]]
+        start = np.vstack([np.zeros((1, nx)), Yc[:-1, :nx]])
+        used, k, v = _inner_used(G, np.hstack([start, Yc[:, nx:]])[::period], lo, hi)
+        limits[ref] = max(limits.get(ref, 0.0), used)
+        if k < 0:
+            continue
+        if ref not in reached:
+            reached.append(ref)
+        if check:
+            raise NonlinearError(
+                f"{ref} reaches its {what} inside the step from t = {times[k * period]:.6g} "
+                f"s ({v:.4g} at an internal sub-step, outside [{lo:.4g}, {hi:.4g}]), where "
+                "the FMU leaves the linear model: run this case with the co-simulation "
+                "(--engine cosim)")
+
+
+def _inner_bound(G: np.ndarray, b: np.ndarray) -> float:
+    """Upper bound of ``|G @ y|`` over the sub-steps from bounds ``b`` of ``|y|``."""
+    return float((np.abs(G) @ b).max())
 
 
 def _causal_conv(Hf: np.ndarray, w: np.ndarray) -> np.ndarray:

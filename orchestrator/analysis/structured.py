@@ -448,7 +448,8 @@ class StructuredResponse(FastResponse):
 
     def __init__(self, loop: ModalLoop, lin, forms: dict):   # noqa: D107 (no super)
         base = loop.fr
-        for key in ("refs", "_checks", "_zero", "_computed", "_check_col", "inputs",
+        for key in ("refs", "_checks", "_zero", "_computed", "_check_col", "inputs", "_r",
+                    "_inner", "_inner_cols",
                     "_in_off", "m", "P", "_runs", "_S", "n_memory"):
             setattr(self, key, getattr(base, key))
         self.lin = lin

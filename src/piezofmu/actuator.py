@@ -62,6 +62,7 @@ __all__ = [
     "actuator_preset",
     "gaussian",
     "initial_state",
+    "inner_rows",
     "linear_map",
     "outputs",
     "step",
@@ -427,16 +428,61 @@ def linear_map(act: PiezoActuator, dt: float):
     cx : ndarray, shape (n,)
     cu : ndarray, shape (2,)
     """
+    return amp_mod.compose(*_sub_step(act, dt)[:3])
+
+
+def _sub_step(act: PiezoActuator, dt: float):
+    """One internal sub-step of a step ``dt`` with no limit active, ``s+ = As s + Bs w``
+    (the state and inputs of `linear_map`), the number of sub-steps and their size."""
     amp = act.amplifier
     n_sub, h = amp_mod.substeps(dt, amp.internal_step)
     As, Bs = amp_mod.sub_step_map(amp, h)
     m = As.shape[0]
     if act.servo_bandwidth == 0:
-        return amp_mod.compose(As, np.hstack([Bs, np.zeros((m, 1))]), n_sub)
+        return As, np.hstack([Bs, np.zeros((m, 1))]), n_sub, h
     kd = h * act.servo_gain * np.array([[act.stroke_per_volt, -1.0]])   # dz = kd @ w
     Asub = np.block([[As, Bs], [np.zeros((1, m)), np.ones((1, 1))]])
     Bsub = np.vstack([0.5 * Bs @ kd, kd])   # the amplifier follows z + dz / 2
-    return amp_mod.compose(Asub, Bsub, n_sub)
+    return Asub, Bsub, n_sub, h
+
+
+def inner_rows(act: PiezoActuator, dt: float) -> dict:
+    """The limited values at every internal sub-step of a step with no limit active, as
+    linear maps of the state at the step's start and the inputs held over it.
+
+    The amplifier's rails and current limit act at each sub-step (`step`): a limit can be
+    reached inside a step and released before its end.  Row ``j`` gives, from ``[s, w]``
+    (``s`` the state of `linear_map` at the step's start, ``w = [v_cmd, elongation]``),
+    the value at sub-step ``j``: the voltage ``v_j``; the current ``C (v_j - v_(j-1)) /
+    h`` that the slew limit clips (``|dv| <= S h``) and, for order 2, ``C r_j`` (the rate
+    state it clips).
+
+    Parameters
+    ----------
+    act : PiezoActuator
+        The actuator (its hysteresis is ignored).
+    dt : float
+        The step (s).
+
+    Returns
+    -------
+    dict
+        ``"voltage"`` (n_sub, m + 2) in V and ``"current"`` (n_sub or 2 n_sub, m + 2) in
+        A, ``m`` the state's size.
+    """
+    As, Bs, n, h = _sub_step(act, dt)
+    m = As.shape[0]
+    S = np.zeros((n + 1, m, m + 2))     # s_j = S[j] @ [s_start, w], j = 0 .. n
+    S[0, :, :m] = np.eye(m)
+    for j in range(n):
+        S[j + 1] = As @ S[j]
+        S[j + 1, :, m:] += Bs
+    v = S[:, 0]
+    cap = act.stack.capacitance
+    current = [cap * np.diff(v, axis=0) / h]
+    if act.amplifier.order == 2:
+        current.append(cap * S[1:, 1])
+    return {"voltage": v[1:], "current": np.vstack(current)}
 
 
 _MASK64 = (1 << 64) - 1

@@ -242,8 +242,10 @@ def _step_study(fmus, capsys, period, *extra):
     for m in ("diag", "long"):
         args += ["--set", f"piezo_{m}.hold_step={period}"]
     assert main(args + list(extra)) == 0
-    rows = {}
+    rows = {"saturated": []}
     for line in capsys.readouterr().out.splitlines():
+        if "the co-simulation reached" in line:
+            rows["saturated"].append(line.split()[3])
         parts = line.split()
         if parts and parts[0] in ("structure.los_tip_pitch", "structure.strain_diag"):
             rows[parts[0]] = (float(parts[2]), float(parts[3].rstrip("%")))
@@ -258,13 +260,17 @@ def test_cli_period_the_residual_falls_only_once_the_step_resolves_the_ringing(f
     is further from the reference than at the shipped 1 ms (1.15 %), at 0.125 ms within
     0.05 % of it (measured 1.55 % and 0.016 %).  At 0.5 ms the diagonal's amplifier
     reaches its current limit inside steps, so the linear model departs from the
-    co-simulation (5e-3 of the strain's peak) unless the limit is raised (then 1e-14)."""
+    co-simulation (5e-3 of the strain's peak) unless the limit is raised (then 1e-14);
+    the co-simulation reports it (the amplifier's flag is set by a limit at any sub-step)
+    and the report names it."""
     coarse = _step_study(fmus, capsys, "5e-4")
     assert coarse["structure.los_tip_pitch"][1] > 1.2
     assert coarse["structure.strain_diag"][0] > 1e-3          # the slew limit acts
+    assert coarse["saturated"] == ["piezo_diag.sat_slew"]      # and is reported
     free = _step_study(fmus, capsys, "5e-4", "--set", "piezo_diag.i_max=1",
                        "--set", "piezo_long.i_max=1")
     assert free["structure.strain_diag"][0] < 1e-12
+    assert free["saturated"] == []
     assert free["structure.los_tip_pitch"][1] == pytest.approx(
         coarse["structure.los_tip_pitch"][1], abs=0.02)
     fine = _step_study(fmus, capsys, "1.25e-4")

@@ -167,3 +167,33 @@ def test_counter_based_gaussian_is_standard_normal():
     # Golden value: the sequence is fixed across platforms and versions.
     assert ac.gaussian(0, 0) == 0.5948276824468888
     assert ac.gaussian(7, 123456) == 1.0575546891808585
+
+
+@pytest.mark.parametrize("order,servo", [(2, 0.0), (1, 0.0), (2, 100.0)])
+def test_inner_rows_give_every_sub_step_of_a_step(order, servo):
+    """The sub-step values of a 1 ms step from its start state and held inputs equal the
+    same step taken one internal sub-step a call (an independent computation)."""
+    amp = ac.actuator_preset("P-243.40").amplifier.replace(order=order, i_max=math.inf,
+                                                           v_min=-1e4, v_max=1e4)
+    act = ac.actuator_preset("P-243.40").replace(amplifier=amp)
+    if servo:
+        act = act.replace(servo_bandwidth=servo, servo_plant_gain=2e-8)
+    state = ac.initial_state(act)
+    state, _ = ac.step(act, state, 300.0, 1e-3, 1e-6)   # not at rest
+    u, e, h = -200.0, 3e-6, amp.internal_step
+    v, r = [], []
+    fine = state
+    for _ in range(100):
+        fine, _ = ac.step(act, fine, u, h, e)
+        v.append(fine.amp.voltage)
+        r.append(fine.amp.rate)
+    start = [state.amp.voltage] + ([state.amp.rate] if order == 2 else [])
+    x = np.array(start + ([state.z] if servo else []) + [u, e])
+    rows = ac.inner_rows(act, 1e-3)
+    np.testing.assert_allclose(rows["voltage"] @ x, v, rtol=1e-9, atol=1e-9 * max(map(abs, v)))
+    cap = act.stack.capacitance
+    want = cap * np.diff([state.amp.voltage] + v) / h
+    if order == 2:
+        want = np.concatenate([want, cap * np.array(r)])
+    got = rows["current"] @ x
+    np.testing.assert_allclose(got, want, rtol=1e-7, atol=1e-7 * np.abs(want).max())

@@ -1,0 +1,103 @@
+"""Limits that act inside a step: the piezo amplifiers move in internal sub-steps (10 us
+in a 0.5 ms step), and their rails and current limit act at each of them.
+
+The co-simulation reports a limit reached at any sub-step (the FMUs' sticky ``sat_*``
+flags, into ``run.json``'s ``saturation``); the linear engine checks the values at every
+sub-step (the piezo block's ``inner`` rows) and refuses a record that reaches one, where
+checking the tick values alone would return a record the co-simulation does not follow.
+Reference: the co-simulation of the same scenario.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+import warnings
+
+import numpy as np
+import pytest
+
+from orchestrator import run_scenario
+from orchestrator.analysis import linearize
+from orchestrator.analysis.fast import FastResponse, NonlinearError
+from orchestrator.cosim.errors import SaturationWarning
+
+SCENARIO = "scenarios/truss10_closed_loop.toml"
+P = 5e-4
+
+
+@pytest.fixture(scope="module")
+def fmus(suite_fmus, suite_fmu_dir):
+    from orchestrator.experiments.truss_decay import FMUS
+
+    suite_fmus(*FMUS)
+    return suite_fmu_dir
+
+
+def _truss(amp1):
+    """The truss loop with its shipped gains, structure and amplifiers at 0.5 ms, the
+    controllers on from the start and the diagonal excited at ``amp1`` V, for 2 s."""
+    with open(SCENARIO, "rb") as f:
+        sc = tomllib.load(f)
+    for name in ("structure", "piezo_diag", "piezo_long"):
+        sc["fmus"][name]["period"] = P
+    for m in ("diag", "long"):
+        sc["fmus"][f"piezo_{m}"]["parameters"] = {"hold_step": P}
+        sc["fmus"][f"ctrl_{m}"]["parameters"] = {"t_on": 0.0}
+    sc["fmus"]["excitation"]["parameters"]["amp1"] = amp1
+    sc["experiment"].update(stop=2.0, output_interval=P)
+    sc["record"] = {"variables": ["structure.strain_diag", "piezo_diag.current",
+                                  "piezo_diag.sat_slew"]}
+    return sc
+
+
+def _fast(sc, fmus):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lin = linearize(sc, fmu_dir=fmus)
+    fr = FastResponse(lin, ["structure.strain_diag", "piezo_diag.current"])
+    K = int(round(sc["experiment"]["stop"] / lin.base))
+    return fr, fr.input_matrix(fr.source_series(K), K)
+
+
+def test_a_current_limit_reached_only_inside_steps_is_refused_and_reported(fmus, tmp_path):
+    """At 300 V the diagonal's current stays below its 50 mA limit at every tick (96 %)
+    but passes it inside steps (103 %): the linear engine refuses, naming the instance,
+    and the co-simulation of the same scenario reports the limit in run.json."""
+    sc = _truss(300.0)
+    fr, W = _fast(sc, fmus)
+    rec = fr.run(W, check=False)
+    i_max = 0.05
+    at_ticks = np.abs(rec.column("piezo_diag.current")).max() / i_max
+    assert 0.9 < at_ticks < 1.0                       # the ticks alone see no limit
+    assert rec.limits["piezo_diag.current"] > 1.0     # the sub-steps do
+    assert rec.reached == ("piezo_diag.current",)
+    with pytest.raises(NonlinearError, match=r"^piezo_diag\.current reaches its current "
+                                             r"\(slew\) limit inside the step from t = "):
+        fr.run(W)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = run_scenario(sc, tmp_path / "run", fmu_dir=fmus)
+    meta = json.loads((tmp_path / "run" / "run.json").read_text())
+    flagged = {(s["instance"], s["flag"]) for s in meta.get("saturation", [])}
+    assert ("piezo_diag", "sat_slew") in flagged
+    # the co-simulation's current at the ticks is below the limit too: only the sticky
+    # flag tells
+    assert np.abs(res.table["piezo_diag.current"]).max() < i_max
+    assert np.max(res.table["piezo_diag.sat_slew"]) == 1.0
+
+
+def test_below_the_limit_inside_steps_the_record_is_the_cosimulation(fmus, tmp_path):
+    """At 250 V (86 % inside steps) nothing is refused or flagged and the linear record
+    equals the co-simulation to round-off."""
+    sc = _truss(250.0)
+    fr, W = _fast(sc, fmus)
+    rec = fr.run(W)
+    assert 0.8 < rec.limits["piezo_diag.current"] < 1.0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = run_scenario(sc, fmu_dir=fmus)
+    assert not [w for w in caught if issubclass(w.category, SaturationWarning)]
+    y = np.asarray(res.table["structure.strain_diag"])
+    lin = rec.column("structure.strain_diag")[:len(y)]
+    assert np.abs(lin - y).max() < 1e-9 * np.abs(y).max()

@@ -56,10 +56,12 @@ def test_the_margin_lies_between_the_two_gains(folder):
 
 
 def test_a_loop_beyond_its_margin_ends_unstable_naming_it(folder, tmp_path):
-    """Gain 2.9, 2 s closed: status ``unstable``, one line naming ctrl_diag (alone) with
+    """Gain 2.9, 1 s closed: status ``unstable``, one line naming ctrl_diag (alone) with
     its growth, in run.json too; the rows kept.  Not the clamp's verdict: less than 10 % of
-    the run at a limit.  The co-simulation agrees: its command has not decayed."""
-    result, caught = _run(folder, tmp_path / "o", 2.9, T_ON + 2.0)
+    the run at a limit (6.4 %; 2 s closed hold the diagonal's current limit, reached at
+    any sub-step, for 13 % of the run, the clamp's verdict).  The co-simulation agrees:
+    its command has not decayed."""
+    result, caught = _run(folder, tmp_path / "o", 2.9, T_ON + 1.0)
     meta = result.metadata
     assert meta["status"] == "unstable" and meta["linear_check"] == "unstable"
     assert max((s["fraction"] for s in meta.get("saturation", [])), default=0.0) < 0.10
@@ -71,8 +73,8 @@ def test_a_loop_beyond_its_margin_ends_unstable_naming_it(folder, tmp_path):
     assert len(caught) == 1 and str(caught[0].message) == info["message"]
     saved = json.loads((tmp_path / "o" / "run.json").read_text())
     assert saved["status"] == "unstable" and saved["unstable"]["loop"] == ["ctrl_diag"]
-    assert result.table["time"][-1] == pytest.approx(T_ON + 2.0)   # every row kept
-    assert _envelope(result, T_ON + 1.5) > 0.8 * _envelope(result, T_ON)
+    assert result.table["time"][-1] == pytest.approx(T_ON + 1.0)   # every row kept
+    assert _envelope(result, T_ON + 0.5) > 0.8 * _envelope(result, T_ON)
 
 
 def test_a_loop_within_its_margin_ends_ok(folder, tmp_path):
@@ -119,7 +121,7 @@ def test_the_command_line_says_it_in_one_line_and_exits_1(folder, tmp_path, caps
     from orchestrator.cli import main
 
     code = main(["run", TRUSS, "--out", str(tmp_path / "o"), "--fmu-dir", str(folder),
-                 "--set", "ctrl_diag.gain=2.9", "--stop", str(T_ON + 2.0), "--quiet"])
+                 "--set", "ctrl_diag.gain=2.9", "--stop", str(T_ON + 1.0), "--quiet"])
     err = capsys.readouterr().err
     assert code == 1
     said = [ln for ln in err.splitlines() if "unstable in the linear engine" in ln]

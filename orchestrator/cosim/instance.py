@@ -154,6 +154,18 @@ class FmuInstance:
             return False
         return st == 0 and bool(value.value)
 
+    def ends_the_run(self) -> bool:
+        """True if a Discard from fmi2DoStep is a normal end of the run, not a failure.
+
+        The FMU must answer fmi2Terminated = true (:meth:`asks_to_terminate`) and must not
+        have logged an error as its latest message: an FMU that logs an error and then
+        declines the step (a Python FMU refusing a non-finite input or output does) has
+        failed, whatever its terminated flag says.
+        """
+        if self.messages and self.messages[-1][0] >= 3:   # fmi2Error or fmi2Fatal
+            return False
+        return self.asks_to_terminate()
+
     def last_message(self) -> str:
         bad = [m for s, m in self.messages if s >= 1 and m]
         return bad[-1] if bad else (self.messages[-1][1] if self.messages else "")

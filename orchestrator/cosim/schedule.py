@@ -89,7 +89,7 @@ class Schedule:
             except Exception as exc:  # an FMU that raises through ctypes
                 raise fail(s, "fmi2DoStep", t, exc=exc) from exc
             if st > 1:
-                if st == 2 and s.asks_to_terminate():
+                if st == 2 and s.ends_the_run():
                     raise TerminationRequested(s.name, t, s.last_message())
                 raise fail(s, "fmi2DoStep", t, st)
             read()

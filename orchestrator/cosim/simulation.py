@@ -375,7 +375,7 @@ class Simulation:
         s, what = fast.parts[fast.result.part]
         st = int(fast.result.status)
         if what == "fmi2DoStep":
-            if st == 2 and s.asks_to_terminate():
+            if st == 2 and s.ends_the_run():
                 raise TerminationRequested(s.name, t, s.last_message())
             raise self._fail(s, what, t, st)
         raise self._fail(s, what, self._now(), st)

@@ -277,7 +277,9 @@ def budget_lines(summary_path, limit: int = 20) -> list:
     """The verdict a user runs a campaign for, as lines to print.
 
     Per instrument and axis, the RSS of each configuration against its requirement, for
-    the first metric that has requirements.
+    the first metric that has requirements; with sweeps, each configuration's worst
+    sweep point, named.  The values are the report's verdict table
+    (:func:`orchestrator.report_verdict.verdicts`), so terminal and report agree.
 
     Parameters
     ----------
@@ -291,31 +293,35 @@ def budget_lines(summary_path, limit: int = 20) -> list:
     list of str
         Empty when no summary or no requirement.
     """
+    import math
+
     import pyarrow.parquet as pq
 
     from ..campaign.spec import RSS_EVENT
+    from ..report_verdict import verdicts
 
     try:
-        rows = [r for r in pq.read_table(summary_path).to_pylist()
-                if r["event"] == RSS_EVENT and not r["sweep"]]
+        rows = pq.read_table(summary_path).to_pylist()
     except OSError:
         return []
-    with_req = [r for r in rows if r["requirement"] == r["requirement"]]   # not NaN
-    if not with_req:
+    first = next((r for r in rows if r["event"] == RSS_EVENT
+                  and r["requirement"] == r["requirement"]), None)   # not NaN
+    if first is None:
         return []
-    metric, window = with_req[0]["metric"], with_req[0]["window"]
-    chosen = [r for r in with_req if r["metric"] == metric and r["window"] == window]
-    lines: dict = {}
-    for r in chosen:
-        lines.setdefault((r["instrument"], r["axis"]), []).append(r)
+    metric, window = first["metric"], first["window"]
+    configs, axes = verdicts(rows, metric, window)
+    axes = [v for v in axes if not math.isnan(v.requirement)]
+    swept = any(any(v.sweep) for v in axes)
     what = f"{metric} over {window:g} s" if window == window else metric
-    out = [f"budget ({what}, RSS over events, {chosen[0]['unit']}):"]
-    for (inst, axis), rs in list(lines.items())[:limit]:
-        cells = [f"{r['configuration'] or 'all'} {r['value']:.3g} "
-                 f"({'PASS' if r['pass'] else 'FAIL' if r['pass'] is False else 'n/a'})"
-                 for r in rs]
-        out.append(f"  {inst} {axis}: " + " | ".join(cells) + f"  requirement "
-                   f"{rs[0]['requirement']:.3g}")
-    if len(lines) > limit:
-        out.append(f"  ... {len(lines) - limit} more lines in budget.csv")
+    out = [f"budget ({what}, RSS over events, {first['unit']}"
+           + ("; the worst sweep point of each configuration" if swept else "") + "):"]
+    words = {True: "PASS", False: "FAIL", "incomplete": "incomplete"}
+    for v in axes[:limit]:
+        cells = [f"{cf or 'all'} {value:.3g} ({words.get(ok, 'n/a')})"
+                 + (f" at {point}" if point else "")
+                 for cf, value, ok, point in zip(configs, v.rss, v.passed, v.sweep)]
+        out.append(f"  {v.instrument} {v.axis}: " + " | ".join(cells)
+                   + f"  requirement {v.requirement:.3g}")
+    if len(axes) > limit:
+        out.append(f"  ... {len(axes) - limit} more lines in budget.csv")
     return out

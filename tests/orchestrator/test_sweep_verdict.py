@@ -1,0 +1,54 @@
+"""A campaign of sweeps ends with its verdict on the terminal: per instrument axis, each
+configuration's worst sweep point against the requirement, the numbers of the report's
+verdict table (it printed nothing after the case count)."""
+
+from __future__ import annotations
+
+import math
+
+import pyarrow.parquet as pq
+import pytest
+import tomli_w
+
+from orchestrator.campaign import ANGLE_UNITS
+from orchestrator.cli import main as cli_main
+from orchestrator.report_verdict import verdicts
+
+from .test_campaign import campaign_data
+
+
+def swept(tmp_path):
+    """Two events (5 and 10 Hz) of one swept amplitude, 1 and 3 µrad."""
+    data = campaign_data(n_events=2)
+    for event in data["events"]:
+        del event["overrides"]["dist.amplitude"]
+    data["sweeps"] = [{"parameter": "dist.amplitude", "values": [1e-6, 3e-6]}]
+    path = tmp_path / "c.toml"
+    path.write_text(tomli_w.dumps(data))
+    return path
+
+
+def test_a_sweep_campaign_ends_with_the_worst_point_of_each_configuration(tmp_path, capsys):
+    out_dir = tmp_path / "o"
+    code = cli_main(["campaign", str(swept(tmp_path)), "--out", str(out_dir), "--workers",
+                     "0", "--runner", "tests.orchestrator.test_campaign:synthetic_runner",
+                     "--quiet"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    lines = out.splitlines()
+    head = lines.index("budget (peak_to_peak over 0.2 s, RSS over events, arcsec; the "
+                       "worst sweep point of each configuration):")
+    pitch = next(ln for ln in lines[head:] if ln.startswith("  A pitch: "))
+    # two sines of amplitude a, crests on the 1 ms grid: peak-to-peak 2a each, RSS
+    # sqrt(2) 2a; isolation on divides by 1 + gain = 4; the worst point is a = 3 µrad
+    off = math.sqrt(2) * 2 * 3e-6 * ANGLE_UNITS["arcsec"]
+    assert pitch == (f"  A pitch: isolation off {off:.3g} (FAIL) at dist.amplitude=3e-06 | "
+                     f"isolation on {off / 4:.3g} (PASS) at dist.amplitude=3e-06  "
+                     "requirement 1")
+    # the report's verdict table holds the same numbers
+    rows = pq.read_table(out_dir / "summary.parquet").to_pylist()
+    configs, axes = verdicts(rows, "peak_to_peak", 0.2)
+    a_pitch = next(v for v in axes if (v.instrument, v.axis) == ("A", "pitch"))
+    assert configs == ["isolation off", "isolation on"]
+    assert a_pitch.rss == pytest.approx((off, off / 4), rel=1e-6)
+    assert a_pitch.passed == (False, True)

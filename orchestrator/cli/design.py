@@ -9,7 +9,7 @@ HELP = ("design the ACS on the flexible plant and tune controller gains for a ca
 
 def add_arguments(parser) -> None:
     """Declare the options of ``jitterfmu design``."""
-    from ._options import add_fmu_dir
+    from ._options import add_fmu_dir, add_out
 
     parser.add_argument("scenario", help="scenario file (.toml)")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
@@ -52,8 +52,8 @@ def add_arguments(parser) -> None:
                         help="ACS crossovers in that range, log spaced (default 21)")
     parser.add_argument("--max-evaluations", type=int, default=80,
                         help="most candidates of the gain search (default 80)")
-    parser.add_argument("--out", required=True, metavar="DIR",
-                        help="folder for design.json, set.txt and scenario.toml")
+    add_out(parser, "<scenario file name without .toml>-design",
+            "folder for design.json, set.txt and scenario.toml")
 
 
 def run(args) -> int:
@@ -118,7 +118,7 @@ def run(args) -> int:
                         max_evaluations=args.max_evaluations,
                         progress=lambda m: stage(f"design: {m}"))
     print(text(res))
-    out = Path(args.out)
+    out = Path(args.out) if args.out else Path("out") / f"{Path(args.scenario).stem}-design"
     write(res, out, args.scenario, {**overrides, **res.overrides}, args.fmu_dir)
     print(f"\nwritten: {out / 'design.json'}, {out / 'set.txt'}, {out / 'scenario.toml'}")
     return 0

@@ -79,7 +79,7 @@ def test_out_is_a_folder_but_where_a_command_writes_one_file():
 
 
 def test_the_output_folders_default_to_out_and_the_name():
-    for name in ("run", "campaign", "reproduce"):
+    for name in ("run", "campaign", "reproduce", "design"):
         sub = commands()[name]
         out = next(a for a in sub._actions if "--out" in a.option_strings)
         assert out.default is None and "(default: out/<" in out.help, name

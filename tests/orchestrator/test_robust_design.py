@@ -166,19 +166,25 @@ def test_the_shipped_set_is_the_one_tested():
         [(i.name, i.kind, i.distribution, i.per_mode) for i in ITEMS]
 
 
-def test_the_command_writes_a_design_that_loads(fmu_dir, tmp_path, capsys):
+def test_the_command_writes_a_design_that_loads(fmu_dir, tmp_path, capsys, monkeypatch):
+    """Without --out the files go to out/<scenario name>-design, as run's go to
+    out/<scenario name>."""
     import json
     import tomllib
+    from pathlib import Path
 
     from orchestrator.cli import main
     from orchestrator.scenario import parse_override
 
-    out = tmp_path / "d"
-    code = main(["design", SCENARIO, "--tune", "ctrl_diag,ctrl_long", "--campaign", CAMPAIGN,
-                 "--uncertainty", CAMPAIGN, "--samples", "6", "--max-evaluations", "10",
-                 "--fmu-dir", str(fmu_dir), "--out", str(out)])
+    root = Path(__file__).resolve().parents[2]
+    monkeypatch.chdir(tmp_path)
+    code = main(["design", str(root / SCENARIO), "--tune", "ctrl_diag,ctrl_long",
+                 "--campaign", str(root / CAMPAIGN), "--uncertainty", str(root / CAMPAIGN),
+                 "--samples", "6", "--max-evaluations", "10", "--fmu-dir", str(fmu_dir)])
     assert code == 0
+    out = tmp_path / "out" / "truss10_closed_loop-design"
     printed = capsys.readouterr()
+    assert f"written: {Path('out/truss10_closed_loop-design/design.json')}" in printed.out
     assert "objective: the largest ratio" in printed.out
     assert "robust (independent draw): 0 of 6 samples unstable" in printed.out
     assert "jitterfmu: design: judging the start" in printed.err      # progress

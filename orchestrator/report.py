@@ -357,7 +357,7 @@ def _contents(out_dir: Path):
     for p in _frf_files(out_dir):
         figures.append(("frf", f"Frequency response: {p.stem}", frf_figure(p)))
     sweep_figs, worst = sweep_sections(out_dir, summary, instruments, metric, window, unit,
-                                       RSS_EVENT)
+                                       RSS_EVENT, camp.get("sweep_units"))
     figures += [("sweep", t, f) for t, f in sweep_figs]
     unc_figs, unc_rows, unc_text = uncertainty_sections(out_dir, instruments, unit)
     figures += [("uncertainty", t, f) for t, f in unc_figs]

@@ -126,8 +126,9 @@ def _numeric(text):
         return None
 
 
-def _parameter(summary, instruments, metric, window, unit, rss_event):
-    """RSS rows against a single numeric swept parameter (``sweep = "p=v"``)."""
+def _parameter(summary, instruments, metric, window, unit, rss_event, units):
+    """RSS rows against a single numeric swept parameter (``sweep = "p=v"``), its axis
+    and worst points in the unit its FMU declares (``units[p]``, when known)."""
     rows = [r for r in summary if r["event"] == rss_event and r["sweep"]
             and r["metric"] == metric
             and (window is None or r["window"] is None or math.isclose(r["window"], window))]
@@ -139,6 +140,8 @@ def _parameter(summary, instruments, metric, window, unit, rss_event):
         points.setdefault(parts[0][0], []).append((_numeric(parts[0][2]), r))
     figures, worst = [], []
     for param, pts in points.items():
+        u = units.get(param, "")
+        at = f"{param} = {{:.4g}}" + (f" {u}" if u else "")
         for inst, axes in instruments.items():
             curves = {}
             for axis in axes:
@@ -151,13 +154,13 @@ def _parameter(summary, instruments, metric, window, unit, rss_event):
                     x = np.array([p for p, _ in sel])
                     y = np.array([r["value"] for _, r in sel])
                     _add_curve(curves, worst, (param, cf, inst, axis, metric), x, y,
-                               sel[0][1]["requirement"], f"{param} = {{:.4g}}")
+                               sel[0][1]["requirement"], at)
             if curves:
                 figures.append((f"{inst}: RSS against {param}",
-                                _figure(curves, inst, list(axes), param, unit,
+                                _figure(curves, inst, list(axes),
+                                        f"{param} ({u})" if u else param, unit,
                                         f"RSS over the events against {param} "
-                                        f"({metric_words(metric, window)})",
-                                        f"{param} = {{:.4g}}")))
+                                        f"({metric_words(metric, window)})", at)))
     return figures, worst
 
 
@@ -209,7 +212,8 @@ def wheel_verdicts(out_dir, metric, window):
     return configs, lines
 
 
-def sweep_sections(out_dir, summary, instruments, metric, window, unit, rss_event):
+def sweep_sections(out_dir, summary, instruments, metric, window, unit, rss_event,
+                   sweep_units=None):
     """Figures ``[(title, Figure)]`` and worst-point rows of every sweep of a campaign.
 
     Parameters
@@ -228,6 +232,8 @@ def sweep_sections(out_dir, summary, instruments, metric, window, unit, rss_even
         Unit of the values.
     rss_event : str
         Event name of the RSS rows.
+    sweep_units : dict of str to str, optional
+        Unit of each swept parameter (``campaign.json``'s ``sweep_units``).
 
     Returns
     -------
@@ -236,7 +242,8 @@ def sweep_sections(out_dir, summary, instruments, metric, window, unit, rss_even
         Rows of :data:`WORST_HEAD`.
     """
     f1, w1 = _wheel(Path(out_dir), instruments, metric, window, unit)
-    f2, w2 = _parameter(summary, instruments, metric, window, unit, rss_event)
+    f2, w2 = _parameter(summary, instruments, metric, window, unit, rss_event,
+                        sweep_units or {})
     return f1 + f2, w1 + w2
 
 

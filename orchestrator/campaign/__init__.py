@@ -51,7 +51,7 @@ relative to the campaign file)::
 
 Output folder::
 
-    DIR/campaign.json          the expanded campaign (cases, keys)
+    DIR/campaign.json          the expanded campaign (cases, keys, swept parameters' units)
     DIR/cases/KEY/case.json    definition, status ("ok" or "failed"), error, timings
     DIR/cases/KEY/results.parquet, metrics.parquet   (successful cases)
     DIR/cases.parquet, cases.csv       one row per case with its status and error

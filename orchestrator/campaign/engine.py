@@ -136,6 +136,7 @@ def run_campaign(
             "engine": getattr(runner, "engine", "cosim"),
             "instruments": campaign.instruments, "metrics": campaign.metrics,
             "requirements": campaign.requirements,
+            "sweep_units": _sweep_units(campaign, runner),
             "cases": [{"key": c.key, "label": c.label, "event": c.event,
                        "configuration": c.configuration, "sweep": c.sweep} for c in campaign.cases],
         })
@@ -213,6 +214,19 @@ def _check_overrides(campaign: Campaign, runner) -> None:
             if why:
                 raise CampaignError(f"{campaign.source}: instrument {name!r} axis {axis!r}: "
                                     f"{why}")
+
+
+def _sweep_units(campaign: Campaign, runner) -> dict:
+    """``{instance.variable: unit}`` of every swept parameter whose FMU declares a unit
+    (runners with ``unit_of``), for the report's axes and legends."""
+    unit_of = getattr(runner, "unit_of", None)
+    if unit_of is None or not campaign.cases:
+        return {}
+    base = campaign.cases[0].scenario
+    refs = dict.fromkeys(ref for where, ref, _ in campaign.overrides
+                         if where.startswith("sweep "))
+    units = {ref: unit_of(base, ref) for ref in refs}
+    return {ref: u for ref, u in units.items() if u}
 
 
 @contextlib.contextmanager

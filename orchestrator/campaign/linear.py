@@ -100,6 +100,17 @@ class LinearRunner:
         """
         return self._master.override_problem(scenario, ref, values)
 
+    def unit_of(self, scenario: dict, ref: str) -> str:
+        """As :meth:`MasterRunner.unit_of`: the unit the FMU declares for ``ref``.
+
+        Parameters
+        ----------
+        scenario, ref : dict, str
+            A case's scenario data and ``"instance.variable"``; returns ``""`` when
+            it declares none.
+        """
+        return self._master.unit_of(scenario, ref)
+
     def output_problem(self, scenario: dict, ref: str, recorded: bool = True) -> str | None:
         """As :meth:`MasterRunner.output_problem` (an instrument's axis in the record).
 

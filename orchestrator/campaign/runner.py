@@ -173,6 +173,20 @@ class MasterRunner:
         except (ScenarioError, ValueError, OSError):
             return None
 
+    def unit_of(self, scenario: dict, ref: str) -> str:
+        """The unit the FMU declares for ``ref``; ``""`` when it declares none or the
+        FMU cannot be read.
+
+        Parameters
+        ----------
+        scenario, ref : dict, str
+            A case's scenario data (the TOML layout) and ``"instance.variable"``.
+        """
+        inst, _, var = ref.partition(".")
+        info = self._instance_info(self._scenario(scenario), inst)
+        v = info.variables.get(var) if info is not None else None
+        return (v.unit or "") if v is not None else ""
+
     def output_problem(self, scenario: dict, ref: str, recorded: bool = True) -> str | None:
         """Why a case's record cannot give ``ref`` (an instrument's axis); None if it can.
 

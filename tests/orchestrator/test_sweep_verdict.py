@@ -1,16 +1,21 @@
 """A campaign of sweeps ends with its verdict on the terminal: per instrument axis, each
 configuration's worst sweep point against the requirement, the numbers of the report's
-verdict table (it printed nothing after the case count)."""
+verdict table (it printed nothing after the case count).  Its report draws a swept
+parameter in the unit its FMU declares."""
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
 import tomli_w
 
-from orchestrator.campaign import ANGLE_UNITS
+from orchestrator.campaign import ANGLE_UNITS, load_campaign, run_campaign
+from orchestrator.campaign.linear import LinearRunner
+from orchestrator.report import _contents
 from orchestrator.cli import main as cli_main
 from orchestrator.report_verdict import verdicts
 
@@ -52,3 +57,31 @@ def test_a_sweep_campaign_ends_with_the_worst_point_of_each_configuration(tmp_pa
     assert configs == ["isolation off", "isolation on"]
     assert a_pitch.rss == pytest.approx((off, off / 4), rel=1e-6)
     assert a_pitch.passed == (False, True)
+
+
+def test_a_swept_parameter_is_drawn_in_the_unit_its_fmu_declares(tmp_path, suite_fmus,
+                                                                  suite_fmu_dir):
+    """The shipped quick truss campaign on the linear engine, the diagonal's drive swept
+    over 8.0 and 8.4 Hz (the excitation FMU declares freq1 in Hz): the sweep figure's
+    axis and its worst points say Hz (they said 'excitation.freq1' alone)."""
+    suite_fmus("truss10_structure", "piezo_p243_40", "piezo_p243_30", "excitation",
+               "controller_truss10_strain_diag", "controller_truss10_strain_long")
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "campaigns" / "truss10_quick.toml").read_text().replace(
+        '"../scenarios/truss10_campaign.toml"',
+        repr(str(root / "scenarios" / "truss10_campaign.toml")))
+    text += '\n[[sweeps]]\nparameter = "excitation.freq1"\nvalues = [8.0, 8.4]\n'
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    camp = load_campaign(path)
+    out = tmp_path / "o"
+    res = run_campaign(camp, out, LinearRunner(camp.scenario_dir, fmu_dir=suite_fmu_dir),
+                       progress=False)
+    assert (res.n_run, res.n_failed) == (8, 0)
+    assert json.loads((out / "campaign.json").read_text())["sweep_units"] == \
+        {"excitation.freq1": "Hz"}
+    (fig,) = [f for sec, _, f in _contents(out)["figures"] if sec == "sweep"]
+    assert fig.axes[-1].get_xlabel() == "excitation.freq1 (Hz)"
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    worst = [t for t in legend if t.startswith("control ")]
+    assert len(worst) == 2 and all(t.endswith(" Hz") for t in worst), legend

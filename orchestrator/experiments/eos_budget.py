@@ -113,15 +113,20 @@ def budget_table(summary_path, metric=METRIC, window=WINDOW) -> list[dict]:
         ``requirement`` (from the campaign file, NaN when it sets none), ``rss_off``,
         ``rss_on``, ``margin_off``, ``margin_on`` (requirement − RSS), ``reduction_pct``
         (100 (off − on)/off, of the RSS), ``paper`` (what the paper reports isolation
-        does there, "" where it says nothing), ``dominant_off`` (the event with the
-        largest share with isolation off), ``events_off`` / ``events_on`` (event ->
-        value) and ``events_reduction_pct`` (event -> 100 (off − on)/off).
+        does there, "" where it says nothing), ``dominant`` (the axis's dominant event
+        by the report's rule, :attr:`orchestrator.report_verdict.AxisVerdict.lead`: the
+        largest share in the configuration of larger RSS), ``events_off`` /
+        ``events_on`` (event -> value) and ``events_reduction_pct`` (event ->
+        100 (off − on)/off).
     """
+    from orchestrator.report_verdict import verdicts
+
     path = Path(summary_path)
     if path.is_dir():
         path = path / "summary.parquet"
     rows = [r for r in pq.read_table(path).to_pylist()
             if r["metric"] == metric and math.isclose(r["window"], window)]
+    lead = {(v.instrument, v.axis): v.lead or "" for v in verdicts(rows, metric, window)[1]}
     lines: dict = {}
     for r in rows:
         ln = lines.setdefault((r["instrument"], r["axis"]), {
@@ -141,7 +146,7 @@ def budget_table(summary_path, metric=METRIC, window=WINDOW) -> list[dict]:
         ln["reduction_pct"] = _reduction(off, on)
         ln["paper"] = PAPER_ISOLATION.get((ln["instrument"], ln["axis"]), "")
         ev = ln["events_off"]
-        ln["dominant_off"] = max(ev, key=ev.get) if ev else ""
+        ln["dominant"] = lead.get((ln["instrument"], ln["axis"]), "")
         ln["events_reduction_pct"] = {e: _reduction(v, ln["events_on"].get(e, math.nan))
                                       for e, v in ev.items()}
         out.append(ln)
@@ -165,7 +170,7 @@ def format_table(table: list[dict], source: str = "") -> str:
     unit = table[0]["unit"] if table else ""
     head = (f"{'instrument':<10} {'axis':<6} {'RSS off':>9} {'RSS on':>9} {'change':>8} "
             f"{'req':>7} {'margin off':>10} {'margin on':>10}  {'paper':<12} "
-            "dominant event (off)")
+            "dominant event")
     lines = [f"windowed peak-to-peak jitter over {WINDOW} s, {unit}; change = isolation on "
              "vs off; paper = the change the paper reports (Fig. 9 and its text)"]
     if source:
@@ -181,7 +186,7 @@ def format_table(table: list[dict], source: str = "") -> str:
         lines.append(f"{r['instrument']:<10} {r['axis']:<6} {f(r.get('rss_off'))} "
                      f"{f(r.get('rss_on'))} {change} {f(r['requirement'], 7, 2)} "
                      f"{f(r.get('margin_off'), 10)} {f(r.get('margin_on'), 10)}  "
-                     f"{r.get('paper', ''):<12} {r['dominant_off']}")
+                     f"{r.get('paper', ''):<12} {r['dominant']}")
     return "\n".join(lines)
 
 

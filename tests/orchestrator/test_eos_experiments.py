@@ -71,6 +71,8 @@ def _check_report_opens_with_the_verdict(html, shot_dir, table):
             assert (inst, axis) not in named
             named[(inst, axis)] = event
     assert named == dominant
+    # the printed table names the same event (eos-budget-table.txt, reproduce's output)
+    assert {(r["instrument"], r["axis"]): r["dominant"] for r in table} == dominant
     for inst in ("CERES", "TIR", "MISR", "SWIR", "VNIR"):
         assert dominant[(inst, "pitch")] == "SAD"
     assert "boresight roll–pitch over the worst 1.8 s window" in text

@@ -39,7 +39,8 @@ def runner(scenario, out_dir):
     return path
 
 
-def campaign(tmp_path) -> Path:
+def campaign_data() -> dict:
+    """The campaign of the module docstring, as data."""
     base = {"experiment": {"stop": 2.0, "output_interval": 1e-3},
             "fmus": {"dist": {"fmu": "d", "period": 1e-3, "parameters": {}},
                      "ctrl": {"fmu": "c", "period": 1e-3, "parameters": {"gain": 0.0}},
@@ -61,8 +62,14 @@ def campaign(tmp_path) -> Path:
         "requirements": [{"instrument": i, "metric": "peak_to_peak", "window": 0.5,
                           "value": 0.6} for i in ("SWIR", "VNIR")],
     }
+    return data
+
+
+def campaign(tmp_path, data=None) -> Path:
+    """The campaign (``data``, default :func:`campaign_data`) run into ``tmp_path``."""
     out = tmp_path / "camp"
-    run_campaign(campaign_from_dict(data), out, runner, workers=0, progress=False)
+    run_campaign(campaign_from_dict(data or campaign_data()), out, runner, workers=0,
+                 progress=False)
     return out
 
 

@@ -15,7 +15,7 @@ import tomli_w
 
 from orchestrator.campaign import ANGLE_UNITS, load_campaign, run_campaign
 from orchestrator.campaign.linear import LinearRunner
-from orchestrator.report import _contents
+from orchestrator.report import _contents, write_report
 from orchestrator.cli import main as cli_main
 from orchestrator.report_verdict import verdicts
 
@@ -57,6 +57,14 @@ def test_a_sweep_campaign_ends_with_the_worst_point_of_each_configuration(tmp_pa
     assert configs == ["isolation off", "isolation on"]
     assert a_pitch.rss == pytest.approx((off, off / 4), rel=1e-6)
     assert a_pitch.passed == (False, True)
+    # and the report opens with that verdict, each configuration's worst point named
+    text = write_report(out_dir, "md").read_text()
+    verdict = text[text.index("## Verdict"):].split("\n## ")[0]
+    assert "3 instrument axes, 3 failing in at least one configuration" in verdict
+    row = next(ln for ln in verdict.splitlines() if ln.startswith("| A | pitch |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[2:4] == [f"{off:.4g}", f"{off / 4:.4g}"]
+    assert "dist.amplitude=3e-06 \\| dist.amplitude=3e-06" in row
 
 
 def test_a_swept_parameter_is_drawn_in_the_unit_its_fmu_declares(tmp_path, suite_fmus,

@@ -126,7 +126,7 @@ Modules, in pipeline order
 from .cases import Campaign, Case, campaign_from_dict, keyed, load_campaign
 from .engine import CampaignResult, run_campaign
 from .linear import LinearRunner, verify_campaign
-from .montecarlo import run_uncertainty
+from .montecarlo import check_uncertain_inputs, run_uncertainty
 from .runner import CampaignInterrupted, MasterRunner, case_metrics, execute_case
 from .spec import ANGLE_UNITS, ENGINES, METRIC_KINDS, RSS_EVENT, CampaignError
 from .store import slug
@@ -148,6 +148,7 @@ __all__ = [
     "SUMMARY_SCHEMA",
     "campaign_from_dict",
     "case_metrics",
+    "check_uncertain_inputs",
     "execute_case",
     "keyed",
     "load_campaign",

@@ -41,7 +41,7 @@ from .mcresults import (DIVERGING, LIMIT, SAMPLES_FILE, UNCERTAINTY_FILE, UNSTAB
                         _convergence, _lines, _report, write_results)
 from .store import canonical
 
-__all__ = ["run_uncertainty", "SAMPLES_FILE", "UNCERTAINTY_FILE"]
+__all__ = ["check_uncertain_inputs", "run_uncertainty", "SAMPLES_FILE", "UNCERTAINTY_FILE"]
 
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -280,7 +280,7 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     folder = None if cosim else Path(out_dir) / PARTS_DIR / identity[:24]
     n, top = unc["samples"], unc.get("max_samples") or unc["samples"]
     rounds = []
-    _check_parameters(campaign, runner)
+    check_uncertain_inputs(campaign, runner)
     while True:
         draws = draw(items, n, unc["seed"], freqs)
         _check_sources(campaign, runner, draws)
@@ -477,10 +477,26 @@ _SETS = {"phase": "seed", "frequency": "frequency_scale", "amplitude": "scale",
          "gain": "gain"}
 
 
-def _check_parameters(campaign, runner) -> None:
-    """Refuse, before any sample runs, an uncertain input whose instance has no FMU
-    parameter for it (a phase or frequency draw on a source that is not a disturbance
-    FMU would otherwise change nothing), in one sentence."""
+def check_uncertain_inputs(campaign, runner) -> None:
+    """Refuse an uncertain input whose instance has no FMU parameter for it (a phase or
+    frequency draw on a source that is not a disturbance FMU would otherwise change
+    nothing), in one sentence.
+
+    :func:`run_uncertainty` checks before any sample runs; ``jitterfmu campaign`` before
+    any case of the campaign runs too.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        With ``uncertainty`` set.
+    runner : LinearRunner
+        Reads the FMUs' parameters (``parameter_names``).
+
+    Raises
+    ------
+    CampaignError
+        Naming the input, the instance, its FMU and the parameters it has.
+    """
     from .spec_base import CampaignError
 
     cosim = campaign.uncertainty.get("engine") == "cosim"

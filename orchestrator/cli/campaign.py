@@ -104,6 +104,7 @@ def run(args) -> int:
         CampaignInterrupted,
         LinearRunner,
         MasterRunner,
+        check_uncertain_inputs,
         load_campaign,
         run_campaign,
         run_uncertainty,
@@ -129,7 +130,12 @@ def run(args) -> int:
         runner = LinearRunner(camp.scenario_dir, fmu_dir=args.fmu_dir)
     else:
         runner = MasterRunner(camp.scenario_dir, fmu_dir=args.fmu_dir, fmu_kind=args.fmu_kind)
+    # the wheel sweeps and the Monte Carlo run on the linear engine (the FMUs of --fmu-dir)
+    linear = runner if isinstance(runner, LinearRunner) else LinearRunner(
+        camp.scenario_dir, fmu_dir=args.fmu_dir)
     camp = dataclasses.replace(camp, engine=engine)
+    if camp.uncertainty:
+        check_uncertain_inputs(camp, linear)     # before any case runs, not after them
     out = args.out or Path("out") / slug(camp.name)
     if camp.cases:
         _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args, out)
@@ -181,7 +187,7 @@ def run(args) -> int:
                 print(f"  co-simulation failed: {item['case']}: {item['error']}",
                       file=sys.stderr)
     if camp.wheel_sweeps:
-        path = run_wheel_sweeps(camp, out, runner if engine == "linear" else None,
+        path = run_wheel_sweeps(camp, out, linear,
                                 progress=lambda text: print(f"  {text}"))
         print(f"wheel sweeps: {path} (worst speeds in {out / 'wheel_sweeps_worst.csv'})")
         for line in wheel_lines(out / "wheel_sweeps_worst.csv"):
@@ -198,7 +204,7 @@ def run(args) -> int:
                   + (f", up to {camp.uncertainty['max_samples']}"
                      if camp.uncertainty.get("max_samples") else "") + ")")
         try:
-            path = run_uncertainty(camp, out, runner if engine == "linear" else None,
+            path = run_uncertainty(camp, out, linear,
                                    progress=False if args.quiet else None,
                                    workers=workers, scheduler=args.scheduler)
         except CampaignInterrupted as exc:

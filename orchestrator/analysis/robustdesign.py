@@ -44,6 +44,9 @@ from .robust import pole_radius
 __all__ = ["RobustDesign", "tune_targets", "robust_design"]
 
 _BOUND = 6.0            # factors searched within 2^-6 .. 2^6 of the start
+#: Seconds without a progress message after which a judged candidate says the count so
+#: far (a search of slow candidates is never silent; a fast one is not a line each).
+COUNT_EVERY = 10.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -286,7 +289,8 @@ def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
         A move is kept when it lowers the objective by more than this fraction (-): a
         line the tuned loops barely reach does not drag them about.
     progress : callable, optional
-        ``progress(message)`` at each stage and kept move.
+        ``progress(message)`` at each stage and kept move, and with the candidates
+        judged so far once :data:`COUNT_EVERY` seconds passed without a message.
 
     Returns
     -------
@@ -302,7 +306,12 @@ def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
     from .robust import robust_stability
 
     start = time.perf_counter()
-    say = progress or (lambda message: None)
+    said = [time.monotonic()]
+
+    def say(message):
+        said[0] = time.monotonic()
+        if progress is not None:
+            progress(message)
     if not (math.isfinite(margin_db) and margin_db >= 0):
         raise AnalysisError(f"the requested gain margin {margin_db:g} dB is below 0 dB; "
                             "expected 0 dB or more (6 dB is usual)")
@@ -361,6 +370,10 @@ def robust_design(lin, items, tune, objective=None, *, margin_db: float = 6.0,
                         "objective": None if val is None else val.value,
                         "feasible": not why, "why": why})
         seen[key] = (val, why)
+        if time.monotonic() - said[0] >= COUNT_EVERY:
+            say(f"{evals[0]} of at most {max_evaluations} candidates judged (the last: "
+                + (f"objective {val.value:.4g}, " if val is not None else "")
+                + (why or "feasible") + ")")
         return val, why
 
     x = np.zeros(len(targets))

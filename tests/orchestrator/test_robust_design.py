@@ -90,6 +90,21 @@ def test_a_family_shares_one_factor(objective):
     assert "nominal only" in d.searched["constraints"][2]
 
 
+def test_a_slow_search_says_how_many_candidates_it_judged(objective, monkeypatch):
+    """Candidates slower than COUNT_EVERY (here 0 s) each say the count so far, so a
+    long design is never silent: 1, 2, ... up to the evaluations it reports."""
+    from orchestrator.analysis import robustdesign
+
+    monkeypatch.setattr(robustdesign, "COUNT_EVERY", 0.0)
+    said = []
+    d = robust_design(objective.lin, None, ["ctrl_*"], objective, max_evaluations=8,
+                      progress=said.append)
+    counts = [m for m in said if "candidates judged" in m]
+    assert [m.split(" of ")[0] for m in counts] == \
+        [str(k) for k in range(1, d.searched["evaluations"] + 1)]
+    assert all(" of at most 8 candidates judged (the last: objective " in m for m in counts)
+
+
 def test_an_infeasible_start_is_scaled_down_first(campaign, fmu_dir):
     ob = CampaignObjective(campaign, SCENARIO, overrides={"ctrl_long.gain": 16.0},
                            fmu_dir=fmu_dir)

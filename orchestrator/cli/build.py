@@ -193,6 +193,8 @@ def _build_controller(path, out: Path, py_dir: Path, name, args) -> tuple[list, 
 
     law = read_controller(Path(path), args.period)
     ident = controller_identifier(law, name)
+    print(f"{ident}: {law.description}; {law.A.shape[0]} state(s), inputs "
+          f"{', '.join(law.inputs)} -> outputs {', '.join(law.outputs)}")
     problems, built = [], []
     with tempfile.TemporaryDirectory(prefix="jitterfmu_ctrl_") as tmp:
         report = build_controller_fmu(law, tmp if args.native or args.fmi == 3 else py_dir,

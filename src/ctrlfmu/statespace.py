@@ -206,7 +206,9 @@ def _law(keys: dict, period, path: Path) -> DiscreteLaw:
                 kwargs[k] = float(kwargs[k][0])
     name = str(keys.get("name", "")).strip() or path.stem
     delayed = bool(_scalar(keys, "delayed", path, 0.0))
-    form = "continuous, " + method.upper() if ts == 0 else "discrete"
+    form = (f"continuous, discretised at {dt:g} s by "
+            + ("a zero-order hold" if method == "zoh" else "Tustin's bilinear transform")
+            if ts == 0 else f"discrete at Ts = {dt:g} s")
     return DiscreteLaw(a, b, c, d, dt, delayed=delayed, name=name,
                        description=f"state-space from {path.name} ({form})", **kwargs)
 

@@ -80,7 +80,14 @@ def test_build_from_mat_equals_the_python_law(tmp_path, continuous, capsys):
     args = ["build", "--controller", str(path), "--out", str(tmp_path / "f"), "--python"]
     assert main(args + (["--period", str(DT)] if continuous else [])) == 0
     fmu = tmp_path / "f" / "python" / "controller_law.fmu"   # its law.npz is readable
-    assert str(fmu) in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert str(fmu) in out
+    # the build says what it built, the discretisation method stated
+    assert out.splitlines()[0] == (
+        "controller_law: state-space from law.mat (continuous, discretised at 0.002 s by a "
+        "zero-order hold); 2 state(s), inputs strain -> outputs drive" if continuous else
+        "controller_law: state-space from law.mat (discrete at Ts = 0.002 s); 3 state(s), "
+        "inputs y1, y2 -> outputs u1, u2")
     got, want = fmu_law(fmu), python_law(continuous)
     assert_same_law(got, want)
     if continuous:

@@ -44,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "actuators only, or none (the only choice with --op2)")
     parser.add_argument("--shift", type=float, default=None,
                         help="eigensolver shift ((rad/s)^2); negative (e.g. -1) for a free-free "
-                        "model with rigid-body modes")
+                        "model with rigid-body modes (default: 0, a constrained model)")
     parser.add_argument("--zeta", type=float, default=0.005,
                         help="modal damping ratio of every mode (default 0.005)")
     parser.add_argument("--zeta-band", action="append", default=[], metavar="F1:F2=ZETA",
@@ -53,8 +53,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="damping ratio of the Ritz block (default 0.02)")
     parser.add_argument("--dof-map", default=None,
                         help="text file 'ID COMPONENT' per matrix row (default: the g-set)")
-    parser.add_argument("--k-name", default=None, help="OP4 stiffness matrix name")
-    parser.add_argument("--m-name", default=None, help="OP4 mass matrix name")
+    parser.add_argument("--k-name", default=None,
+                        help="stiffness matrix name in the OP4, OP2 or DMIG file (default: "
+                        "the one of KGG, KNN, KFF, KAA there, else its one square K* matrix)")
+    parser.add_argument("--m-name", default=None,
+                        help="mass matrix name in the OP4, OP2 or DMIG file (default: the "
+                        "one of MGG, MNN, MFF, MAA there, else its one square M* matrix)")
     parser.add_argument("--name", default=None, help="model name (default: the BDF's stem)")
     parser.add_argument("--include-dir", action="append", default=[], metavar="DIR",
                         help="a folder besides the BDF's own that its INCLUDE statements may "

@@ -179,3 +179,11 @@ def test_quiet_means_the_same_wherever_it_is():
              if any("--quiet" in a.option_strings for a in sub._actions)}
     assert set(helps) >= {"run", "campaign"}
     assert len(set(helps.values())) == 1, helps
+
+
+def test_import_nastran_says_what_its_unset_options_mean():
+    """--shift and the matrix names left out have a meaning; the help says it."""
+    text = " ".join(commands()["import-nastran"].format_help().split())
+    assert "rigid-body modes (default: 0, a constrained model)" in text
+    assert "(default: the one of KGG, KNN, KFF, KAA there, else its one square K*" in text
+    assert "(default: the one of MGG, MNN, MFF, MAA there, else its one square M*" in text

@@ -137,8 +137,6 @@ def run(args) -> int:
     if camp.uncertainty:
         check_uncertain_inputs(camp, linear)     # before any case runs, not after them
     out = args.out or Path("out") / slug(camp.name)
-    if camp.cases:
-        _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args, out)
     n_workers = 0 if engine == "linear" else (
         args.workers if args.workers is not None else os.cpu_count() or 1)
     where = f"on {args.scheduler}" if args.scheduler else (
@@ -149,6 +147,8 @@ def run(args) -> int:
     if not args.quiet:
         stage(f"campaign {camp.name!r}: {', '.join(work) or 'nothing to run'} ({engine} "
               f"engine, {where}) into {shown(out)}")
+    if camp.cases:   # after the start line: what runs first, then how it is wired
+        _report_wiring(camp.cases[0].scenario, camp.scenario_dir, args, out)
     try:
         res = run_campaign(camp, out, runner, workers=args.workers, scheduler=args.scheduler,
                            progress=False if args.quiet else None)

@@ -164,10 +164,12 @@ def test_a_campaign_says_its_unconnected_inputs_once_and_lists_them_in_a_file(
         "metrics": [{"kind": "rms"}]}))
     out = tmp_path / "o"
     assert main(["campaign", str(camp), "--out", str(out), "--workers", "0", "--fmu-dir",
-                 str(suite_fmu_dir), "--quiet"]) == 0
+                 str(suite_fmu_dir)]) == 0
     listed = (out / "unconnected_inputs.txt").read_text().split()
     assert len(listed) == 4 and "structure.f_tip_x" in listed
-    err = [ln for ln in capsys.readouterr().err.splitlines() if "not connected" in ln]
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0].startswith("jitterfmu: campaign 'wiring': 2 cases")   # the start first
+    err = [ln for ln in lines if "not connected" in ln]
     assert err == [f"jitterfmu: warning: 4 inputs are not connected and keep their start "
                    f"values (e.g. {', '.join(listed[:3])}); all 4 names: "
                    f"{out / 'unconnected_inputs.txt'}"]

@@ -61,7 +61,7 @@ from .report_figures import (
 from .report_sweeps import (WORST_HEAD, spectrum_figure, sweep_sections, uncertainty_sections,
                             wheel_verdicts)
 from .report_verdict import (fold_by_event, metric_words, montecarlo_lines, verdict_table,
-                             verdicts)
+                             verdicts, with_units)
 from .report_verdict import same_window as _same_window
 
 UNC_HEAD = ["configuration", "instrument", "axis", "metric", "P_c", "value",
@@ -369,7 +369,8 @@ def _contents(out_dir: Path):
     wheel = not lines
     if wheel:   # a campaign of wheel sweeps alone: their worst speeds are the verdict
         configs, lines = wheel_verdicts(out_dir, metric, window)
-    vhead, vrows = verdict_table(configs, lines, "worst" if wheel else "RSS")
+    vhead, vrows = verdict_table(configs, with_units(lines, camp.get("sweep_units") or {}),
+                                 "worst" if wheel else "RSS")
     n_fail = sum(row.count("FAIL") > 0 for row in vrows)
     unc_path = out_dir / "uncertainty.json"
     mc = (montecarlo_lines(json.loads(unc_path.read_text(encoding="utf-8")), metric, window)

@@ -13,7 +13,7 @@ configuration, its stability and its weakest line.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .campaign import RSS_EVENT
 
@@ -24,6 +24,7 @@ __all__ = [
     "montecarlo_lines",
     "verdict_table",
     "verdicts",
+    "with_units",
 ]
 
 _WORDS = {"peak_to_peak": "peak-to-peak", "rms_jitter": "RMS jitter",
@@ -247,6 +248,28 @@ def verdict_table(configs, lines, value_name: str = "RSS"):
         row.append(_dominant_text(v, configs))
         rows.append(row)
     return head, rows
+
+
+def with_units(lines, units: dict) -> list:
+    """The verdict lines with each sweep point in its parameter's unit.
+
+    Parameters
+    ----------
+    lines : list of AxisVerdict
+        From :func:`verdicts`; their ``sweep`` points read ``"p=v"`` (``", "`` between
+        several parameters).
+    units : dict of str to str
+        Unit of each swept parameter (``campaign.json``'s ``sweep_units``).
+
+    Returns
+    -------
+    list of AxisVerdict
+        ``"excitation.freq1=8.4 Hz"`` where ``units`` knows the parameter.
+    """
+    def text(point):
+        return ", ".join(f"{p} {units[p.partition('=')[0]]}" if units.get(p.partition("=")[0])
+                         else p for p in point.split(", ")) if point else point
+    return [replace(v, sweep=tuple(text(pt) for pt in v.sweep)) for v in lines]
 
 
 def fold_by_event(lines) -> dict:

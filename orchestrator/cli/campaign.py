@@ -304,19 +304,24 @@ def budget_lines(summary_path, limit: int = 20) -> list:
     import pyarrow.parquet as pq
 
     from ..campaign.spec import RSS_EVENT
-    from ..report_verdict import verdicts
+    from ..report_verdict import verdicts, with_units
 
     try:
         rows = pq.read_table(summary_path).to_pylist()
     except OSError:
         return []
+    try:   # the swept parameters' units, beside the summary
+        units = json.loads((Path(summary_path).parent / "campaign.json").read_text(
+            encoding="utf-8")).get("sweep_units") or {}
+    except (OSError, ValueError):
+        units = {}
     first = next((r for r in rows if r["event"] == RSS_EVENT
                   and r["requirement"] == r["requirement"]), None)   # not NaN
     if first is None:
         return []
     metric, window = first["metric"], first["window"]
     configs, axes = verdicts(rows, metric, window)
-    axes = [v for v in axes if not math.isnan(v.requirement)]
+    axes = with_units([v for v in axes if not math.isnan(v.requirement)], units)
     swept = any(any(v.sweep) for v in axes)
     what = f"{metric} over {window:g} s" if window == window else metric
     out = [f"budget ({what}, RSS over events, {first['unit']}"

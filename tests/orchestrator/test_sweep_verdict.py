@@ -17,6 +17,7 @@ from orchestrator.campaign import ANGLE_UNITS, load_campaign, run_campaign
 from orchestrator.campaign.linear import LinearRunner
 from orchestrator.report import _contents, write_report
 from orchestrator.cli import main as cli_main
+from orchestrator.cli.campaign import budget_lines
 from orchestrator.report_verdict import verdicts
 
 from .test_campaign import campaign_data
@@ -93,3 +94,9 @@ def test_a_swept_parameter_is_drawn_in_the_unit_its_fmu_declares(tmp_path, suite
     legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     worst = [t for t in legend if t.startswith("control ")]
     assert len(worst) == 2 and all(t.endswith(" Hz") for t in worst), legend
+    # the verdict's worst points and the terminal's lines say it too
+    text = write_report(out, "md").read_text()
+    row = next(ln for ln in text.splitlines() if ln.startswith("| tip | roll |"))
+    assert "excitation.freq1=8.4 Hz \\| excitation.freq1=8.4 Hz" in row
+    roll = next(ln for ln in budget_lines(out / "summary.parquet") if "tip roll" in ln)
+    assert roll.count(" at excitation.freq1=8.4 Hz") == 2, roll

@@ -117,9 +117,9 @@ def structure_designs(model, plants, bands=BANDS) -> list:
     nominal = linear_plant(model)
     halved = [plants[k] for k in ("f1 z1", "f0.95 z0.5", "f1 z0.5", "f1.05 z0.5")]
     out = []
-    for band in bands:
+    for i, band in enumerate(bands, 1):   # a few minutes each: the count is the progress
         stage(f"testbed-robust: the law within the paper's structure at {band[0]:g}/"
-              f"{band[1]:g} Hz")
+              f"{band[1]:g} Hz (band {i} of {len(bands)})")
         nom = _refined(nominal, design_within_structure(nominal, [nominal], [band])[0],
                        band)
         rob = design_within_structure(nominal, halved, [band])[0]

@@ -52,8 +52,11 @@ def _channel(fr: FastResponse, ref: str) -> int:
     inst, _, var = ref.partition(".")
     b = fr.lin.blocks.get(inst)
     if b is None or b.kind != "source" or var not in b.outputs:
-        raise AnalysisError(f"{ref} is not an output of a source instance; sources: "
-                            f"{', '.join(fr.lin.sources)}")
+        from orchestrator.scenario import closest
+
+        names = [f"{s}.{o}" for s in fr.lin.sources for o in fr.lin.blocks[s].outputs]
+        raise AnalysisError(f"{ref} is not an output of a source instance"
+                            f"{closest(ref, names)}; source outputs: {', '.join(names)}")
     return fr._in_off[inst] + b.outputs.index(var)
 
 

@@ -167,6 +167,11 @@ def test_ceiling_properties(fmus):
     with pytest.raises(AnalysisError, match="not an output of a source"):
         ceiling(lin, ["structure.strain_long"], "structure.strain_diag", freqs,
                 actuators=["ctrl_long"])
+    with pytest.raises(AnalysisError, match=r"excitation.v9 is not an output of a source "
+                       r"instance \(did you mean 'excitation.v[12]' or 'excitation.v[12]'\?\); "
+                       r"source outputs: (.*, )?excitation.v1, excitation.v2"):
+        ceiling(lin, ["structure.strain_long"], "excitation.v9", freqs,
+                actuators=["ctrl_long"])
 
 
 def test_native_fmus_without_their_python_twins_are_named(fmus, tmp_path):

@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 
 from orchestrator.cosim import prepare
-from orchestrator.scenario import load_scenario
+from orchestrator.scenario import closest, load_scenario
 
 from .blocks import AnalysisError, _instance_block, _law_block, _source_block
 
@@ -108,11 +108,13 @@ class LinearScenario:
         """Row of ``X`` holding the published output ``instance.variable``."""
         inst, var = ref.split(".", 1)
         if inst not in self.blocks:
-            raise AnalysisError(f"no instance {inst!r} in the scenario; instances: "
+            raise AnalysisError(f"no instance {inst!r} in the scenario"
+                                f"{closest(inst, self.blocks)}; instances: "
                                 f"{', '.join(self.blocks)}")
         b = self.blocks[inst]
         if var not in b.outputs:
-            raise AnalysisError(f"{ref} is not an output of {inst!r}; outputs: "
+            raise AnalysisError(f"{ref} is not an output of {inst!r}"
+                                f"{closest(var, b.outputs)}; outputs: "
                                 f"{', '.join(b.outputs[:12])}{' ...' if len(b.outputs) > 12 else ''}")
         return self.slots[inst][2].start + b.outputs.index(var)
 

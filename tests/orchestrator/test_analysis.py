@@ -172,6 +172,12 @@ def test_ceiling_properties(fmus):
                        r"source outputs: (.*, )?excitation.v1, excitation.v2"):
         ceiling(lin, ["structure.strain_long"], "excitation.v9", freqs,
                 actuators=["ctrl_long"])
+    with pytest.raises(AnalysisError, match=r"structure.los_tip_yw is not an output of "
+                                            r"'structure' \(did you mean 'los_tip_yaw'"):
+        lin.index("structure.los_tip_yw")
+    with pytest.raises(AnalysisError, match=r"no instance 'structur' in the scenario "
+                                            r"\(did you mean 'structure'"):
+        lin.index("structur.los_tip_yaw")
 
 
 def test_native_fmus_without_their_python_twins_are_named(fmus, tmp_path):

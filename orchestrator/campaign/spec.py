@@ -500,8 +500,10 @@ def _wheel_sweeps(items, fmus: dict) -> tuple:
         what = f"wheel sweep {i + 1}"
         inst = w.get("instance")
         if not isinstance(inst, str) or inst not in fmus:
-            raise CampaignError(f"{what} instance is {inst!r}; expected a source instance of "
-                                f"the base scenario (instances: {sorted(fmus)})")
+            raise CampaignError(f"{what} instance is {inst!r}"
+                                f"{closest(inst, fmus) if isinstance(inst, str) else ''}; "
+                                "expected a source instance of the base scenario (instances: "
+                                f"{', '.join(sorted(fmus))})")
         rpm = w.get("rpm", [0.0, 6000.0])
         if not (isinstance(rpm, list) and len(rpm) == 2
                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in rpm)
@@ -520,13 +522,18 @@ def _wheel_sweeps(items, fmus: dict) -> tuple:
             raise CampaignError(f"{what} points is {points!r}; expected a whole number >= 2")
         opened = w.get("open", [])
         if not isinstance(opened, list) or any(o not in fmus for o in opened):
-            raise CampaignError(f"{what} open is {opened!r}; expected a list of instances of "
-                                f"the base scenario (instances: {sorted(fmus)})")
+            bad = next((o for o in opened if isinstance(o, str) and o not in fmus), None) \
+                if isinstance(opened, list) else None
+            raise CampaignError(f"{what} open is {opened!r}"
+                                f"{closest(bad, fmus) if bad else ''}; expected a list of "
+                                "instances of the base scenario (instances: "
+                                f"{', '.join(sorted(fmus))})")
         overrides = _overrides(w, what)
         for key in overrides:
             if key.split(".", 1)[0] not in fmus:
                 raise CampaignError(f"{what} override {key!r} names an instance the base "
-                                    "scenario does not have")
+                                    f"scenario does not have"
+                                    f"{closest(key.split('.', 1)[0], fmus)}")
         out.append(WheelSweepSpec(str(w.get("name", inst)), inst, overrides,
                                   (float(rpm[0]), float(rpm[1])), points, tuple(opened)))
     return tuple(out)

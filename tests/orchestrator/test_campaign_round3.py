@@ -141,3 +141,19 @@ def test_a_wheel_sweep_inside_the_range_is_read(tmp_path):
     data["wheel_sweeps"] = [{"instance": "dist", "rpm": [0.0, 6000.0], "points": 3}]
     camp = load_campaign(_toml(tmp_path, data))
     assert [w["rpm"] for w in camp.wheel_sweeps] == [(0.0, 6000.0)] * 2
+
+
+@pytest.mark.parametrize("sweep, message", [
+    ({"instance": "dsit"}, r"wheel sweep 1 instance is 'dsit' \(did you mean 'dist'\?\); "
+                           r"expected a source instance of the base scenario \(instances: "
+                           r"ctrl, dist, sc\)"),
+    ({"instance": "dist", "open": ["ctr"]}, r"wheel sweep 1 open is \['ctr'\] \(did you "
+                                            r"mean 'ctrl'\?\); expected a list of instances"),
+    ({"instance": "dist", "overrides": {"dst.amplitude": 1.0}},
+     r"override 'dst.amplitude' names an instance the base scenario does not have \(did "
+     r"you mean 'dist'\?\)"),
+])
+def test_a_misspelt_name_in_a_wheel_sweep_gets_the_closest_instance(tmp_path, sweep, message):
+    data = campaign_data(n_events=1)
+    data["wheel_sweeps"] = [{**sweep, "rpm": [0.0, 6000.0], "points": 3}]
+    _refused(tmp_path, data, message)

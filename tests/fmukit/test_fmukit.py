@@ -244,6 +244,7 @@ def _memcheck_errors(log: str) -> list[str]:
     return [b for b in blocks if b.startswith(kinds) and "binaries/linux64" in b]
 
 
+@pytest.mark.long   # make test-full: valgrind, 7 s
 @pytest.mark.slow
 def test_c_host_run_is_clean_under_memcheck(fmu, tmp_path):
     """No invalid read, write or free in the FMU's binaries, exit handlers included.

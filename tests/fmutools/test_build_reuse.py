@@ -17,6 +17,7 @@ def _bytes(folder):
             for p in folder.rglob("*.fmu")}
 
 
+@pytest.mark.long   # make test-full: builds the suite's FMUs, 11 s
 @pytest.mark.slow
 def test_build_twice_keeps_what_it_built(tmp_path, capsys):
     args = ["build", "--model", "excitation", "--model", "acs", "--out", str(tmp_path)]

@@ -13,6 +13,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.long   # make test-full: two builds at once, 10 s
 @pytest.mark.slow
 def test_two_builds_into_one_folder_at_once_both_succeed(tmp_path):
     # Each build holds every archive it writes open for 1.5 s before closing it, so the

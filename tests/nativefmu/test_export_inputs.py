@@ -91,6 +91,7 @@ def _with_string_parameter(tmp_path, value):
     return tmp_path / "s.toml"
 
 
+@pytest.mark.long   # make test-full: compiles two FMUs, 6 s
 def test_a_string_parameter_with_a_newline_or_trigraph_compiles_as_written(own, tmp_path):
     """A newline, ``??/`` (a C99 trigraph for a backslash), a quote and a non-ASCII letter
     in a String parameter: the container's sources hold it as octal escapes and compile

@@ -213,6 +213,7 @@ def wine(tmp_path_factory):
     return [cmd], env
 
 
+@pytest.mark.long   # make test-full: cross-compiles and starts wine, 10 s
 @pytest.mark.slow
 def test_windows_build_gives_the_same_bits_as_linux(linux_results, wine):
     """20,000 arguments, seven functions: 0 differing bits between the mingw-w64 build run

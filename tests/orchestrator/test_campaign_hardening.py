@@ -216,8 +216,11 @@ def threaded_runner(scenario: dict, out_dir):
 threaded_runner.engine = "linear"
 
 
-@pytest.mark.parametrize("runner, workers", [("master", 0), ("synthetic", 0),
-                                             ("synthetic", 2), ("threads", 0)])
+# the synthetic runner's two ways (10 s each) run in make test-full
+@pytest.mark.parametrize("runner, workers", [
+    ("master", 0), ("threads", 0),
+    pytest.param("synthetic", 0, marks=pytest.mark.long),
+    pytest.param("synthetic", 2, marks=pytest.mark.long)])
 def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, request, runner,
                                                            workers):
     """Stopped between or during cases: the finished ones are kept and counted exactly

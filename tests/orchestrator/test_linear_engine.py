@@ -25,8 +25,9 @@ from orchestrator.experiments.eos import CAMPAIGN as EOS_CAMPAIGN
 
 pytestmark = pytest.mark.slow
 
-# the events whose sources have edges (a slew, a scan, a chopper) and a harmonic one
-EOS_EVENTS = ("CERES scan", "SWIR pointing", "TIR chopper", "RWA")
+# a slew (edges) and a harmonic source; a scan and a chopper (edges too) in make test-full
+EOS_EVENTS = ("SWIR pointing", "RWA")
+MORE_EVENTS = ("CERES scan", "TIR chopper")
 EOS_STOP = 3.0
 
 
@@ -51,11 +52,8 @@ def eos_fmus(suite_fmu_dir):
     return eos.ensure_fmus(suite_fmu_dir)
 
 
-@pytest.fixture(scope="module")
-def eos_pair(tmp_path_factory, eos_fmus):
-    """The same EOS cases co-simulated and through the linear engine."""
-    camp = _eos_campaign()
-    out = tmp_path_factory.mktemp("linear_eos")
+def _pair(camp, out, eos_fmus):
+    """``camp`` co-simulated and through the linear engine, into ``out``."""
     co = run_campaign(camp, out / "cosim", MasterRunner(camp.scenario_dir, fmu_dir=eos_fmus),
                       workers=2, progress=False)
     runner = LinearRunner(camp.scenario_dir, fmu_dir=eos_fmus)
@@ -64,13 +62,30 @@ def eos_pair(tmp_path_factory, eos_fmus):
     return camp, out, co, li, runner
 
 
+@pytest.fixture(scope="module")
+def eos_pair(tmp_path_factory, eos_fmus):
+    """The same EOS cases co-simulated and through the linear engine."""
+    return _pair(_eos_campaign(), tmp_path_factory.mktemp("linear_eos"), eos_fmus)
+
+
 def test_linear_campaign_equals_cosimulation_eos(eos_pair):
     """Every summary cell (cases, RSS) of the multi-rate EOS budget (10 Hz ACS, fifteen
     1 kHz loops), isolation off and on, to 1e-9 relative."""
-    camp, out, co, li, _ = eos_pair
+    _summaries_agree(*eos_pair[:4])
+
+
+@pytest.mark.long   # make test-full: eight more co-simulated EOS cases, 12 s
+def test_linear_campaign_equals_cosimulation_eos_scan_and_chopper(tmp_path, eos_fmus):
+    """The same for the CERES scan and the TIR chopper (sources with edges)."""
+    _summaries_agree(*_pair(_eos_campaign(MORE_EVENTS), tmp_path, eos_fmus)[:4])
+
+
+def _summaries_agree(camp, out, co, li):
     assert co.n_failed == li.n_failed == 0
     a, b = _summary(out / "cosim"), _summary(out / "linear")
-    assert set(a) == set(b) and len(a) > 100
+    # every instrument axis of every case, and the RSS rows
+    n_axes = sum(len(axes) for axes in camp.instruments.values())
+    assert set(a) == set(b) and len(a) > n_axes * len(camp.cases)
     worst = max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k] != 0)
     assert worst < 1e-9, worst
     assert json.loads((out / "linear" / "campaign.json").read_text())["engine"] == "linear"

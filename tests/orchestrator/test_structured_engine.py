@@ -236,6 +236,7 @@ def test_monte_carlo_samples_equal_with_either_engine(eos_loops, monkeypatch):
     np.testing.assert_allclose(v_s, v_d, rtol=1e-10)
 
 
+@pytest.mark.long   # make test-full: reduces a 300-mode model, 6 s
 def test_a_300_mode_model_reduces_and_runs_structured(eos_loops):
     """The EOS testbed reduced to 300 modes (with its 59 Ritz vectors, which at that
     count are 1e-6 of their static shapes beside the eigenvectors and were refused as

@@ -29,6 +29,7 @@ def testbed(suite_fmu_dir):
     return fdir, tb.linear_model(fdir)
 
 
+@pytest.mark.long   # make test-full: co-simulations of the testbed at 0.2 ms, 18 s
 def test_servo_cosimulation_is_the_linear_engine_in_both_builds(testbed):
     """Mount #3's law closed from t = 0 and the three struts' servos at 100 Hz, stepped
     every 0.2 ms: native and Python co-simulations against the linear engine's tick-by-
@@ -62,6 +63,7 @@ def test_servo_cosimulation_is_the_linear_engine_in_both_builds(testbed):
         assert np.abs(tabs["native"][ref] - want).max() <= 5e-11 * peak, ref
 
 
+@pytest.mark.long   # make test-full: co-simulations of the testbed at 1 ms and 0.2 ms, 25 s
 def test_the_servo_loop_needs_the_fast_step_the_linear_engine_says_why(testbed):
     """At the shipped 1 ms coupling the held elongation puts about a millisecond into the
     100 Hz servo loop: unstable; at 0.2 ms and 0.05 ms it is stable (rigid-body poles at

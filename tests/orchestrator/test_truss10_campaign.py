@@ -118,6 +118,7 @@ def test_report_is_written(campaign_out):
     assert "control on" in text and "RSS" in text
 
 
+@pytest.mark.long   # make test-full: a campaign on both builds, 7 s
 def test_python_and_native_fmus_give_the_same_cases(campaign_out, tmp_path, suite_fmus,
                                                     suite_fmu_dir):
     """Every case of the shipped quick campaign, run on the Python build of the FMUs

@@ -772,6 +772,7 @@ def eos_fmu_dir(suite_fmu_dir):
     return eos.ensure_fmus(suite_fmu_dir)
 
 
+@pytest.mark.long   # make test-full: co-simulated EOS samples, 31 s
 @pytest.mark.slow
 def test_frequency_draws_co_simulated_equal_the_linear_ones_and_move_the_lines(
         tmp_path, eos_fmu_dir):

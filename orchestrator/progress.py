@@ -10,17 +10,22 @@ comes every ``every`` seconds even while one long case or sample is still runnin
 :func:`stage` prints one line when a stage of a long command starts; while a command
 holds :func:`heartbeat` open, a stage that runs longer than ``every`` seconds with no bar
 and no other line says it is still running, so even a stage without a count is never
-silent longer than that.
+silent longer than that.  A stage has no count, so its time left comes from the last
+time the same stage ran to its end on this machine (kept by the command line in the
+user's cache, ``stage_times.json``): "about 0:35 left (1:20 when last run here)", or
+"time left unknown" the first time.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import os
 import sys
 import threading
 import time
+from pathlib import Path
 
 from tqdm import tqdm
 
@@ -184,6 +189,46 @@ def stage(message: str, stream=None) -> None:
     _BEAT.stage(message)
 
 
+# stages whose durations a store keeps (the most recent ones)
+_KEEP_STAGES = 500
+
+
+def _read_times(path) -> dict:
+    """``{stage message: seconds}`` from ``path``; anything else there is ignored."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(data, dict):
+        return {}
+    return {k: float(v) for k, v in data.items() if isinstance(k, str)
+            and isinstance(v, (int, float)) and not isinstance(v, bool)
+            and math.isfinite(v) and v >= 0}
+
+
+def _write_times(path, times: dict) -> None:
+    """Write ``times`` to ``path`` whole (a reader sees the old file or the new one)."""
+    path = Path(path)
+    kept = dict(list(times.items())[-_KEEP_STAGES:])
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(kept, indent=0), encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:   # a cache that cannot be written costs only the estimate
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def _left(elapsed: float, before: float | None) -> str:
+    """What a still-running line says of the time left of a stage that took ``before``
+    seconds when it last ran to its end here (None: never)."""
+    if before is None:
+        return " (time left unknown: not run to its end here before)"
+    if elapsed < before:
+        return f", about {_clock(before - elapsed)} left ({_clock(before)} when last run here)"
+    return f", past the {_clock(before)} it took when last run here"
+
+
 class _Heartbeat:
     """The last stage said, and a thread that says it is still running (one per process)."""
 
@@ -193,11 +238,22 @@ class _Heartbeat:
         self.t0 = self.last = time.monotonic()
         self.bars = 0
         self.active = False
+        self.times = None      # {message: seconds} of stages run to their end, or None
+        self.before = None     # the running stage's seconds when last run here
 
     def stage(self, message: str) -> None:
         with self.lock:
-            self.message, self.t0 = message, time.monotonic()
+            now = time.monotonic()
+            self._ended(now)
+            self.message, self.t0 = message, now
             self.last = self.t0
+            self.before = None if self.times is None else self.times.get(message)
+
+    def _ended(self, now: float) -> None:
+        """The running stage ran to its end at ``now``: its time is kept (the lock held)."""
+        if self.times is not None and self.message is not None:
+            self.times.pop(self.message, None)   # the most recent last
+            self.times[self.message] = now - self.t0
 
     def said(self) -> None:
         with self.lock:
@@ -215,17 +271,26 @@ class _Heartbeat:
                     continue
                 self.last = now
                 line = (f"jitterfmu: {self.message}: still running, "
-                        f"{_clock(now - self.t0)} elapsed")
+                        f"{_clock(now - self.t0)} elapsed"
+                        f"{'' if self.times is None else _left(now - self.t0, self.before)}")
             print(line, file=stream, flush=True)
 
 
 _BEAT = _Heartbeat()
 
 
+class _Open:
+    """What :func:`heartbeat` yields: ``keep = False`` forgets the command's stage times
+    (a command that failed)."""
+
+    keep = True
+
+
 @contextlib.contextmanager
-def heartbeat(stream=None, every: float | None = None):
+def heartbeat(stream=None, every: float | None = None, times=None):
     """While open, a stage (:func:`stage`) that runs ``every`` seconds with no progress
-    bar alive and no line said says it is still running, with its time so far.
+    bar alive and no line said says it is still running, with its time so far and, when
+    ``times`` knows it, its time left.
 
     The command line holds it open for the length of a command.
 
@@ -236,17 +301,31 @@ def heartbeat(stream=None, every: float | None = None):
     every : float, optional
         Seconds of silence before a line (default :data:`LOG_EVERY`, or
         ``$JITTERFMU_LOG_EVERY`` up to it).
+    times : path, optional
+        A JSON file of the stages' durations when last run to their end: read when the
+        heartbeat opens, rewritten when it closes after a command that ended normally
+        (a stage cut short by an error or an interrupt, or one of a command that set
+        ``keep = False`` on the object yielded, is not kept).  None keeps none.
     """
     stop = threading.Event()
-    _BEAT.message, _BEAT.active = None, True
-    _BEAT.last = time.monotonic()
+    with _BEAT.lock:
+        _BEAT.message, _BEAT.active = None, True
+        _BEAT.last = time.monotonic()
+        _BEAT.times = None if times is None else _read_times(times)
     thread = threading.Thread(target=_BEAT.run, daemon=True, name="heartbeat",
                               args=(stop, stream or sys.stderr,
                                     _every() if every is None else every))
     thread.start()
+    beat = _Open()
+    ended = False
     try:
-        yield
+        yield beat
+        ended = beat.keep
     finally:
         stop.set()
         thread.join()
-        _BEAT.active = False
+        with _BEAT.lock:
+            if ended and _BEAT.times is not None:
+                _BEAT._ended(time.monotonic())
+                _write_times(times, _BEAT.times)
+            _BEAT.active, _BEAT.times, _BEAT.message = False, None, None

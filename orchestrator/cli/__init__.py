@@ -173,8 +173,10 @@ def main(argv: list[str] | None = None) -> int:
     from ..progress import heartbeat
 
     try:
-        with heartbeat():
-            return int(args._run(args) or 0)
+        with heartbeat(times=_stage_times()) as beat:
+            rc = int(args._run(args) or 0)
+            beat.keep = rc == 0   # a failed command's stages did not run to their end
+            return rc
     except KeyboardInterrupt:
         print("jitterfmu: interrupted", file=sys.stderr)
         return 130
@@ -184,6 +186,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"jitterfmu: error: {clip(_sentence(exc))}", file=sys.stderr)
         print("(run with --debug for the traceback)", file=sys.stderr)
         return 2
+
+
+def _stage_times():
+    """The file of the stages' durations in the user's cache (their time left), or None
+    where the cache cannot be used."""
+    from fmutools.fmucache import CacheError, cache_root
+
+    try:
+        return cache_root() / "stage_times.json"
+    except (CacheError, OSError):
+        return None
 
 
 def _sentence(exc: BaseException) -> str:

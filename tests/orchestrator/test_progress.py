@@ -1,6 +1,7 @@
 """Long work is never silent: timed lines with the time left when stderr is a log."""
 
 import io
+import json
 import os
 import re
 import subprocess
@@ -9,6 +10,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from orchestrator import progress
 from orchestrator.progress import ProgressBar, stage
@@ -174,3 +176,71 @@ def test_a_terminal_bar_keeps_its_clock_moving_while_nothing_finishes():
     bar.close()
     assert "0/10 [00:02" in shown, shown
     assert "samples," not in shown            # the bar, not the log lines
+
+
+def _still_running(log):
+    return [ln for ln in log.getvalue().splitlines() if "still running" in ln]
+
+
+def test_a_stage_run_before_says_its_time_left_from_that_run(tmp_path):
+    """A stage has no count: its time left is what it took when it last ran to its end
+    (kept in a file), and a stage never run says it does not know."""
+    times = tmp_path / "stage_times.json"
+    log = io.StringIO()
+    with progress.heartbeat(stream=log, every=0.2, times=times):
+        stage("analyze x: linearising the closed loop", stream=log)
+        time.sleep(0.5)
+        stage("analyze x: the margins of every loop", stream=log)
+        time.sleep(0.05)
+    first = _still_running(log)
+    assert first and all(ln.endswith("(time left unknown: not run to its end here before)")
+                         for ln in first), first
+    kept = json.loads(times.read_text())
+    assert 0.45 <= kept["analyze x: linearising the closed loop"] < 2.0
+    assert set(kept) == {"analyze x: linearising the closed loop",
+                         "analyze x: the margins of every loop"}
+    # the next run: the same stage, told its time left from the first one
+    kept["analyze x: linearising the closed loop"] = 130.0   # as if it took 2:10
+    times.write_text(json.dumps(kept))
+    log = io.StringIO()
+    with progress.heartbeat(stream=log, every=0.2, times=times):
+        stage("analyze x: linearising the closed loop", stream=log)
+        time.sleep(0.5)
+    lines = _still_running(log)
+    assert lines and all(re.fullmatch(
+        r"jitterfmu: analyze x: linearising the closed loop: still running, 0:0[01] "
+        r"elapsed, about 2:(09|10) left \(2:10 when last run here\)", ln) for ln in lines), lines
+    # and past it: says so rather than a negative time
+    times.write_text(json.dumps({"s": 0.1}))
+    log = io.StringIO()
+    with progress.heartbeat(stream=log, every=0.2, times=times):
+        stage("s", stream=log)
+        time.sleep(0.5)
+    assert _still_running(log)[-1].endswith("elapsed, past the 0:00 it took when last run here")
+
+
+@pytest.mark.parametrize("content", ["not json", "[1, 2]", '{"s": "1; rm -rf /"}',
+                                     '{"s": NaN}', '{"s": -4}', '{"s": true}'])
+def test_a_stage_times_file_that_is_not_durations_is_ignored_and_replaced(tmp_path, content):
+    times = tmp_path / "stage_times.json"
+    times.write_text(content)
+    log = io.StringIO()
+    with progress.heartbeat(stream=log, every=0.2, times=times):
+        stage("s", stream=log)
+        time.sleep(0.6)
+    assert _still_running(log)[0].endswith("(time left unknown: not run to its end here before)")
+    kept = json.loads(times.read_text())
+    assert list(kept) == ["s"] and isinstance(kept["s"], float)
+
+
+def test_a_failed_command_keeps_no_stage_times(tmp_path):
+    times = tmp_path / "stage_times.json"
+    with pytest.raises(RuntimeError):
+        with progress.heartbeat(stream=io.StringIO(), every=0.2, times=times):
+            stage("s", stream=io.StringIO())
+            raise RuntimeError("cut short")
+    assert not times.exists()
+    with progress.heartbeat(stream=io.StringIO(), every=0.2, times=times) as beat:
+        stage("s", stream=io.StringIO())
+        beat.keep = False
+    assert not times.exists()

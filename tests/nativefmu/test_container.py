@@ -305,6 +305,7 @@ def test_export_refuses_unknown_and_unexposable_parameters(fmu_dir, tmp_path):
                fmu_dir=fmu_dir)
 
 
+@pytest.mark.long   # make test-full: exports a container, 7 s
 def test_a_fixed_string_parameter_is_exposed_and_a_tunable_one_refused(fmu_dir, tmp_path):
     """--parameter dist.preset (a fixed String: set before initialisation) works and
     changes the run; a tunable String is refused in one sentence (the container's state

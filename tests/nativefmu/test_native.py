@@ -440,6 +440,7 @@ def test_ten_bay_scenarios_give_the_same_table(fmus, tmp_path, scenario, stop, o
     assert np.max(np.abs(pitch)) > 0  # something moved: the comparison is not of zeros
 
 
+@pytest.mark.long   # make test-full: the EOS budget co-simulated on both builds, 8 s
 @pytest.mark.filterwarnings("ignore:.*not connected and keep their start values")
 def test_eos_budget_scenario_gives_the_same_table(fmus, tmp_path):
     """scenarios/eos_budget.toml (21 instances: EOS testbed structure with accelerometer

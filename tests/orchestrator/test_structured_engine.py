@@ -131,6 +131,7 @@ def test_structured_records_equal_the_dense_engine_on_eos(eos_loops, config):
         assert unstable_poles(got) == unstable_poles(want) == []
 
 
+@pytest.mark.long   # make test-full: eigenvalues of unstable samples on both engines, 7 s
 def test_unstable_samples_have_the_same_poles(eos_loops):
     """The EOS loop with the ACS it had before its redesign (0.1 Hz on the rigid body)
     takes damping from its 2.58 Hz mode: samples around that mode's threshold damping

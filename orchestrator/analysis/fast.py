@@ -540,12 +540,15 @@ class FastResponse(SteadyState):
                     Y[:, rows] = out
                 else:
                     Y[:, rows[:, None], at[t.live[sel]]] = out
-        return [self._record(y, check, np.where(skip, b, np.nan)) for y, b in zip(Y, bounds)]
+        return [self._record(y, check, np.where(skip, b, np.nan), bound_inner=bound_limits)
+                for y, b in zip(Y, bounds)]
 
-    def _record(self, Y: np.ndarray, check: bool, bounds=None) -> Record:
+    def _record(self, Y: np.ndarray, check: bool, bounds=None,
+                bound_inner: bool = False) -> Record:
         """A record from the computed rows ``Y`` (n_ticks + 1, computed rows): limits
         checked.  ``bounds`` (r,): where not NaN, the row was not computed (``Y`` leaves
-        it out) and this bounds it."""
+        it out) and this bounds it.  ``bound_inner``: a limit inside a step is bounded
+        from its rows' largest values where that clears it (``reached`` stays exact)."""
         K = Y.shape[0]
         times = self.times(K - 1)
         n_ref = len(self._computed)
@@ -577,7 +580,7 @@ class FastResponse(SteadyState):
                     f"{ref} reaches its {what} ({y[bad]:.4g} outside [{lo:.4g}, {hi:.4g}]) "
                     f"at t = {times[bad]:.6g} s, where the FMU leaves the linear model: "
                     "run this case with the co-simulation (--engine cosim)")
-        _inner_checks(self._inner, Y, at, bounds, limits, reached, times, check)
+        _inner_checks(self._inner, Y, at, bounds, limits, reached, times, check, bound_inner)
         if self._zero:
             values = np.zeros((K, len(self.refs)))
             values[:, self._computed] = Y[:, :n_ref]

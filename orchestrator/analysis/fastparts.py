@@ -130,16 +130,25 @@ def _inner_used(G: np.ndarray, Y: np.ndarray, lo: float, hi: float) -> tuple:
     return float(used), k, float(top[k] if top[k] > hi else bottom[k])
 
 
-def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, check: bool):
+def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, check: bool,
+                  bound: bool = False):
     """The limits inside a step of a record's rows ``Y`` (see `FastResponse._record`):
     ``limits`` and ``reached`` updated; with ``check``, the first one reached raises
     :class:`NonlinearError`.  The step of a block due at tick ``k`` starts from its state
-    after tick ``k - 1`` (at rest before tick 0) with its inputs held from tick ``k``."""
+    after tick ``k - 1`` (at rest before tick 0) with its inputs held from tick ``k``.
+    With ``bound``, a limit that the rows' largest values keep inside its range
+    (:func:`_inner_bound`, every sub-step of every step at once) is not evaluated sub-step
+    by sub-step: ``limits`` holds that bound, an upper bound of the fraction used."""
     for ref, G, lo, hi, what, c, nx, period in inner:
         if bounds is not None and not np.isnan(bounds[c]).any():   # bounded, not computed
             limits[ref] = max(limits[ref], _inner_bound(G, bounds[c]) / min(hi, -lo))
             continue
         Yc = Y[:, c if at is None else at[c]]
+        if bound and hi > 0 and lo < 0:   # the start states are rows of Yc too
+            b = _inner_bound(G, np.abs(Yc).max(axis=0))
+            if b * (1.0 + 1e-6) < min(hi, -lo):   # NaN or inf: not cleared
+                limits[ref] = max(limits.get(ref, 0.0), b / min(hi, -lo))
+                continue
         start = np.vstack([np.zeros((1, nx)), Yc[:-1, :nx]])
         used, k, v = _inner_used(G, np.hstack([start, Yc[:, nx:]])[::period], lo, hi)
         limits[ref] = max(limits.get(ref, 0.0), used)

@@ -620,6 +620,7 @@ def test_library_exports_every_fmi2_function(fmus, tmp_path):
 
 # ---------------------------------------------------------------------- command line
 
+@pytest.mark.long   # make test-full: builds every native FMU from the command line, 7 s
 def test_jitterfmu_build_native_writes_native_fmus(tmp_path, capsys):
     from orchestrator.cli import main
 
@@ -632,6 +633,7 @@ def test_jitterfmu_build_native_writes_native_fmus(tmp_path, capsys):
     assert "(native) ok" in capsys.readouterr().out
 
 
+@pytest.mark.long   # make test-full: reduces and builds a structure, 5 s
 def test_jitterfmu_build_native_structure_from_a_reduced_model(tmp_path):
     from orchestrator.cli import main
     from structfmu.models import get_model

@@ -432,6 +432,7 @@ def test_rerun_skips_finished_cases(tmp_path):
     assert read_sorted(tmp_path / "out/summary.parquet") == first
 
 
+@pytest.mark.long   # make test-full: a killed campaign process, 5 s
 def test_sigkill_mid_campaign_loses_only_cases_in_flight(tmp_path):
     log = tmp_path / "calls.log"
     data = campaign_data(log=log, sleep=0.25, n_events=6)  # 12 cases

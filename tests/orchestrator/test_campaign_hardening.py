@@ -216,9 +216,9 @@ def threaded_runner(scenario: dict, out_dir):
 threaded_runner.engine = "linear"
 
 
-# the synthetic runner's two ways (10 s each) run in make test-full
+# the master's and the synthetic runner's two ways (7-10 s each) run in make test-full
 @pytest.mark.parametrize("runner, workers", [
-    ("master", 0), ("threads", 0),
+    pytest.param("master", 0, marks=pytest.mark.long), ("threads", 0),
     pytest.param("synthetic", 0, marks=pytest.mark.long),
     pytest.param("synthetic", 2, marks=pytest.mark.long)])
 def test_sigterm_stops_a_campaign_and_keeps_finished_cases(tmp_path, request, runner,

@@ -341,6 +341,7 @@ def test_shipped_wheel_sweep_report_has_its_verdict(rwa_sweep, tmp_path):
     assert "15 instrument axes" in text
 
 
+@pytest.mark.long   # make test-full: a wheel sweep verified by co-simulation, 7 s
 def test_wheel_sweep_campaign_never_says_it_verified_nothing(rwa_sweep, suite_fmu_dir,
                                                              capsys):
     """A campaign of wheel sweeps alone has no case to co-simulate: --verify says

@@ -113,6 +113,7 @@ def test_parts_of_a_run_with_another_seed_or_bounds_are_run_again(tmp_path, trus
     assert rep["resumed"] < 8 and _samples(tmp_path / "a") == first
 
 
+@pytest.mark.long   # make test-full: a killed Monte Carlo and its workers, 4 s
 @pytest.mark.slow
 def test_sigkill_of_a_two_worker_monte_carlo_takes_its_workers_with_it(tmp_path, truss_fmus):  # noqa: F811
     """The run killed (SIGKILL: no handler runs) while its two workers compute: within

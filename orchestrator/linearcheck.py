@@ -80,11 +80,11 @@ def linear_verdict(plan) -> tuple[str, dict | None]:
 
 
 def _verdict(plan) -> tuple[str, dict | None]:
-    from orchestrator.analysis.scenario import linearize
+    from orchestrator.analysis.scenario import _stable, linearize
 
     lin = linearize(plan.scenario, fmu_dir=_fmu_dir(plan))
-    ev = np.linalg.eigvals(lin.lifted())
-    if lin.is_stable():
+    ev = np.linalg.eigvals(lin.lifted())   # once: is_stable() would lift and solve again
+    if _stable(ev):
         return "stable", None
     worst = complex(ev[np.argmax(np.abs(ev))])
     growth = math.log(abs(worst)) / lin.T

@@ -7,10 +7,18 @@ its closed-loop poles; with one outside the unit circle, the run ends with statu
 ``unstable`` and one line naming the loop: the controllers whose loop is unstable on its
 own (the other controllers opened), else those whose loops are unstable together.  A scenario without feedback, or one the linear engine does not represent
 (an FMU it has no model of, an algebraic loop), gets no verdict and keeps its status.
+
+A process keeps its verdicts: the runs of a campaign that differ only in their sources'
+parameters (a disturbance's preset, an event) close the same loop, so the second of them
+reuses the first one's verdict instead of linearising again (the sources are the
+instances the linear engine found without inputs; the FMU files are keyed by their
+digests).
 """
 
 from __future__ import annotations
 
+import copy
+import json
 import math
 import warnings
 from pathlib import Path
@@ -47,6 +55,30 @@ def _fmu_dir(plan) -> Path | None:
     return paths[0].parent if paths else None
 
 
+# verdicts kept in this process: {loop key: (verdict, info)}, and the source instances of
+# each layout of FMUs (known after its first linearisation)
+_VERDICTS: dict = {}
+_SOURCES: dict = {}
+_KEEP = 64
+
+
+def _layout(plan) -> str:
+    return json.dumps(sorted((name, info.sha256) for name, info in plan.fmus.items()))
+
+
+def _loop_key(plan) -> str | None:
+    """What the verdict of ``plan`` depends on: the scenario less its sources' parameters,
+    with its FMUs' digests (None before a run of this layout has told the sources)."""
+    sources = _SOURCES.get(_layout(plan))
+    if sources is None:
+        return None
+    data = plan.scenario.to_dict()
+    for name in sources:
+        data["fmus"].get(name, {}).pop("parameters", None)
+    data.pop("record", None)
+    return json.dumps({"scenario": data, "layout": _layout(plan)}, sort_keys=True, default=str)
+
+
 def linear_verdict(plan) -> tuple[str, dict | None]:
     """The linear engine's verdict on the closed loops of a prepared run.
 
@@ -70,9 +102,18 @@ def linear_verdict(plan) -> tuple[str, dict | None]:
     if not _has_feedback(plan.scenario.connections):
         return "no feedback", None
     try:
+        key = _loop_key(plan)
+        if key in _VERDICTS:
+            return copy.deepcopy(_VERDICTS[key])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return _verdict(plan)
+            got = _verdict(plan)
+        key = _loop_key(plan)   # the first run of a layout has told its sources now
+        if key is not None:
+            if len(_VERDICTS) >= _KEEP:
+                _VERDICTS.clear()
+            _VERDICTS[key] = copy.deepcopy(got)
+        return got
     except Exception as exc:   # noqa: BLE001 -- no verdict must ever cost a run its rows
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
         why = text if isinstance(exc, AnalysisError) else f"{type(exc).__name__}: {text}"
@@ -83,6 +124,7 @@ def _verdict(plan) -> tuple[str, dict | None]:
     from orchestrator.analysis.scenario import _stable, linearize
 
     lin = linearize(plan.scenario, fmu_dir=_fmu_dir(plan))
+    _SOURCES[_layout(plan)] = tuple(lin.sources)
     ev = np.linalg.eigvals(lin.lifted())   # once: is_stable() would lift and solve again
     if _stable(ev):
         return "stable", None

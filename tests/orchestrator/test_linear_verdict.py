@@ -128,3 +128,37 @@ def test_the_command_line_says_it_in_one_line_and_exits_1(folder, tmp_path, caps
     assert len(said) == 1
     assert said[0].startswith("jitterfmu: unstable: the closed loop through ctrl_diag is ")
     assert (tmp_path / "o" / "results.parquet").exists()
+
+
+@pytest.mark.filterwarnings("ignore:.*not connected and keep their start values")
+def test_a_verdict_is_reused_for_runs_that_change_only_their_sources(folder, monkeypatch):
+    """A campaign's events change their sources' parameters, not the loop: the second run
+    of the same loop reuses the verdict (no second linearisation) and it is the one a
+    fresh linearisation gives; a controller's gain or the run's end is another loop."""
+    from orchestrator import linearcheck
+    from orchestrator.analysis import scenario as lin_scenario
+    from orchestrator.cosim import prepare
+
+    monkeypatch.setattr(linearcheck, "_VERDICTS", {})
+    monkeypatch.setattr(linearcheck, "_SOURCES", {})
+    calls = []
+    real = lin_scenario.linearize
+    monkeypatch.setattr(lin_scenario, "linearize",
+                        lambda *a, **k: calls.append(1) or real(*a, **k))
+
+    def verdict(**overrides):
+        stop = overrides.pop("stop", T_ON + 1.0)
+        sc = load_scenario(TRUSS).with_overrides(overrides).with_experiment(stop=stop)
+        return linear_verdict(prepare(sc, folder))
+
+    first = verdict(**{"ctrl_diag.gain": 2.9})
+    assert first[0] == "unstable" and len(calls) == 1
+    again = verdict(**{"ctrl_diag.gain": 2.9, "excitation.amp1": 3.0, "excitation.freq1": 7.0})
+    assert again == first and len(calls) == 1          # the sources differ: reused
+    again[1]["loop"].append("changed by a caller")     # a copy: the kept one is unchanged
+    assert verdict(**{"ctrl_diag.gain": 2.9})[1]["loop"] == ["ctrl_diag"]
+    assert verdict(**{"ctrl_diag.gain": 2.7})[0] == "stable" and len(calls) == 2
+    short = verdict(**{"ctrl_diag.gain": 2.9}, stop=T_ON - 1.0)   # ends before it closes
+    assert short[0].startswith("unstable once the loop") and len(calls) == 3
+    monkeypatch.setattr(linearcheck, "_VERDICTS", {})
+    assert verdict(**{"ctrl_diag.gain": 2.9, "excitation.amp1": 3.0}) == first

@@ -395,17 +395,18 @@ def extract_resources(path: Path, res: Path) -> Path:
 def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:
     """The block of one instance, its FMU's resources extracted under ``tmp``.
 
-    ``extracted`` (a dict) caches ``FMU path -> (resources folder, slave class)``
-    across calls that share ``tmp``.
+    ``extracted`` (a dict) caches ``(FMU path, SHA-256) -> (resources folder, slave
+    class)`` across calls that share ``tmp``: a file rebuilt in place is extracted again.
     """
     info = plan.fmus[inst.name]
     path = info.path  # the Python twin where there is one (fmu_kind = "python")
-    cached = None if extracted is None else extracted.get(path)
+    key = (path, info.sha256)
+    cached = None if extracted is None else extracted.get(key)
     if cached is None:
         res = extract_resources(path, tmp / f"{inst.name}-{len(extracted or ())}")
         cached = (res, _slave_class(res, path.name))
         if extracted is not None:
-            extracted[path] = cached
+            extracted[key] = cached
     res, (base, klass) = cached
     period = plan.timebase.period_ticks[inst.name]
     h = float(inst.period)

@@ -503,10 +503,34 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
             raise AnalysisError(f"the scenario has an algebraic loop {group}; the linear "
                                 "analysis needs a loop with a delay")
         order.append(group[0])
-    with tempfile.TemporaryDirectory(prefix="jitterfmu-analyze-") as tmp:
-        extracted = {}   # one extraction per FMU file, shared by its instances
-        blocks = {i.name: _instance_block(plan, i, Path(tmp), extracted)
-                  for i in sc.instances}
+    tmp, extracted = _extractions()
+    blocks = {i.name: _instance_block(plan, i, tmp, extracted) for i in sc.instances}
     return LinearScenario(plan, blocks, order)
+
+
+# one extraction per FMU file and content in a process, shared by its instances and by
+# every loop it linearises (a campaign's configurations, a sweep's points): its folder
+# lives as long as the process, at most _KEEP_EXTRACTED FMUs at a time
+_EXTRACTED: dict = {}
+_KEEP_EXTRACTED = 64
+_FOLDER: list = []
+
+
+def _extractions() -> tuple:
+    """The process's folder of extracted FMU resources and its index."""
+    import atexit
+    import shutil
+
+    if _FOLDER and not _FOLDER[0].is_dir():   # removed under us: start again
+        _FOLDER.clear()
+        _EXTRACTED.clear()
+    if len(_EXTRACTED) >= _KEEP_EXTRACTED:
+        shutil.rmtree(_FOLDER.pop(), ignore_errors=True)
+        _EXTRACTED.clear()
+    if not _FOLDER:
+        folder = Path(tempfile.mkdtemp(prefix="jitterfmu-analyze-"))
+        atexit.register(shutil.rmtree, folder, True)
+        _FOLDER.append(folder)
+    return _FOLDER[0], _EXTRACTED
 
 

@@ -1,0 +1,66 @@
+"""A process extracts each FMU file once for every loop it linearises (a campaign's
+configurations, a sweep's points), and again when the file changes.
+
+Reference: the loop linearised with nothing kept (the same matrices, bit for bit)."""
+
+from __future__ import annotations
+
+import shutil
+import warnings
+
+import numpy as np
+import pytest
+
+from orchestrator.analysis import blocks as blocks_mod
+from orchestrator.analysis import scenario as lin_scenario
+from orchestrator.analysis.scenario import linearize
+
+pytestmark = pytest.mark.slow
+
+TRUSS = "scenarios/truss10_closed_loop.toml"
+
+
+@pytest.fixture(scope="module")
+def fmus(suite_fmus, suite_fmu_dir):
+    from orchestrator.experiments.truss_decay import FMUS
+
+    suite_fmus(*FMUS)
+    return suite_fmu_dir
+
+
+def _lin(fmu_dir, **overrides):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return linearize(TRUSS, overrides=overrides, fmu_dir=fmu_dir)
+
+
+def test_a_second_loop_of_the_same_fmus_extracts_nothing_and_a_changed_file_is_extracted(
+        fmus, tmp_path, monkeypatch):
+    monkeypatch.setattr(lin_scenario, "_EXTRACTED", {})
+    monkeypatch.setattr(lin_scenario, "_FOLDER", [])
+    calls = []
+    real = blocks_mod.extract_resources
+    monkeypatch.setattr(blocks_mod, "extract_resources",
+                        lambda path, res: calls.append(path.name) or real(path, res))
+    first = _lin(fmus)
+    n_files = len(calls)
+    assert n_files == len(set(calls)) >= 5          # one extraction per FMU file
+    second = _lin(fmus, **{"ctrl_diag.gain": 2.0})   # another configuration
+    assert len(calls) == n_files
+    monkeypatch.setattr(lin_scenario, "_EXTRACTED", {})   # nothing kept: the reference
+    fresh = _lin(fmus, **{"ctrl_diag.gain": 2.0})
+    for name, b in second.blocks.items():
+        for m in ("A", "B", "C", "D"):
+            np.testing.assert_array_equal(getattr(b, m), getattr(fresh.blocks[name], m))
+    assert not np.array_equal(first.lifted(), second.lifted())   # the gain did change it
+    # a copy of the folder whose structure FMU differs in content: extracted again
+    other = tmp_path / "fmus"
+    shutil.copytree(fmus, other, ignore=shutil.ignore_patterns("*.lock"))
+    calls.clear()
+    _lin(other)
+    assert len(calls) == n_files                    # other paths: extracted
+    calls.clear()
+    py = next(p for p in (other / "python").glob("truss10_structure*.fmu"))
+    py.write_bytes(py.read_bytes() + b"\0")         # same path, new content (zip still reads)
+    _lin(other)
+    assert calls == [py.name]

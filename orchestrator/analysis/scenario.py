@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+import threading
 import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -503,8 +504,9 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
             raise AnalysisError(f"the scenario has an algebraic loop {group}; the linear "
                                 "analysis needs a loop with a delay")
         order.append(group[0])
-    tmp, extracted = _extractions()
-    blocks = {i.name: _instance_block(plan, i, tmp, extracted) for i in sc.instances}
+    with _EXTRACTING:   # threads linearising at once share the index and its folder
+        tmp, extracted = _extractions()
+        blocks = {i.name: _instance_block(plan, i, tmp, extracted) for i in sc.instances}
     return LinearScenario(plan, blocks, order)
 
 
@@ -514,6 +516,7 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
 _EXTRACTED: dict = {}
 _KEEP_EXTRACTED = 64
 _FOLDER: list = []
+_EXTRACTING = threading.Lock()
 
 
 def _extractions() -> tuple:

@@ -64,3 +64,17 @@ def test_a_second_loop_of_the_same_fmus_extracts_nothing_and_a_changed_file_is_e
     py.write_bytes(py.read_bytes() + b"\0")         # same path, new content (zip still reads)
     _lin(other)
     assert calls == [py.name]
+
+
+def test_loops_linearised_in_threads_at_once_are_the_loop(fmus, monkeypatch):
+    """Four threads linearising at once (a Dask worker's threads) share the extractions
+    without clashing: each loop equals the one linearised alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    monkeypatch.setattr(lin_scenario, "_EXTRACTED", {})
+    monkeypatch.setattr(lin_scenario, "_FOLDER", [])
+    gains = [0.5, 1.0, 1.5, 2.0]
+    with ThreadPoolExecutor(4) as pool:
+        loops = list(pool.map(lambda g: _lin(fmus, **{"ctrl_diag.gain": g}), gains))
+    for g, lin in zip(gains, loops):
+        np.testing.assert_array_equal(lin.lifted(), _lin(fmus, **{"ctrl_diag.gain": g}).lifted())

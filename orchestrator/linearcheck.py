@@ -66,17 +66,18 @@ def _layout(plan) -> str:
     return json.dumps(sorted((name, info.sha256) for name, info in plan.fmus.items()))
 
 
-def _loop_key(plan) -> str | None:
+def _loop_key(plan, layout: str) -> str | None:
     """What the verdict of ``plan`` depends on: the scenario less its sources' parameters,
-    with its FMUs' digests (None before a run of this layout has told the sources)."""
-    sources = _SOURCES.get(_layout(plan))
+    with its FMUs' digests (``layout``); None before a run of this layout has told the
+    sources."""
+    sources = _SOURCES.get(layout)
     if sources is None:
         return None
     data = plan.scenario.to_dict()
     for name in sources:
         data["fmus"].get(name, {}).pop("parameters", None)
     data.pop("record", None)
-    return json.dumps({"scenario": data, "layout": _layout(plan)}, sort_keys=True, default=str)
+    return json.dumps({"scenario": data, "layout": layout}, sort_keys=True, default=str)
 
 
 def linear_verdict(plan) -> tuple[str, dict | None]:
@@ -102,13 +103,14 @@ def linear_verdict(plan) -> tuple[str, dict | None]:
     if not _has_feedback(plan.scenario.connections):
         return "no feedback", None
     try:
-        key = _loop_key(plan)
+        layout = _layout(plan)
+        key = _loop_key(plan, layout)
         if key in _VERDICTS:
             return copy.deepcopy(_VERDICTS[key])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            got = _verdict(plan)
-        key = _loop_key(plan)   # the first run of a layout has told its sources now
+            got = _verdict(plan, layout)
+        key = key or _loop_key(plan, layout)   # a layout's first run has told its sources
         if key is not None:
             if len(_VERDICTS) >= _KEEP:
                 _VERDICTS.clear()
@@ -120,11 +122,11 @@ def linear_verdict(plan) -> tuple[str, dict | None]:
         return f"not represented: {why}", None
 
 
-def _verdict(plan) -> tuple[str, dict | None]:
+def _verdict(plan, layout: str) -> tuple[str, dict | None]:
     from orchestrator.analysis.scenario import _stable, linearize
 
     lin = linearize(plan.scenario, fmu_dir=_fmu_dir(plan))
-    _SOURCES[_layout(plan)] = tuple(lin.sources)
+    _SOURCES[layout] = tuple(lin.sources)
     ev = np.linalg.eigvals(lin.lifted())   # once: is_stable() would lift and solve again
     if _stable(ev):
         return "stable", None

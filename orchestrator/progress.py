@@ -25,6 +25,7 @@ import os
 import sys
 import threading
 import time
+import types
 from pathlib import Path
 
 from tqdm import tqdm
@@ -207,16 +208,11 @@ def _read_times(path) -> dict:
 
 
 def _write_times(path, times: dict) -> None:
-    """Write ``times`` to ``path`` whole (a reader sees the old file or the new one)."""
-    path = Path(path)
-    kept = dict(list(times.items())[-_KEEP_STAGES:])
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(json.dumps(kept, indent=0), encoding="utf-8")
-        os.replace(tmp, path)
-    except OSError:   # a cache that cannot be written costs only the estimate
-        with contextlib.suppress(OSError):
-            tmp.unlink()
+    """Write the most recent ``times`` to ``path`` whole (atomically)."""
+    from .files import write_json_atomic
+
+    with contextlib.suppress(OSError):   # a cache not written costs only the estimate
+        write_json_atomic(path, dict(list(times.items())[-_KEEP_STAGES:]), indent=0)
 
 
 def _left(elapsed: float, before: float | None) -> str:
@@ -279,13 +275,6 @@ class _Heartbeat:
 _BEAT = _Heartbeat()
 
 
-class _Open:
-    """What :func:`heartbeat` yields: ``keep = False`` forgets the command's stage times
-    (a command that failed)."""
-
-    keep = True
-
-
 @contextlib.contextmanager
 def heartbeat(stream=None, every: float | None = None, times=None):
     """While open, a stage (:func:`stage`) that runs ``every`` seconds with no progress
@@ -316,7 +305,7 @@ def heartbeat(stream=None, every: float | None = None, times=None):
                               args=(stop, stream or sys.stderr,
                                     _every() if every is None else every))
     thread.start()
-    beat = _Open()
+    beat = types.SimpleNamespace(keep=True)   # keep = False: a failed command
     ended = False
     try:
         yield beat

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import atexit
 import math
+import shutil
 import tempfile
 import threading
 import warnings
@@ -504,9 +506,7 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
             raise AnalysisError(f"the scenario has an algebraic loop {group}; the linear "
                                 "analysis needs a loop with a delay")
         order.append(group[0])
-    with _EXTRACTING:   # threads linearising at once share the index and its folder
-        tmp, extracted = _extractions()
-        blocks = {i.name: _instance_block(plan, i, tmp, extracted) for i in sc.instances}
+    blocks = {i.name: instance_block(plan, i) for i in sc.instances}
     return LinearScenario(plan, blocks, order)
 
 
@@ -519,11 +519,15 @@ _FOLDER: list = []
 _EXTRACTING = threading.Lock()
 
 
+def instance_block(plan, inst):
+    """The block of instance ``inst`` of ``plan``, its FMU's resources extracted once in
+    this process (:func:`~orchestrator.analysis.blocks._instance_block`)."""
+    with _EXTRACTING:   # threads linearising at once share the index and its folder
+        return _instance_block(plan, inst, *_extractions())
+
+
 def _extractions() -> tuple:
     """The process's folder of extracted FMU resources and its index."""
-    import atexit
-    import shutil
-
     if _FOLDER and not _FOLDER[0].is_dir():   # removed under us: start again
         _FOLDER.clear()
         _EXTRACTED.clear()

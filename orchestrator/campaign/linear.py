@@ -18,7 +18,6 @@ import dataclasses
 import functools
 import json
 import math
-import tempfile
 import threading
 import time
 import warnings
@@ -27,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import AnalysisError, linearize
-from ..analysis.blocks import _instance_block
+from ..analysis.scenario import instance_block
 from ..analysis.fast import FastResponse
 from ..cosim import UnconnectedInputWarning, find_fmu, prepare, read_fmu_info
 from ..results import RunResult, package_versions, write_metadata, write_table
@@ -74,8 +73,6 @@ class LinearRunner:
         self._source_blocks = {}
         self._series_cache = {}
         self._responses = {}
-        self._extracted = {}
-        self._tmp = None
         # the caches of compiled loops and sources, shared by a campaign's threads
         self._lock = threading.RLock()
 
@@ -181,9 +178,7 @@ class LinearRunner:
                                                default=str))
         b = self._source_blocks.get(key)
         if b is None:
-            if self._tmp is None:
-                self._tmp = tempfile.TemporaryDirectory(prefix="jitterfmu-linear-")
-            b = _instance_block(fr.lin.plan, inst, Path(self._tmp.name), self._extracted)
+            b = instance_block(fr.lin.plan, inst)
             if cache:
                 self._source_blocks[key] = b
         return b
@@ -233,10 +228,8 @@ class LinearRunner:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             plan = prepare(sc, self.fmu_dir)
-        if self._tmp is None:
-            self._tmp = tempfile.TemporaryDirectory(prefix="jitterfmu-linear-")
         try:
-            _instance_block(plan, inst, Path(self._tmp.name), self._extracted)
+            instance_block(plan, inst)
         except ValueError as exc:   # the source's own sentence (distfmu.sources.SourceError)
             return str(exc)
         return None

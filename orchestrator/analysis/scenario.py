@@ -520,8 +520,20 @@ _EXTRACTING = threading.Lock()
 
 
 def instance_block(plan, inst):
-    """The block of instance ``inst`` of ``plan``, its FMU's resources extracted once in
-    this process (:func:`~orchestrator.analysis.blocks._instance_block`)."""
+    """The block of one instance, its FMU's resources extracted once in this process.
+
+    Parameters
+    ----------
+    plan : orchestrator.cosim.Plan
+        The prepared scenario (its FMUs, their digests and its time base).
+    inst : orchestrator.scenario.Instance
+        The instance, with its parameters.
+
+    Returns
+    -------
+    Block
+        As :func:`~orchestrator.analysis.blocks._instance_block`.
+    """
     with _EXTRACTING:   # threads linearising at once share the index and its folder
         return _instance_block(plan, inst, *_extractions())
 

@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
+from orchestrator import linearcheck
+from orchestrator.analysis import scenario as lin_scenario
 from orchestrator.campaign import LinearRunner, MasterRunner, load_campaign, run_campaign
 from orchestrator.experiments import eos
 
@@ -58,6 +60,11 @@ def main(argv=None) -> int:
         builds, cases, worst = [], [], 0.0
         a = _summary(tmp / "cosim")
         for i in range(max(1, args.repeat)):
+            # a cold build each time: nothing this process kept from the previous repeat
+            # (its FMU extractions and blocks, its loops' stability verdicts)
+            lin_scenario._EXTRACTED.clear()
+            linearcheck._VERDICTS.clear()
+            linearcheck._SOURCES.clear()
             runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
             t0 = time.perf_counter()
             configs = {c.configuration: c for c in camp.cases}

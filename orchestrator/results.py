@@ -70,11 +70,23 @@ def arrow_table(table: dict, units: dict | None = None) -> pa.Table:
         schema metadata ``units`` (JSON), for pandas and MATLAB readers alike.
     """
     units = {k: u for k, u in (units or {}).items() if k in table and u}
-    fields = [pa.field(k, pa.array(np.asarray(v)).type,
-                       metadata={"unit": units[k]} if k in units else None)
-              for k, v in table.items()]
+    arrays = [_arrow_array(v) for v in table.values()]
+    fields = [pa.field(k, a.type, metadata={"unit": units[k]} if k in units else None)
+              for k, a in zip(table, arrays)]
     schema = pa.schema(fields, metadata={"units": json.dumps(units)} if units else None)
-    return pa.table({k: np.asarray(v) for k, v in table.items()}, schema=schema)
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def _arrow_array(v) -> pa.Array:
+    """A column as an Arrow array: numbers from their buffer in this machine's byte
+    order (without the conversion that imports pandas, 0.17 s of a short command),
+    anything else converted."""
+    v = np.asarray(v)
+    if v.ndim == 1 and v.dtype.kind in "fiu":
+        v = np.ascontiguousarray(v, dtype=v.dtype.newbyteorder("="))
+        return pa.Array.from_buffers(pa.from_numpy_dtype(v.dtype), len(v),
+                                     [None, pa.py_buffer(v)])
+    return pa.array(v)
 
 
 def write_table(table: dict, path, csv: bool = False, units: dict | None = None) -> Path:

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import ast
+import hashlib
 import importlib
+import json
 import math
 import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -392,14 +394,55 @@ def extract_resources(path: Path, res: Path) -> Path:
     return res
 
 
+# blocks kept per extraction index (a campaign's instances several times over)
+_KEEP_BLOCKS = 256
+
+
+def _plain(v):
+    """A parameter value as JSON data: mappings, sequences and arrays whole."""
+    if isinstance(v, Mapping):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return [str(v.dtype), list(v.shape), v.tolist()]
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, (str, int, float, bool)) or v is None:
+        return v
+    return repr(v)
+
+
+def _block_key(plan, inst) -> tuple:
+    """What a block depends on: its FMU file and content, the instance's name,
+    parameters, periods and start time (parameters hashed by value, arrays whole)."""
+    info = plan.fmus[inst.name]
+    params = json.dumps(_plain(inst.parameters), sort_keys=True)
+    return (info.path, info.sha256, inst.name, str(inst.period),
+            plan.timebase.period_ticks[inst.name], str(plan.scenario.experiment.start),
+            hashlib.sha256(params.encode()).hexdigest())
+
+
 def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:
     """The block of one instance, its FMU's resources extracted under ``tmp``.
 
     ``extracted`` (a dict) caches ``(FMU path, SHA-256) -> (resources folder, slave
     class)`` across calls that share ``tmp``: a file rebuilt in place is extracted again.
+    It also keeps the blocks of the instances that are not sources, by
+    :func:`_block_key`: a campaign's configurations share most of their instances (the
+    structure's discretisation, the amplifiers' and controllers' models), and those are
+    built once.  Blocks are frozen and their matrices never written, so sharing them is
+    safe; a source's block keeps its slave for its series and is built each time.
     """
     info = plan.fmus[inst.name]
     path = info.path  # the Python twin where there is one (fmu_kind = "python")
+    bkey = blocks = None
+    if extracted is not None:
+        blocks = extracted.setdefault("blocks", {})
+        bkey = _block_key(plan, inst)
+        got = blocks.get(bkey)
+        if got is not None:
+            return got
     key = (path, info.sha256)
     cached = None if extracted is None else extracted.get(key)
     if cached is None:
@@ -421,6 +464,11 @@ def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:
         return replace(block, series=_series(slave, outs, inst.name), source=config)
     block = _KINDS[base](slave, inst.name, period, h, None)
     ft = np.array([bool(info.feedthrough.get(o)) for o in block.outputs])
-    return replace(block, feedthrough=ft)
+    block = replace(block, feedthrough=ft)
+    if blocks is not None:
+        if len(blocks) >= _KEEP_BLOCKS:
+            blocks.clear()
+        blocks[bkey] = block
+    return block
 
 

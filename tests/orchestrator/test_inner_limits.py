@@ -120,3 +120,55 @@ def test_bounded_limits_inside_steps_reach_what_the_sub_steps_reach(fmus, amp1):
         assert bounded.limits["piezo_long.current"] > 2 * exact.limits["piezo_long.current"]
     np.testing.assert_array_equal(bounded.column("structure.strain_diag"),
                                   exact.column("structure.strain_diag"))
+
+
+def _full_extremes(G, Y):
+    V = Y @ G.T
+    return V.max(), V.min()
+
+
+@pytest.mark.parametrize("shape", ["segment", "ray", "plane", "solid", "point"])
+def test_the_extreme_sub_steps_hold_every_extreme(shape):
+    """The sub-steps :func:`_extreme_rows` keeps hold the largest and smallest value over
+    all sub-steps for any state (here 2000 random ones): points on a segment (an
+    amplifier's voltage, ``e x + (1 - e) u``), on a ray through the origin (its current),
+    in a plane, in space, and all equal."""
+    from orchestrator.analysis.fastparts import _extreme_rows
+
+    rng = np.random.default_rng(7)
+    e = np.exp(-np.linspace(0.0, 12.0, 100))
+    G = {"segment": np.c_[e, 1.0 - e, np.zeros(100)],
+         "ray": 0.13 * e[:, None] * np.array([-1.0, 1.0, 0.0]),
+         "plane": (lambda a, b: np.c_[a, b, a + 2 * b])(*rng.standard_normal((2, 100))),
+         "solid": rng.standard_normal((100, 3)),
+         "point": np.ones((100, 3))}[shape]
+    rows = _extreme_rows(G)
+    assert rows.size < G.shape[0]            # something is left out
+    Y = rng.standard_normal((2000, 3)) * np.array([1.0, 1e3, 1e-3])
+    V = Y @ G.T
+    Vr = Y @ G[rows].T
+    scale = np.abs(Y).max() * np.abs(G).max()
+    assert np.abs(V.max(axis=1) - Vr.max(axis=1)).max() <= 1e-14 * scale
+    assert np.abs(V.min(axis=1) - Vr.min(axis=1)).max() <= 1e-14 * scale
+    assert _extreme_rows(G) is rows          # kept
+
+
+def test_inner_limits_from_the_extreme_sub_steps_equal_every_sub_step():
+    """A limit checked on the extreme sub-steps gives the fraction used of every
+    sub-step to round-off, and at the edge of the range (within 1e-9 of it) every
+    sub-step is evaluated: the same first step and value as the full evaluation."""
+    from orchestrator.analysis import fastparts
+
+    rng = np.random.default_rng(3)
+    e = np.exp(-np.linspace(0.0, 12.0, 100))
+    G = np.c_[e, 1.0 - e, np.zeros(100)]
+    Y = rng.standard_normal((5000, 3))
+    top, bottom = (Y @ G.T).max(), (Y @ G.T).min()
+    for lo, hi in ((-10.0, 10.0), (bottom * 1.5, top * 0.9), (bottom, top),
+                   (bottom * (1 - 1e-12), top * (1 + 1e-12))):
+        got = fastparts._inner_used(G, Y, lo, hi)
+        fastparts._EXTREME[id(G)] = (G, np.arange(100))   # every sub-step
+        full = fastparts._inner_used(G, Y, lo, hi)
+        fastparts._EXTREME.pop(id(G))
+        assert got[1:] == full[1:]
+        assert abs(got[0] - full[0]) <= 1e-14 * abs(full[0])

@@ -78,3 +78,27 @@ def test_loops_linearised_in_threads_at_once_are_the_loop(fmus, monkeypatch):
         loops = list(pool.map(lambda g: _lin(fmus, **{"ctrl_diag.gain": g}), gains))
     for g, lin in zip(gains, loops):
         np.testing.assert_array_equal(lin.lifted(), _lin(fmus, **{"ctrl_diag.gain": g}).lifted())
+
+
+def test_a_second_loop_shares_the_blocks_of_the_instances_it_does_not_change(
+        fmus, monkeypatch):
+    """A campaign's second configuration builds only the blocks whose FMU, parameters
+    or periods differ (the structure's discretisation is the costly one); the others
+    are the first loop's, and they equal blocks built with nothing kept."""
+    monkeypatch.setattr(lin_scenario, "_EXTRACTED", {})
+    monkeypatch.setattr(lin_scenario, "_FOLDER", [])
+    first = _lin(fmus)
+    second = _lin(fmus, **{"ctrl_diag.gain": 2.0})
+    sources = set(first.sources)
+    for name, b in second.blocks.items():
+        if name == "ctrl_diag" or name in sources:
+            assert b is not first.blocks[name], name
+        else:
+            assert b is first.blocks[name], name
+    monkeypatch.setattr(lin_scenario, "_EXTRACTED", {})   # nothing kept: the reference
+    fresh = _lin(fmus, **{"ctrl_diag.gain": 2.0})
+    for name, b in second.blocks.items():
+        for m in ("A", "B", "C", "D"):
+            np.testing.assert_array_equal(getattr(b, m), getattr(fresh.blocks[name], m))
+        assert b.limits == fresh.blocks[name].limits
+    np.testing.assert_array_equal(second.lifted(), fresh.lifted())

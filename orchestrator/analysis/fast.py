@@ -286,20 +286,25 @@ class FastResponse(SteadyState):
             self._keep(ck, O)
         return O
 
-    def _limit_bounds(self, t: _RunType, pos, X, Wu, active) -> np.ndarray:
+    def _limit_bounds(self, t: _RunType, pos, X, Wus, actives) -> np.ndarray:
         """Upper bounds of ``|y|`` over the runs of one type for the live rows ``pos``,
-        ``(len(pos),)``: ``max_q |C_q M^q x_0| <= sum_j max_q |(C M^q)_ij| |x_0j|`` and
-        ``|sum h_(q-l) w_l| <= sum_c (sum_p |h_p|_ic) max_l |w_lc|`` (Hoelder), rigorous
-        whatever the scales of the states."""
+        per record, ``(E, len(pos))``: ``max_q |C_q M^q x_0| <= sum_j max_q |(C
+        M^q)_ij| |x_0j|`` and ``|sum h_(q-l) w_l| <= sum_c (sum_p |h_p|_ic) max_l
+        |w_lc|`` (Hoelder), summed per run and maximised over the runs; rigorous
+        whatever the scales of the states.  ``X`` (E, n_u, s) the runs' start states,
+        ``Wus`` each record's inputs of those runs (n_u, L, k), ``actives`` its
+        channels.  The free parts of every record and run are one product."""
         ck = ("absmax", id(t), pos.tobytes())
         A = self._kernels.get(ck)
         if A is None:
             A = np.abs(t.O.reshape(t.L, t.live.size, -1)[:, pos]).max(axis=0)   # (p, s)
             self._keep(ck, A)
-        b = A @ np.abs(X).T                                              # (p, n_u)
-        if active.size:
-            h1 = np.abs(self._columns(t, active)[1][:, pos]).sum(axis=0)  # (p, k)
-            b += h1 @ np.abs(Wu).max(axis=1).T                            # (p, n_u)
+        E, n_u, s = X.shape
+        b = (np.abs(X.reshape(E * n_u, s)) @ A.T).reshape(E, n_u, pos.size)
+        for e, (Wu, active) in enumerate(zip(Wus, actives)):
+            if active.size:
+                h1 = np.abs(self._columns(t, active)[1][:, pos]).sum(axis=0)  # (p, k)
+                b[e] += np.abs(Wu).max(axis=1) @ h1.T                          # (n_u, p)
         return b.max(axis=1)
 
     # ------------------------------------------------------------------ running
@@ -496,9 +501,9 @@ class FastResponse(SteadyState):
             for key, idx in by_type.items():
                 t = types[key]
                 pos = np.flatnonzero(t.live >= n_ref)
-                for e, (Wa, active) in enumerate(zip(Was, actives)):
-                    b = self._limit_bounds(t, pos, X0[e, idx], Wa[windows[key]], active)
-                    bounds[e, t.live[pos]] = np.maximum(bounds[e, t.live[pos]], b)
+                b = self._limit_bounds(t, pos, X0[:, idx],
+                                       [Wa[windows[key]] for Wa in Was], actives)
+                bounds[:, t.live[pos]] = np.maximum(bounds[:, t.live[pos]], b)
             room = np.full(r, -np.inf)
             for j, (_, lo, hi, _) in enumerate(self._checks):
                 c = self._check_col[j]

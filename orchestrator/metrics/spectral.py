@@ -29,7 +29,6 @@ records when ``Ts`` is a whole number of samples.
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import trapezoid
 
 from ._checks import as_record, check_dt, intervals
 
@@ -153,7 +152,7 @@ def rms_from_psd(f, psd, weight=None) -> np.ndarray | float:
         raise ValueError(f"psd has {s.shape[0]} frequency rows; expected {f.size} to match f")
     w = np.ones_like(f) if weight is None else np.asarray(weight, dtype=float)
     w = w.reshape((f.size,) + (1,) * (s.ndim - 1))
-    out = np.sqrt(np.maximum(trapezoid(s * w, f, axis=0), 0.0))
+    out = np.sqrt(np.maximum(np.trapezoid(s * w, f, axis=0), 0.0))
     return out[()] if np.ndim(out) == 0 else out
 
 

@@ -55,13 +55,21 @@ class SensorLowpass:
         b : ndarray, shape (order, 1)
         c : ndarray, shape (1, order)
         """
-        from scipy import signal   # imported here: scipy.signal takes ~1 s to import
-
-        z, p, k = signal.butter(self.order, 2 * np.pi * self.cutoff_hz, analog=True,
-                                output="zpk")
-        a, b, c, d = signal.zpk2ss(z, p, k)
-        assert not np.any(d)
-        return np.asarray(a, float), np.asarray(b, float), np.asarray(c, float)
+        # the analog Butterworth prototype's poles scaled to the corner, and the
+        # controllable canonical form of k / prod(s - p): what scipy.signal's butter and
+        # zpk2ss give, bit for bit (tested), without importing scipy.signal (0.55 s of
+        # every short command)
+        n, wc = self.order, 2 * np.pi * self.cutoff_hz
+        p = -np.exp(1j * np.pi * np.arange(-n + 1, n, 2) / (2 * n)) * wc
+        den = np.poly(p).real
+        a = np.zeros((n, n))
+        a[0] = -den[1:] / den[0]
+        a[1:, :-1] = np.eye(n - 1)
+        b = np.zeros((n, 1))
+        b[0, 0] = 1.0
+        c = np.zeros((1, n))
+        c[0, -1] = wc ** n / den[0]
+        return a, b, c
 
     def response(self, freqs_hz) -> np.ndarray:
         """Complex frequency response at ``freqs_hz`` (Hz), shape (n_f,)."""

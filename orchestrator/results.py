@@ -89,6 +89,55 @@ def _arrow_array(v) -> pa.Array:
     return pa.array(v)
 
 
+_NUMPY_OF = {pa.float64(): np.float64, pa.float32(): np.float32, pa.int64(): np.int64,
+             pa.int32(): np.int32, pa.int16(): np.int16, pa.int8(): np.int8,
+             pa.uint64(): np.uint64, pa.uint32(): np.uint32, pa.uint16(): np.uint16,
+             pa.uint8(): np.uint8}
+
+
+def rows_table(rows, schema: pa.Schema) -> pa.Table:
+    """``pyarrow.Table.from_pylist(rows, schema=schema)`` built from buffers.
+
+    Numbers, booleans and strings (a missing key or None is a null) are laid out here,
+    without pyarrow's conversion of Python objects, which imports pandas (0.17 s of a
+    short command); any other type is converted by pyarrow.
+
+    Parameters
+    ----------
+    rows : sequence of mapping
+        One mapping per row; keys outside ``schema`` are ignored.
+    schema : pyarrow.Schema
+
+    Returns
+    -------
+    pyarrow.Table
+    """
+    return pa.Table.from_arrays([_list_array([r.get(f.name) for r in rows], f.type)
+                                 for f in schema], schema=schema)
+
+
+def _list_array(values: list, typ) -> pa.Array:
+    """One column of Python values as an Arrow array of type ``typ`` (see
+    :func:`rows_table`)."""
+    n = len(values)
+    valid = np.array([v is not None for v in values], bool)
+    mask = None if valid.all() else pa.py_buffer(np.packbits(valid, bitorder="little"))
+    nulls = n - int(valid.sum())
+    if typ in _NUMPY_OF:
+        data = np.array([v if ok else 0 for v, ok in zip(values, valid)], _NUMPY_OF[typ])
+        return pa.Array.from_buffers(typ, n, [mask, pa.py_buffer(data)], null_count=nulls)
+    if typ == pa.bool_():
+        bits = np.packbits(np.array([bool(v) for v in values], bool), bitorder="little")
+        return pa.Array.from_buffers(typ, n, [mask, pa.py_buffer(bits)], null_count=nulls)
+    if typ == pa.string() and all(isinstance(v, str) or v is None for v in values):
+        parts = [v.encode("utf-8") if v is not None else b"" for v in values]
+        offsets = np.zeros(n + 1, np.int32)
+        np.cumsum([len(b) for b in parts], out=offsets[1:])
+        return pa.Array.from_buffers(typ, n, [mask, pa.py_buffer(offsets),
+                                              pa.py_buffer(b"".join(parts))], null_count=nulls)
+    return pa.array(values, typ)
+
+
 def write_table(table: dict, path, csv: bool = False, units: dict | None = None) -> Path:
     """Write a column table atomically to Parquet (or CSV) and return the path.
 
@@ -227,8 +276,15 @@ def read_columns(path) -> dict:
         data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
         return {n: data[:, j] for j, n in enumerate(names)}
 
-    t = pq.read_table(path)
+    t = read_parquet(path)
     return {n: t.column(n).to_numpy() for n in t.column_names}
+
+
+def read_parquet(path) -> pa.Table:
+    """A Parquet file as a table (``pq.ParquetFile``: ``pq.read_table`` loads
+    ``pyarrow.dataset``, which imports pandas, 0.17 s of a short command)."""
+    with pq.ParquetFile(path) as f:
+        return f.read()
 
 
 def read_units(path) -> dict:

@@ -25,7 +25,7 @@ import pyarrow as pa
 from .. import metrics as M
 from ..cosim import find_fmu, read_fmu_info
 from ..cosim.plan import coerce
-from ..results import RunResult, read_columns
+from ..results import RunResult, read_columns, rows_table
 from ..run import run_scenario
 from ..scenario import ScenarioError, closest, scenario_from_dict
 from .cases import Case
@@ -319,7 +319,7 @@ def _metrics_table(table: Mapping, instruments: Mapping, metrics, skip: float) -
         raise ValueError(f"results file {RESULTS_FILE} has no 'time' column (has {names[:5]})")
     columns = {c: table[c] for c in names if c != tcol}
     rows = case_metrics(table[tcol], columns, instruments, metrics, skip)
-    return pa.Table.from_pylist(rows, schema=METRIC_SCHEMA)
+    return rows_table(rows, METRIC_SCHEMA)
 
 
 class CampaignInterrupted(BaseException):

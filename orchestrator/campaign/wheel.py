@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
+from ..results import rows_table
 from .spec import ANGLE_UNITS
 from .store import write_table
 
@@ -101,8 +102,8 @@ def run_wheel_sweeps(campaign, out_dir, runner=None, progress=None) -> Path | No
             progress(f"wheel sweep {sw['name']!r} ({sw['configuration']}): "
                      f"{speeds.size} speeds")
     out = Path(out_dir)
-    table = pa.Table.from_pylist(rows, schema=_SCHEMA)
+    table = rows_table(rows, _SCHEMA)
     write_table(table, out / WHEEL_FILE)
     write_table(table, out / WHEEL_FILE.replace(".parquet", ".csv"), csv=True)
-    write_table(pa.Table.from_pylist(worst, schema=_WORST), out / WORST_FILE, csv=True)
+    write_table(rows_table(worst, _WORST), out / WORST_FILE, csv=True)
     return out / WHEEL_FILE

@@ -301,13 +301,12 @@ def budget_lines(summary_path, limit: int = 20) -> list:
     """
     import math
 
-    import pyarrow.parquet as pq
-
     from ..campaign.spec import RSS_EVENT
     from ..report_verdict import verdicts, with_units
+    from ..results import read_parquet
 
     try:
-        rows = pq.read_table(summary_path).to_pylist()
+        rows = read_parquet(summary_path).to_pylist()
     except OSError:
         return []
     try:   # the swept parameters' units, beside the summary

@@ -101,3 +101,49 @@ def test_a_table_of_every_column_kind_reads_back_and_writing_it_imports_no_panda
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_rows_table_is_pyarrows_from_pylist():
+    """Rows of numbers, booleans and strings (unicode, empty, missing keys and None as
+    nulls) give the table ``pyarrow.Table.from_pylist`` gives, and a type laid out by
+    pyarrow (a list) still converts."""
+    import pyarrow as pa
+
+    from orchestrator.results import rows_table
+
+    schema = pa.schema([("s", pa.string()), ("x", pa.float64()), ("n", pa.int64()),
+                        ("ok", pa.bool_()), ("u", pa.uint8()), ("l", pa.list_(pa.int64()))])
+    rows = [{"s": "α-case", "x": 1.5, "n": 3, "ok": True, "u": 7, "l": [1, 2]},
+            {"s": "", "x": float("nan"), "n": -2, "ok": None, "u": 0, "l": []},
+            {"x": None, "n": None, "ok": False, "extra": "ignored"},
+            {"s": None, "x": -0.0, "n": 2**40, "ok": True, "u": 255, "l": None}]
+    got = rows_table(rows, schema)
+    want = pa.Table.from_pylist(rows, schema=schema)
+    assert got.schema == want.schema
+    assert got.to_pylist()[0] == want.to_pylist()[0]
+    for name in schema.names:
+        a, b = got.column(name).to_pylist(), want.column(name).to_pylist()
+        assert [repr(v) for v in a] == [repr(v) for v in b], name
+    assert rows_table([], schema).num_rows == 0
+
+
+def test_a_campaigns_tables_are_written_and_read_without_pandas(tmp_path):
+    """Writing rows and results and reading them back (what a linear campaign's cases,
+    summary and budget lines do) leaves pandas unimported in a fresh process."""
+    import subprocess
+    import sys
+
+    code = f"""
+import sys, numpy as np, pyarrow as pa
+from orchestrator.campaign.store import write_table
+from orchestrator.results import rows_table, read_parquet
+t = rows_table([{{"a": "x", "v": 1.0, "p": None}}], pa.schema([("a", pa.string()),
+               ("v", pa.float64()), ("p", pa.bool_())]))
+write_table(t, {str(tmp_path / 'r.parquet')!r})
+write_table(t, {str(tmp_path / 'r.csv')!r}, csv=True)
+assert read_parquet({str(tmp_path / 'r.parquet')!r}).to_pylist() == [{{"a": "x", "v": 1.0, "p": None}}]
+print('pandas' in sys.modules)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"

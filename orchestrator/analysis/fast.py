@@ -34,6 +34,7 @@ the instance and the first time, in one sentence (:class:`NonlinearError`).
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 import scipy.fft as sfft
@@ -198,14 +199,19 @@ class FastResponse(SteadyState):
         """``(G, h)`` of a run type for the source channels ``active``: ``G`` (s, L, k)
         ``M^(L-1-l) N``, ``h`` (L, r_live, k) the Markov parameters ``h_0 = D``,
         ``h_p = C M^(p-1) N`` (column Krylov of the channels not built before)."""
-        miss = [int(c) for c in active if int(c) not in t.cols]
-        if miss:
-            self._store_columns(t, miss, self._column_krylov(t, miss))
         ck = ("cols", id(t), np.asarray(active, int).tobytes())   # kept: every record asks
-        if ck not in self._kernels:
-            self._keep(ck, tuple(np.stack([t.cols[int(c)][i] for c in active], axis=-1)
-                                 for i in (0, 1)))
-        return self._kernels[ck]
+        got = self._kernels.get(ck)
+        if got is not None:
+            return got
+        # built once when a campaign's cases ask from several threads
+        with self.__dict__.setdefault("_building", threading.Lock()):
+            miss = [int(c) for c in active if int(c) not in t.cols]
+            if miss:
+                self._store_columns(t, miss, self._column_krylov(t, miss))
+            got = tuple(np.stack([t.cols[int(c)][i] for c in active], axis=-1)
+                        for i in (0, 1))
+            self._keep(ck, got)
+        return got
 
     def _store_columns(self, t: _RunType, miss, K) -> None:
         """Keep ``M^(L-1-l) N`` and the Markov parameters of the channels ``miss`` of a
@@ -229,8 +235,13 @@ class FastResponse(SteadyState):
 
     def prepare(self, channels=None) -> "FastResponse":
         """Build every run type and its input side for ``channels`` (default every
-        source channel) now, rather than on a record's first use: what a campaign's
-        model build does, so that its cases pay their records only.
+        source channel) now, rather than on a record's first use.
+
+        Parameters
+        ----------
+        channels : sequence of int, optional
+            Source channels whose input side to build (default all; empty: the run
+            types alone, each channel's side built when a record first drives it).
 
         Returns
         -------

@@ -571,3 +571,34 @@ def test_a_samples_loop_compiled_like_its_nominal_one_gives_the_same_records(eos
     # isolation on drives the controllers that isolation off leaves at gain 0
     other = FastResponse(on.lin, on.refs, like=off)
     assert not _same_pattern(other, off) and other.n_memory == on.n_memory > off.n_memory
+
+
+def test_channels_built_by_the_cases_of_several_threads_give_the_records(eos_pair):
+    """A campaign's build leaves each channel's input side to the first case that drives
+    it: eight records driving overlapping channels, asked from four threads at once of
+    a loop built without its channels, equal the same records of the loop built with
+    every channel (round-off of the column products' shapes)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from orchestrator.analysis.fast import FastResponse
+
+    full = _isolation_on_loop(eos_pair)
+    lazy = FastResponse(full.lin, full.refs).prepare(channels=())
+    assert all(not t.cols for t in lazy._types.values())
+    n_ticks = 250
+    rng = np.random.default_rng(5)
+    Ws = []
+    for i in range(8):
+        W = np.zeros((n_ticks + 1, full.m))
+        cols = [i % full.m, (3 * i + 1) % full.m, (5 * i + 2) % full.m]
+        W[:, cols] = rng.standard_normal((n_ticks + 1, 3))
+        Ws.append(W)
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda W: lazy.run(W, check=False), Ws))
+    for W, g in zip(Ws, got):
+        want = full.run(W, check=False)
+        scale = np.maximum(np.abs(want.values).max(axis=0), 1e-300)
+        assert np.max(np.abs(g.values - want.values) / scale) < 1e-12
+        assert g.reached == want.reached
+    driven = {int(c) for W in Ws for c in np.flatnonzero(np.any(W != 0.0, axis=0))}
+    assert all(set(t.cols) == driven for t in lazy._types.values())   # those alone

@@ -204,7 +204,7 @@ class FastResponse(SteadyState):
         if got is not None:
             return got
         # built once when a campaign's cases ask from several threads
-        with self.__dict__.setdefault("_building", threading.Lock()):
+        with self._building():
             miss = [int(c) for c in active if int(c) not in t.cols]
             if miss:
                 self._store_columns(t, miss, self._column_krylov(t, miss))
@@ -212,6 +212,11 @@ class FastResponse(SteadyState):
                         for i in (0, 1))
             self._keep(ck, got)
         return got
+
+    def _building(self):
+        """The lock under which run types and input sides are built (records of one
+        loop asked from several threads build each once)."""
+        return self.__dict__.setdefault("_build_lock", threading.RLock())
 
     def _store_columns(self, t: _RunType, miss, K) -> None:
         """Keep ``M^(L-1-l) N`` and the Markov parameters of the channels ``miss`` of a
@@ -474,7 +479,8 @@ class FastResponse(SteadyState):
         by_type = {}
         for i, (key, _) in enumerate(units):
             by_type.setdefault(key, []).append(i)
-        types = {key: self._type(*key) for key in by_type}
+        with self._building():   # a record's last, shorter run: a type built once
+            types = {key: self._type(*key) for key in by_type}
         windows = {key: np.array([units[i][1] for i in idx])[:, None] + np.arange(types[key].L)
                    for key, idx in by_type.items()}
         # input contribution to each run's end state, per run type and record

@@ -282,7 +282,10 @@ def read_columns(path) -> dict:
 
 def read_parquet(path) -> pa.Table:
     """A Parquet file as a table (``pq.ParquetFile``: ``pq.read_table`` loads
-    ``pyarrow.dataset``, which imports pandas, 0.17 s of a short command)."""
+    ``pyarrow.dataset``, which imports pandas, 0.17 s of a short command); a folder of
+    Parquet parts (an unfinished run's rows) as one table."""
+    if Path(path).is_dir():
+        return pq.read_table(path)
     with pq.ParquetFile(path) as f:
         return f.read()
 

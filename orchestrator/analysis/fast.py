@@ -41,8 +41,8 @@ import scipy.fft as sfft
 
 from .blocks import AnalysisError
 from .fastparts import (NonlinearError, Record, _causal_conv, _doubling, _fft_length,
-                        _inner_bound, _inner_checks, _power, _powers, _relevant, _RunType,
-                        _same_pattern, _tick_map)
+                        _inner_bound, _inner_checks, _limit_bounds, _power, _powers,
+                        _relevant, _RunType, _same_pattern, _tick_map)
 from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
@@ -302,27 +302,6 @@ class FastResponse(SteadyState):
             self._keep(ck, O)
         return O
 
-    def _limit_bounds(self, t: _RunType, pos, X, Wus, actives) -> np.ndarray:
-        """Upper bounds of ``|y|`` over the runs of one type for the live rows ``pos``,
-        per record, ``(E, len(pos))``: ``max_q |C_q M^q x_0| <= sum_j max_q |(C
-        M^q)_ij| |x_0j|`` and ``|sum h_(q-l) w_l| <= sum_c (sum_p |h_p|_ic) max_l
-        |w_lc|`` (Hoelder), summed per run and maximised over the runs; rigorous
-        whatever the scales of the states.  ``X`` (E, n_u, s) the runs' start states,
-        ``Wus`` each record's inputs of those runs (n_u, L, k), ``actives`` its
-        channels.  The free parts of every record and run are one product."""
-        ck = ("absmax", id(t), pos.tobytes())
-        A = self._kernels.get(ck)
-        if A is None:
-            A = np.abs(t.O.reshape(t.L, t.live.size, -1)[:, pos]).max(axis=0)   # (p, s)
-            self._keep(ck, A)
-        E, n_u, s = X.shape
-        b = (np.abs(X.reshape(E * n_u, s)) @ A.T).reshape(E, n_u, pos.size)
-        for e, (Wu, active) in enumerate(zip(Wus, actives)):
-            if active.size:
-                h1 = np.abs(self._columns(t, active)[1][:, pos]).sum(axis=0)  # (p, k)
-                b[e] += np.abs(Wu).max(axis=1) @ h1.T                          # (n_u, p)
-        return b.max(axis=1)
-
     # ------------------------------------------------------------------ running
     def times(self, n_ticks: int, every: int = 1) -> np.ndarray:
         """Exact times (s) of the ticks ``0, every, 2 every, ...`` up to ``n_ticks``.
@@ -436,7 +415,7 @@ class FastResponse(SteadyState):
             of each range it used (above 1: reached).
         bound_limits : bool
             Checked outputs that are not recorded are computed only where a rigorous
-            bound (:meth:`_limit_bounds`) does not keep them inside their range; where
+            bound (:func:`.fastparts._limit_bounds`) does not keep them inside their range; where
             it does, ``limits`` holds that bound (an upper bound of the fraction used).
             ``reached`` is exact either way.  What Monte Carlo uses: its records need
             their references and the knowledge that no rail is reached.
@@ -518,8 +497,8 @@ class FastResponse(SteadyState):
             for key, idx in by_type.items():
                 t = types[key]
                 pos = np.flatnonzero(t.live >= n_ref)
-                b = self._limit_bounds(t, pos, X0[:, idx],
-                                       [Wa[windows[key]] for Wa in Was], actives)
+                b = _limit_bounds(self, t, pos, X0[:, idx],
+                                   [Wa[windows[key]] for Wa in Was], actives)
                 bounds[:, t.live[pos]] = np.maximum(bounds[:, t.live[pos]], b)
             room = np.full(r, -np.inf)
             for j, (_, lo, hi, _) in enumerate(self._checks):

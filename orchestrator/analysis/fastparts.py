@@ -324,3 +324,25 @@ def _tick_map(fr, k: int, cols=None):
 
     X = lin._tick(X, k, w_next)   # k < the super-period, a multiple of every period
     return X[:, :c], X[:, c:]
+
+
+def _limit_bounds(fr, t, pos, X, Wus, actives) -> np.ndarray:
+    """Upper bounds of ``|y|`` over the runs of one type ``t`` of the loop ``fr`` for
+    the live rows ``pos``, per record, ``(E, len(pos))``: ``max_q |C_q M^q x_0| <=
+    sum_j max_q |(C M^q)_ij| |x_0j|`` and ``|sum h_(q-l) w_l| <= sum_c (sum_p
+    |h_p|_ic) max_l |w_lc|`` (Hoelder), summed per run and maximised over the runs;
+    rigorous whatever the scales of the states.  ``X`` (E, n_u, s) the runs' start
+    states, ``Wus`` each record's inputs of those runs (n_u, L, k), ``actives`` its
+    channels.  The free parts of every record and run are one product."""
+    ck = ("absmax", id(t), pos.tobytes())
+    A = fr._kernels.get(ck)
+    if A is None:
+        A = np.abs(t.O.reshape(t.L, t.live.size, -1)[:, pos]).max(axis=0)   # (p, s)
+        fr._keep(ck, A)
+    E, n_u, s = X.shape
+    b = (np.abs(X.reshape(E * n_u, s)) @ A.T).reshape(E, n_u, pos.size)
+    for e, (Wu, active) in enumerate(zip(Wus, actives)):
+        if active.size:
+            h1 = np.abs(fr._columns(t, active)[1][:, pos]).sum(axis=0)  # (p, k)
+            b[e] += np.abs(Wu).max(axis=1) @ h1.T                          # (n_u, p)
+    return b.max(axis=1)

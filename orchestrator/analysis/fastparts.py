@@ -4,6 +4,7 @@ powers by squaring of their maps."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -126,7 +127,7 @@ def _inner_used(G: np.ndarray, Y: np.ndarray, lo: float, hi: float) -> tuple:
     if ext.size < G.shape[0]:
         V = Y @ G[ext].T
         top_all, bottom_all = V.max(), V.min()
-        margin = 1e-9 * (hi - lo)
+        margin = 1e-9 * max([abs(v) for v in (lo, hi) if math.isfinite(v)], default=0.0)
         if top_all < hi - margin and bottom_all > lo + margin:   # False for NaN
             return float(max(top_all / hi if hi > 0 else 0.0,
                              bottom_all / lo if lo < 0 else 0.0)), -1, 0.0

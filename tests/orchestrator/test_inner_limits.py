@@ -156,7 +156,8 @@ def test_the_extreme_sub_steps_hold_every_extreme(shape):
 def test_inner_limits_from_the_extreme_sub_steps_equal_every_sub_step():
     """A limit checked on the extreme sub-steps gives the fraction used of every
     sub-step to round-off, and at the edge of the range (within 1e-9 of it) every
-    sub-step is evaluated: the same first step and value as the full evaluation."""
+    sub-step is evaluated: the same first step and value as the full evaluation; a
+    side without a limit (infinite) the same."""
     from orchestrator.analysis import fastparts
 
     rng = np.random.default_rng(3)
@@ -165,7 +166,8 @@ def test_inner_limits_from_the_extreme_sub_steps_equal_every_sub_step():
     Y = rng.standard_normal((5000, 3))
     top, bottom = (Y @ G.T).max(), (Y @ G.T).min()
     for lo, hi in ((-10.0, 10.0), (bottom * 1.5, top * 0.9), (bottom, top),
-                   (bottom * (1 - 1e-12), top * (1 + 1e-12))):
+                   (bottom * (1 - 1e-12), top * (1 + 1e-12)), (-np.inf, top * 0.9),
+                   (bottom * 1.5, np.inf), (-np.inf, np.inf)):
         got = fastparts._inner_used(G, Y, lo, hi)
         fastparts._EXTREME[id(G)] = (G, np.arange(100))   # every sub-step
         full = fastparts._inner_used(G, Y, lo, hi)

@@ -415,12 +415,17 @@ def _plain(v):
 
 def _block_key(plan, inst) -> tuple:
     """What a block depends on: its FMU file and content, the instance's name,
-    parameters, periods and start time (parameters hashed by value, arrays whole)."""
+    parameters, periods and start time (parameters hashed by value, arrays whole), and
+    the calling thread's BLAS thread count (the structure's exponential moves in its
+    last bits with it: a block built in a campaign's one-thread worker is not the one
+    the main thread builds, and a Monte Carlo sample's is compared with it bit for bit)."""
+    from ._threads import blas_thread_counts
+
     info = plan.fmus[inst.name]
     params = json.dumps(_plain(inst.parameters), sort_keys=True)
     return (info.path, info.sha256, inst.name, str(inst.period),
             plan.timebase.period_ticks[inst.name], str(plan.scenario.experiment.start),
-            hashlib.sha256(params.encode()).hexdigest())
+            hashlib.sha256(params.encode()).hexdigest(), tuple(blas_thread_counts()))
 
 
 def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:

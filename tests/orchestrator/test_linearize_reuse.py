@@ -102,3 +102,33 @@ def test_a_second_loop_shares_the_blocks_of_the_instances_it_does_not_change(
             np.testing.assert_array_equal(getattr(b, m), getattr(fresh.blocks[name], m))
         assert b.limits == fresh.blocks[name].limits
     np.testing.assert_array_equal(second.lifted(), fresh.lifted())
+
+
+def test_a_block_built_under_another_blas_thread_count_is_not_shared(fmus, monkeypatch):
+    """The structure's exponential moves in its last bits with the BLAS thread count, and
+    a Monte Carlo sample's blocks are compared with the nominal ones bit for bit: a loop
+    linearised in a worker thread with one BLAS thread (a linear campaign's case) and one
+    linearised in the calling thread share their blocks only when the two counts are the
+    same."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from orchestrator.analysis._threads import (blas_thread_counts, blas_threads_kept,
+                                                one_blas_thread)
+
+    monkeypatch.setattr(lin_scenario, "_EXTRACTED", {})
+    monkeypatch.setattr(lin_scenario, "_FOLDER", [])
+
+    def in_worker():
+        one_blas_thread()
+        return _lin(fmus), blas_thread_counts()
+
+    with blas_threads_kept(), ThreadPoolExecutor(1) as pool:   # the process's count back
+        worker, counts = pool.submit(in_worker).result()
+    here = _lin(fmus)
+    name = next(n for n, b in here.blocks.items() if b.kind == "structure")
+    assert counts == [1] * len(counts)
+    shared = here.blocks[name] is worker.blocks[name]
+    assert shared == (blas_thread_counts() == counts)
+    # either way, the same matrices to the exponential's round-off
+    np.testing.assert_allclose(here.blocks[name].A, worker.blocks[name].A, rtol=0,
+                               atol=1e-11 * np.abs(here.blocks[name].A).max())

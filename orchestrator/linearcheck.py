@@ -70,14 +70,14 @@ def _loop_key(plan, layout: str) -> str | None:
     """What the verdict of ``plan`` depends on: the scenario less its sources' parameters,
     with its FMUs' digests (``layout``); None before a run of this layout has told the
     sources."""
+    from orchestrator.analysis.scenario import loop_key
+
     sources = _SOURCES.get(layout)
     if sources is None:
         return None
     data = plan.scenario.to_dict()
-    for name in sources:
-        data["fmus"].get(name, {}).pop("parameters", None)
     data.pop("record", None)
-    return json.dumps({"scenario": data, "layout": layout}, sort_keys=True, default=str)
+    return json.dumps([loop_key(data, sources), layout])
 
 
 def linear_verdict(plan) -> tuple[str, dict | None]:

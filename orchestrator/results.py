@@ -70,17 +70,26 @@ def arrow_table(table: dict, units: dict | None = None) -> pa.Table:
         schema metadata ``units`` (JSON), for pandas and MATLAB readers alike.
     """
     units = {k: u for k, u in (units or {}).items() if k in table and u}
-    arrays = [_arrow_array(v) for v in table.values()]
+    arrays = [column_array(v) for v in table.values()]
     fields = [pa.field(k, a.type, metadata={"unit": units[k]} if k in units else None)
               for k, a in zip(table, arrays)]
     schema = pa.schema(fields, metadata={"units": json.dumps(units)} if units else None)
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
-def _arrow_array(v) -> pa.Array:
+def column_array(v) -> pa.Array:
     """A column as an Arrow array: numbers from their buffer in this machine's byte
     order (without the conversion that imports pandas, 0.17 s of a short command),
-    anything else converted."""
+    anything else converted.
+
+    Parameters
+    ----------
+    v : array_like, shape (n,)
+
+    Returns
+    -------
+    pyarrow.Array
+    """
     v = np.asarray(v)
     if v.ndim == 1 and v.dtype.kind in "fiu":
         v = np.ascontiguousarray(v, dtype=v.dtype.newbyteorder("="))

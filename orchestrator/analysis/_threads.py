@@ -27,24 +27,40 @@ from contextlib import contextmanager
 __all__ = ["blas_thread_counts", "blas_threads_kept", "map_threads", "one_blas_thread"]
 
 
+# the thread-count query under the names OpenBLAS builds export (plain, and the
+# prefixed and 64-bit-integer builds numpy and scipy ship)
+_GETTERS = ("openblas_get_num_threads", "scipy_openblas_get_num_threads64_",
+            "scipy_openblas_get_num_threads")
+
+
 @functools.cache
-def _local_setters() -> tuple:
-    """``openblas_set_num_threads_local`` of every OpenBLAS loaded in this process."""
-    out = []
+def _openblas() -> tuple:
+    """``(openblas_set_num_threads_local, its thread-count query or None)`` of every
+    OpenBLAS loaded in this process that has the setter."""
     try:
         with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:
             paths = {line.split()[-1] for line in f
                      if "openblas" in line.split()[-1].lower()}
     except OSError:
         return ()
+    out = []
     for path in sorted(paths):
         try:
-            fn = ctypes.CDLL(path).openblas_set_num_threads_local
+            lib = ctypes.CDLL(path)
+            setter = lib.openblas_set_num_threads_local
         except (OSError, AttributeError):
             continue
-        fn.argtypes, fn.restype = [ctypes.c_int], ctypes.c_int
-        out.append(fn)
+        setter.argtypes, setter.restype = [ctypes.c_int], ctypes.c_int
+        getter = next((getattr(lib, n) for n in _GETTERS if hasattr(lib, n)), None)
+        if getter is not None:
+            getter.argtypes, getter.restype = [], ctypes.c_int
+        out.append((setter, getter))
     return tuple(out)
+
+
+def _local_setters() -> tuple:
+    """``openblas_set_num_threads_local`` of every OpenBLAS loaded in this process."""
+    return tuple(setter for setter, _ in _openblas())
 
 
 def one_blas_thread() -> None:
@@ -57,6 +73,9 @@ def one_blas_thread() -> None:
 def blas_thread_counts() -> list:
     """The thread count every loaded OpenBLAS uses for the calling thread (empty where
     the call is missing)."""
+    getters = [getter for _, getter in _openblas()]
+    if None not in getters:   # read, not set: another thread may compute meanwhile
+        return [fn() for fn in getters]
     setters = _local_setters()
     counts = [fn(1) for fn in setters]   # the call returns the count it replaces
     for fn, n in zip(setters, counts):

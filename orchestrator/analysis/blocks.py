@@ -20,6 +20,8 @@ from piezofmu.actuator import inner_rows, linear_map
 from structfmu.discrete import discretize, step_matrices
 from structfmu.statespace import first_order
 
+from ._threads import blas_thread_counts
+
 
 class AnalysisError(ValueError):
     """A scenario cannot be analysed as a linear closed loop."""
@@ -398,18 +400,15 @@ def extract_resources(path: Path, res: Path) -> Path:
 _KEEP_BLOCKS = 256
 
 
-def _plain(v):
-    """A parameter value as JSON data: mappings, sequences and arrays whole."""
-    if isinstance(v, Mapping):
-        return {str(k): _plain(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
+def _json_value(v):
+    """``json.dumps``'s ``default`` for a parameter: arrays whole (their repr elides),
+    numpy numbers as numbers, a mapping as a dict, anything else by its repr."""
     if isinstance(v, np.ndarray):
         return [str(v.dtype), list(v.shape), v.tolist()]
     if isinstance(v, np.generic):
         return v.item()
-    if isinstance(v, (str, int, float, bool)) or v is None:
-        return v
+    if isinstance(v, Mapping):
+        return dict(v)
     return repr(v)
 
 
@@ -419,10 +418,8 @@ def _block_key(plan, inst) -> tuple:
     the calling thread's BLAS thread count (the structure's exponential moves in its
     last bits with it: a block built in a campaign's one-thread worker is not the one
     the main thread builds, and a Monte Carlo sample's is compared with it bit for bit)."""
-    from ._threads import blas_thread_counts
-
     info = plan.fmus[inst.name]
-    params = json.dumps(_plain(inst.parameters), sort_keys=True)
+    params = json.dumps(dict(inst.parameters), sort_keys=True, default=_json_value)
     return (info.path, info.sha256, inst.name, str(inst.period),
             plan.timebase.period_ticks[inst.name], str(plan.scenario.experiment.start),
             hashlib.sha256(params.encode()).hexdigest(), tuple(blas_thread_counts()))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import atexit
+import json
 import math
 import shutil
 import tempfile
@@ -508,6 +509,27 @@ def linearize(scenario, *, overrides=None, fmu_dir=None) -> LinearScenario:
         order.append(group[0])
     blocks = {i.name: instance_block(plan, i) for i in sc.instances}
     return LinearScenario(plan, blocks, order)
+
+
+def loop_key(data: dict, sources) -> str:
+    """A scenario's data less its sources' parameters, as one string: runs that differ
+    only there (a campaign's events) close the same loop.
+
+    Parameters
+    ----------
+    data : dict
+        The scenario as plain data (a case's scenario, ``Scenario.to_dict()``).
+    sources : sequence of str
+        The loop's source instances (``LinearScenario.sources``).
+
+    Returns
+    -------
+    str
+    """
+    data = json.loads(json.dumps(data, default=str))
+    for name in sources:
+        data["fmus"].get(name, {}).pop("parameters", None)
+    return json.dumps(data, sort_keys=True, default=str)
 
 
 # one extraction per FMU file and content in a process, shared by its instances and by

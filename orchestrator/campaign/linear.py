@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import AnalysisError, linearize
-from ..analysis.scenario import instance_block
+from ..analysis.scenario import instance_block, loop_key
 from ..analysis.fast import FastResponse
 from ..cosim import UnconnectedInputWarning, find_fmu, prepare, read_fmu_info
 from ..results import RunResult, package_versions, write_metadata, write_table
@@ -122,19 +122,13 @@ class LinearRunner:
         return self._master.output_problem(scenario, ref, recorded)
 
     # ------------------------------------------------------------------ compiled loops
-    def _config_key(self, scenario: dict, sources) -> str:
-        data = json.loads(json.dumps(scenario, default=str))
-        for name in sources:
-            data["fmus"].get(name, {}).pop("parameters", None)
-        return json.dumps(data, sort_keys=True, default=str)
-
     @_locked
     def compiled(self, scenario: dict) -> FastResponse:
         """The compiled closed loop of a case's configuration (built on first use)."""
         layout = json.dumps(sorted((n, f.get("fmu")) for n, f in scenario["fmus"].items()))
         sources = self._sources.get(layout)
         if sources is not None:
-            fr = self._compiled.get(self._config_key(scenario, sources))
+            fr = self._compiled.get(loop_key(scenario, sources))
             if fr is not None:
                 return fr
         sc = self._master._scenario(scenario)
@@ -144,7 +138,7 @@ class LinearRunner:
         # channel is built when a case first drives it (a budget's events drive 17 of
         # the EOS loop's 54 channels)
         fr = FastResponse(lin, tuple(sc.record)).prepare(channels=())
-        self._compiled[self._config_key(scenario, lin.sources)] = fr
+        self._compiled[loop_key(scenario, lin.sources)] = fr
         return fr
 
     @_locked

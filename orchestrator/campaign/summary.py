@@ -10,7 +10,7 @@ import numpy as np
 import pyarrow as pa
 
 from .. import metrics as M
-from ..results import _arrow_array, read_parquet, rows_table
+from ..results import column_array, read_parquet, rows_table
 from .cases import Campaign
 from .spec import ANGLE_UNITS, RSS_EVENT
 from .store import METRICS_FILE, case_status, write_table
@@ -112,7 +112,7 @@ def summarize(campaign: Campaign, out_dir) -> tuple[pa.Table, pa.Table]:
     summary = rows_table(rows, SUMMARY_SCHEMA)
     for name, values in _sweep_columns([r["sweep"] for r in rows]).items():
         summary = summary.append_column(pa.field(name, pa.float64()),
-                                        _arrow_array(np.asarray(values, float)))
+                                        column_array(np.asarray(values, float)))
     cases = rows_table(case_rows, _CASES_SCHEMA)
     return summary, cases
 
@@ -181,9 +181,9 @@ def write_summary(campaign: Campaign, out_dir) -> Path:
     # rows picked by index: comparing with a Python string converts it, which imports
     # pandas (0.17 s)
     is_rss = np.array([e == RSS_EVENT for e in summary.column("event").to_pylist()], bool)
-    write_table(summary.take(_arrow_array(np.flatnonzero(~is_rss))), out / "summary.csv",
+    write_table(summary.take(column_array(np.flatnonzero(~is_rss))), out / "summary.csv",
                 csv=True)
-    write_table(summary.take(_arrow_array(np.flatnonzero(is_rss))), out / BUDGET_CSV,
+    write_table(summary.take(column_array(np.flatnonzero(is_rss))), out / BUDGET_CSV,
                 csv=True)
     write_table(cases, out / "cases.parquet")
     write_table(cases, out / "cases.csv", csv=True)

@@ -63,3 +63,37 @@ def test_threaded_analyses_leave_the_process_its_bits(tmp_path, suite_fmus, suit
     assert blas_thread_counts() == counts
     after = block_zoh(K, D, 1e-3)
     assert all(np.array_equal(a, b) for a, b in zip(before, after))
+
+
+def test_thread_counts_are_read_without_setting_them(monkeypatch):
+    """The count is read with OpenBLAS's query where every loaded library has one (no
+    thread computes on a count set for a moment); where one has none, it is set and put
+    back, as before.  Fake libraries record the calls."""
+    from orchestrator.analysis import _threads
+
+    calls = []
+    state = {"a": 3, "b": 5}
+
+    def setter(name):
+        def fn(n):
+            calls.append(("set", name, n))
+            old, state[name] = state[name], n
+            return old
+        return fn
+
+    def getter(name):
+        return lambda: calls.append(("get", name)) or state[name]
+
+    libs = ((setter("a"), getter("a")), (setter("b"), getter("b")))
+    monkeypatch.setattr(_threads, "_openblas", lambda: libs)
+    assert blas_thread_counts() == [3, 5]
+    assert [c[0] for c in calls] == ["get", "get"]
+    calls.clear()
+    monkeypatch.setattr(_threads, "_openblas", lambda: (libs[0], (libs[1][0], None)))
+    assert blas_thread_counts() == [3, 5]
+    assert [c[0] for c in calls] == ["set", "set", "set", "set"] and state == {"a": 3, "b": 5}
+    # and on the loaded libraries both ways agree
+    monkeypatch.undo()
+    read, loaded = blas_thread_counts(), _threads._openblas()
+    monkeypatch.setattr(_threads, "_openblas", lambda: tuple((s, None) for s, _ in loaded))
+    assert blas_thread_counts() == read

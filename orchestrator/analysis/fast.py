@@ -42,7 +42,7 @@ import scipy.fft as sfft
 from .blocks import AnalysisError
 from .fastparts import (NonlinearError, Record, _causal_conv, _doubling, _fft_length,
                         _inner_bound, _inner_checks, _limit_bounds, _power, _powers,
-                        _relevant, _RunType, _same_pattern, _tick_map)
+                        _relevant, _run_views, _RunType, _same_pattern, _tick_map)
 from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
@@ -530,17 +530,17 @@ class FastResponse(SteadyState):
                     continue
                 pidx, win = np.asarray(idx)[part], windows[key][part]
                 n_u = len(pidx)
-                X = X0[:, pidx].reshape(E * n_u, s)
-                out = (X @ self._rows(t, sel).T).reshape(E, n_u, t.L * sel.size)  # free
+                views = _run_views(Y, win, sel.size == need.size)   # in place: no copy
+                out = np.empty((E, n_u, t.L * sel.size)) if views is None else views
+                Ot = self._rows(t, sel).T
                 for e, (Wa, active) in enumerate(zip(Was, actives)):
+                    np.matmul(X0[e, pidx], Ot, out=out[e])                         # free
                     if active.size:
                         out[e] += self._forced(t, active, Wa[win], sel)
-                rows = win.ravel()
+                if views is not None:
+                    continue
                 out = out.reshape(E, n_u * t.L, sel.size)
-                if sel.size == need.size:
-                    Y[:, rows] = out
-                else:
-                    Y[:, rows[:, None], at[t.live[sel]]] = out
+                Y[:, win.ravel()[:, None], at[t.live[sel]]] = out
         return [self._record(y, check, np.where(skip, b, np.nan), bound_inner=bound_limits)
                 for y, b in zip(Y, bounds)]
 

@@ -218,6 +218,23 @@ def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, chec
                 "(--engine cosim)")
 
 
+def _run_views(Y: np.ndarray, win: np.ndarray, whole: bool):
+    """Per record, the rows of ``Y`` (E, K, c) that the runs ``win`` (n_u, L) fill, as
+    writable views ``(E, n_u, L c)``; None unless ``whole`` (the runs fill every column)
+    and the runs start evenly spaced, at least ``L`` apart (a run type's runs do)."""
+    n_u, L = win.shape
+    step = int(win[1, 0] - win[0, 0]) if n_u > 1 else L
+    if not whole or n_u == 0 or step < L or not np.array_equal(
+            win, win[0, 0] + step * np.arange(n_u)[:, None] + np.arange(L)):
+        return None
+    E, _, c = Y.shape
+    z = Y.itemsize
+    if Y.strides != (Y.shape[1] * c * z, c * z, z):
+        return None
+    return np.lib.stride_tricks.as_strided(Y[:, win[0, 0]:], (E, n_u, L * c),
+                                           (Y.strides[0], step * c * z, z))
+
+
 def _inner_bound(G: np.ndarray, b: np.ndarray) -> float:
     """Upper bound of ``|G @ y|`` over the sub-steps from bounds ``b`` of ``|y|``."""
     return float((np.abs(G) @ b).max())
@@ -337,8 +354,12 @@ def _limit_bounds(fr, t, pos, X, Wus, actives) -> np.ndarray:
     channels.  The free parts of every record and run are one product."""
     ck = ("absmax", id(t), pos.tobytes())
     A = fr._kernels.get(ck)
-    if A is None:
-        A = np.abs(t.O.reshape(t.L, t.live.size, -1)[:, pos]).max(axis=0)   # (p, s)
+    if A is None:   # tick by tick: no temporary of the size of O (a 25 MB one stalls)
+        O = t.O.reshape(t.L, t.live.size, -1)
+        A = np.abs(O[0, pos])                                             # (p, s)
+        buf = np.empty_like(A)
+        for q in range(1, t.L):
+            np.maximum(A, np.abs(np.take(O[q], pos, axis=0, out=buf), out=buf), out=A)
         fr._keep(ck, A)
     E, n_u, s = X.shape
     b = (np.abs(X.reshape(E * n_u, s)) @ A.T).reshape(E, n_u, pos.size)

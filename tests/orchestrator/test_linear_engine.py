@@ -184,6 +184,71 @@ def test_records_computed_together_equal_each_alone(eos_pair):
 
 
 
+def test_run_views_are_the_rows_of_evenly_spaced_runs():
+    """The in-place views of a run type's rows: each record's runs, run after run, are
+    exactly ``Y[e, win]`` (written through the view, read by indexing); runs not evenly
+    spaced, or filling only some columns, get no view."""
+    from orchestrator.analysis.fastparts import _run_views
+
+    Y = np.zeros((3, 41, 4))
+    win = 1 + 10 * np.arange(4)[:, None] + np.arange(9)     # the 9-tick runs of period 10
+    views = _run_views(Y, win, True)
+    marks = np.arange(views.size, dtype=float).reshape(views.shape) + 1.0
+    views[...] = marks
+    np.testing.assert_array_equal(Y[:, win.ravel()].reshape(marks.shape), marks)
+    untouched = np.setdiff1d(np.arange(41), win.ravel())
+    assert not Y[:, untouched].any()
+    assert _run_views(Y, win, False) is None
+    assert _run_views(Y, win[[0, 1, 3]], True) is None
+    assert _run_views(Y, np.array([[0, 1, 2], [2, 3, 4]]), True) is None   # overlapping
+    assert _run_views(Y[:, :, :2], win, True) is None                     # not contiguous
+
+
+def test_records_written_in_place_equal_the_copied_ones(eos_pair, monkeypatch):
+    """run_many writes each run type's free and forced rows straight into the records;
+    the same records as through a temporary, both bit for bit on the free part's products
+    (one product per record either way) and with the rows bounded."""
+    from orchestrator.analysis import fast
+
+    fr = _isolation_on_loop(eos_pair)
+    rng = np.random.default_rng(3)
+    Ws = []
+    for cols in ([0], [3, 7, 8]):
+        W = np.zeros((451, fr.m))
+        W[:, cols] = rng.standard_normal((451, len(cols)))
+        Ws.append(W)
+    runs = {}
+    for name, views in (("in place", fast._run_views), ("copied", lambda *a: None)):
+        monkeypatch.setattr(fast, "_run_views", views)
+        runs[name] = fr.run_many(Ws, check=False, bound_limits=True, start=120)
+    for got, want in zip(runs["in place"], runs["copied"]):
+        np.testing.assert_array_equal(got.values, want.values)
+        assert got.limits == want.limits and got.reached == want.reached
+
+
+def test_limit_bounds_equal_their_formula(eos_pair):
+    """The bounds of the checked rows (their row Krylov products' largest magnitudes,
+    taken tick by tick) equal ``sum_j max_q |(C M^q)_ij| |x_0j| + sum_c (sum_p |h_p|_ic)
+    max_l |w_lc|`` written out whole."""
+    from orchestrator.analysis.fastparts import _limit_bounds
+
+    fr = _isolation_on_loop(eos_pair)
+    t = fr._type(*fr._runs[-1])
+    pos = np.flatnonzero(t.live >= len(fr._computed))
+    rng = np.random.default_rng(8)
+    X = rng.standard_normal((2, 5, fr.n_memory))
+    active = np.array([3, 7])
+    Wus = [rng.standard_normal((5, t.L, active.size)) for _ in range(2)]
+    fr._kernels.clear()
+    got = _limit_bounds(fr, t, pos, X, Wus, [active, active[:0]])
+    A = np.abs(t.O.reshape(t.L, t.live.size, -1)[:, pos]).max(axis=0)
+    h1 = np.abs(fr._columns(t, active)[1][:, pos]).sum(axis=0)
+    want = np.abs(X) @ A.T
+    want[0] += np.abs(Wus[0]).max(axis=1) @ h1.T
+    np.testing.assert_array_equal(fr._kernels[("absmax", id(t), pos.tobytes())], A)
+    np.testing.assert_allclose(got, want.max(axis=1), rtol=1e-14, atol=0)   # sums' order
+
+
 def test_forced_response_by_toeplitz_product_equals_fft(eos_pair, monkeypatch):
     """The two ways of a run's Markov convolution (the kept block-Toeplitz product, the
     FFT) on the EOS loop's 99-tick run: equal to the round-off of an FFT (about 1e-15 of

@@ -491,8 +491,7 @@ class FastResponse(SteadyState):
         # checked outputs that are not recorded, bounded instead of computed where the
         # bound keeps them inside their range
         n_ref = len(self._computed)
-        bounds = np.zeros((E, r))
-        skip = np.zeros(r, bool)
+        bounds, skip = np.zeros((E, r)), np.zeros(r, bool)
         if bound_limits and r > n_ref:
             for key, idx in by_type.items():
                 t = types[key]
@@ -517,8 +516,7 @@ class FastResponse(SteadyState):
         at = np.cumsum(~skip) - 1           # the column of each computed row
         Y = np.zeros((E, K, need.size))
         checked = np.zeros(r, bool)
-        checked[self._check_col] = True
-        checked[self._inner_cols] = True
+        checked[self._check_col] = checked[self._inner_cols] = True
         if start > 0:   # a reference no limit checks is not needed before start
             Y[:, :start, at[np.flatnonzero(~checked[:n_ref])]] = np.nan
         for key, idx in by_type.items():
@@ -553,7 +551,7 @@ class FastResponse(SteadyState):
         K = Y.shape[0]
         times = self.times(K - 1)
         n_ref = len(self._computed)
-        limits, reached = {}, []
+        limits, reached, bounded = {}, [], []
         cols = np.asarray(self._check_col, int)
         at = None   # the column of Y holding each computed row
         if bounds is not None:   # the rows a bound stands for were not computed
@@ -568,6 +566,7 @@ class FastResponse(SteadyState):
             c = self._check_col[j]
             if bounds is not None and not np.isnan(bounds[c]):
                 limits[ref] = float(bounds[c] / min(hi, -lo))
+                bounded.append(ref)
                 continue
             used = max(top[c] / hi if hi > 0 else 0.0, bottom[c] / lo if lo < 0 else 0.0)
             limits[ref] = float(used)
@@ -581,13 +580,15 @@ class FastResponse(SteadyState):
                     f"{ref} reaches its {what} ({y[bad]:.4g} outside [{lo:.4g}, {hi:.4g}]) "
                     f"at t = {times[bad]:.6g} s, where the FMU leaves the linear model: "
                     "run this case with the co-simulation (--engine cosim)")
-        _inner_checks(self._inner, Y, at, bounds, limits, reached, times, check, bound_inner)
+        _inner_checks(self._inner, Y, at, bounds, limits, reached, times, check, bound_inner,
+                      bounded)
         if self._zero:
             values = np.zeros((K, len(self.refs)))
             values[:, self._computed] = Y[:, :n_ref]
         else:
             values = np.ascontiguousarray(Y[:, :n_ref])
-        return Record(values, times, self.refs, limits, tuple(reached))
+        return Record(values, times, self.refs, limits, tuple(reached),
+                      tuple(dict.fromkeys(bounded)))
 
     def ref_rows(self, refs) -> np.ndarray:
         """Rows of the computed outputs (``Y`` columns) holding ``refs``."""

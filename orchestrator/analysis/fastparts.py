@@ -56,6 +56,10 @@ class Record:
         rail).
     reached : tuple of str
         The checked outputs that left their range (a record run with ``check=False``).
+    bounded : tuple of str
+        The checked outputs (and limits inside steps) whose ``limits`` entry is an upper
+        bound of the fraction used, not the fraction itself: a bound kept them inside
+        their range, so they were not computed (``run_many(..., bound_limits=True)``).
     """
 
     values: np.ndarray
@@ -63,6 +67,7 @@ class Record:
     refs: tuple
     limits: dict
     reached: tuple = ()
+    bounded: tuple = ()
 
     def __iter__(self):
         return iter((self.values, self.times))
@@ -185,23 +190,27 @@ def _extreme_rows(G: np.ndarray) -> np.ndarray:
 
 
 def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, check: bool,
-                  bound: bool = False):
+                  bound: bool = False, bounded=None):
     """The limits inside a step of a record's rows ``Y`` (see `FastResponse._record`):
     ``limits`` and ``reached`` updated; with ``check``, the first one reached raises
     :class:`NonlinearError`.  The step of a block due at tick ``k`` starts from its state
     after tick ``k - 1`` (at rest before tick 0) with its inputs held from tick ``k``.
     With ``bound``, a limit that the rows' largest values keep inside its range
     (:func:`_inner_bound`, every sub-step of every step at once) is not evaluated sub-step
-    by sub-step: ``limits`` holds that bound, an upper bound of the fraction used."""
+    by sub-step: ``limits`` holds that bound, an upper bound of the fraction used, and
+    its name is appended to ``bounded`` (a list, when given)."""
+    bounded = [] if bounded is None else bounded
     for ref, G, lo, hi, what, c, nx, period in inner:
         if bounds is not None and not np.isnan(bounds[c]).any():   # bounded, not computed
             limits[ref] = max(limits[ref], _inner_bound(G, bounds[c]) / min(hi, -lo))
+            bounded.append(ref)
             continue
         Yc = Y[:, c if at is None else at[c]]
         if bound and hi > 0 and lo < 0:   # the start states are rows of Yc too
             b = _inner_bound(G, np.abs(Yc).max(axis=0))
             if b * (1.0 + 1e-6) < min(hi, -lo):   # NaN or inf: not cleared
                 limits[ref] = max(limits.get(ref, 0.0), b / min(hi, -lo))
+                bounded.append(ref)
                 continue
         start = np.vstack([np.zeros((1, nx)), Yc[:-1, :nx]])
         used, k, v = _inner_used(G, np.hstack([start, Yc[:, nx:]])[::period], lo, hi)

@@ -291,6 +291,9 @@ class LinearRunner:
     def record(self, scenario: dict):
         """A case's record and the output stride of its table.
 
+        A checked output that is not recorded is bounded where that keeps it inside its
+        range; its ``limits`` entry is then that bound (``Record.bounded`` names them).
+
         Raises
         ------
         AnalysisError
@@ -299,7 +302,10 @@ class LinearRunner:
             a rail or limit.
         """
         fr = self.compiled(scenario)
-        return fr.run(self.inputs(fr, scenario)), fr.lin.plan.timebase.output_ticks
+        # a checked output that is not recorded is computed only where a rigorous bound
+        # does not keep it inside its range: whether a rail is reached stays exact
+        rec = fr.run_many([self.inputs(fr, scenario)], check=True, bound_limits=True)[0]
+        return rec, fr.lin.plan.timebase.output_ticks
 
     def __call__(self, scenario: dict, out_dir) -> RunResult:
         """Run a case's scenario into ``out_dir`` (``results.parquet``, ``run.json``).
@@ -316,9 +322,12 @@ class LinearRunner:
         for j, ref in enumerate(rec.refs):
             table[ref] = rec.values[::every, j].copy()
         write_table(table, out / RESULTS_FILE)
+        # the fraction of each range used, and for what a bound cleared, that bound
+        used = {k: v for k, v in rec.limits.items() if k not in rec.bounded}
+        bound = {k: v for k, v in rec.limits.items() if k in rec.bounded}
         meta = {"status": "ok", "engine": "linear", "rows": len(table["time"]),
-                "limits_used": rec.limits, "wall_s": time.perf_counter() - wall,
-                "versions": package_versions()}
+                "limits_used": used, "limits_bound": bound,
+                "wall_s": time.perf_counter() - wall, "versions": package_versions()}
         write_metadata(meta, out / "run.json")
         return RunResult(table, meta, out)
 

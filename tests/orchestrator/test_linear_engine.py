@@ -108,6 +108,28 @@ def test_linear_record_equals_cosimulated_record(eos_pair, eos_fmus):
         assert np.max(np.abs(x - y)) <= 1e-9 * scale, name
 
 
+def test_a_linear_case_names_the_limits_a_bound_cleared(eos_pair, eos_fmus):
+    """A linear case computes a checked output that it does not record only where a
+    bound does not clear it: ``run.json`` gives the exact fraction of each range used
+    for the others (``limits_used``) and that bound for these (``limits_bound``, at or
+    above the exact fraction of the whole record), every checked output in one of the
+    two."""
+    camp, out, *_ = eos_pair
+    runner = LinearRunner(camp.scenario_dir, eos_fmus)
+    case = next(c for c in keyed(camp, runner).cases
+                if c.event == "SWIR pointing" and c.configuration == "isolation on")
+    meta = json.loads((out / "linear" / "cases" / case.key / "run.json").read_text())
+    used, bound = meta["limits_used"], meta["limits_bound"]
+    fr = runner.compiled(case.scenario)
+    exact = fr.run(runner.inputs(fr, case.scenario), check=False).limits
+    assert set(used) | set(bound) == set(exact) and not set(used) & set(bound)
+    assert bound, "the isolation-on loop's piezo limits are cleared by their bounds"
+    for ref, value in used.items():
+        assert value == pytest.approx(exact[ref], rel=1e-12, abs=1e-15), ref
+    for ref, value in bound.items():
+        assert value >= exact[ref] * (1 - 1e-12), ref
+
+
 def _isolation_on_loop(eos_pair):
     """The compiled loop of the short EOS campaign with isolation on."""
     runner = eos_pair[-1]

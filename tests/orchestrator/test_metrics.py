@@ -343,3 +343,20 @@ def test_compiled_window_range_against_the_definition_and_the_filters(monkeypatc
     monkeypatch.setattr(_window, "_library", lambda: None)
     np.testing.assert_array_equal(peak_to_peak(x, dt, window),
                                   peak_to_peak_series(x, dt, window).max(axis=-1))
+
+
+def test_a_campaign_command_starts_without_scipy_ndimage():
+    """The running extremes' fallback (scipy.ndimage, 50 ms to import) is imported where
+    it is used: the campaign and the command line load without it, and the windowed
+    range it gives equals the brute force."""
+    import subprocess
+    import sys
+
+    code = ("import sys, orchestrator.cli, orchestrator.campaign, orchestrator.metrics; "
+            "print('scipy.ndimage' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
+    x = np.random.default_rng(4).standard_normal(50)
+    want = sliding_window_view(x, 7).max(axis=1) - sliding_window_view(x, 7).min(axis=1)
+    np.testing.assert_array_equal(M.peak_to_peak_series(x, 1.0, 6.0), want)

@@ -40,9 +40,9 @@ import numpy as np
 import scipy.fft as sfft
 
 from .blocks import AnalysisError
-from .fastparts import (NonlinearError, Record, _causal_conv, _doubling, _fft_length,
-                        _inner_bound, _inner_checks, _limit_bounds, _power, _powers,
-                        _relevant, _run_views, _RunType, _same_pattern, _tick_map)
+from .fastparts import (NonlinearError, Record, _add_forced, _causal_conv, _doubling,
+                        _fft_length, _inner_bound, _inner_checks, _limit_bounds, _power,
+                        _powers, _relevant, _run_views, _RunType, _same_pattern, _tick_map)
 from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
@@ -534,7 +534,7 @@ class FastResponse(SteadyState):
                 for e, (Wa, active) in enumerate(zip(Was, actives)):
                     np.matmul(X0[e, pidx], Ot, out=out[e])                         # free
                     if active.size:
-                        out[e] += self._forced(t, active, Wa[win], sel)
+                        _add_forced(out[e], Wa[win], self._forced, t, active, sel)
                 if views is not None:
                     continue
                 out = out.reshape(E, n_u * t.L, sel.size)

@@ -227,6 +227,18 @@ def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, chec
                 "(--engine cosim)")
 
 
+def _add_forced(out: np.ndarray, Wu: np.ndarray, forced, t, active, sel) -> None:
+    """``out += forced(t, active, Wu, sel)`` (see `FastResponse._forced`) for the runs
+    whose inputs ``Wu`` (n_u, L, k) are not all zero: the others' forced response is
+    zero, and an event's source is quiet in most runs of a record (467 of the EOS
+    budget's 840 late runs carry input)."""
+    live = np.flatnonzero(Wu.reshape(Wu.shape[0], -1).any(axis=1))
+    if live.size == Wu.shape[0]:
+        out += forced(t, active, Wu, sel)
+    elif live.size:
+        out[live] += forced(t, active, Wu[live], sel)
+
+
 def _run_views(Y: np.ndarray, win: np.ndarray, whole: bool):
     """Per record, the rows of ``Y`` (E, K, c) that the runs ``win`` (n_u, L) fill, as
     writable views ``(E, n_u, L c)``; None unless ``whole`` (the runs fill every column)

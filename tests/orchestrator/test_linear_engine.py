@@ -248,6 +248,40 @@ def test_records_written_in_place_equal_the_copied_ones(eos_pair, monkeypatch):
         assert got.limits == want.limits and got.reached == want.reached
 
 
+def test_runs_without_input_skip_their_forced_part(eos_pair, monkeypatch):
+    """A source quiet in most runs (a pulse at 0.15 s, a burst from 0.33 s, one record at
+    rest): the forced parts of the runs with input alone give the records of every run's
+    forced part, bit for bit, and only those runs are transformed."""
+    from orchestrator.analysis import fast
+
+    fr = _isolation_on_loop(eos_pair)
+    rng = np.random.default_rng(6)
+    W = np.zeros((451, fr.m))
+    W[150, 3] = 1.0
+    W[330:360, [7, 8]] = rng.standard_normal((30, 2))
+    Ws = [W, np.zeros_like(W)]
+    seen = []
+
+    def every(out, Wu, forced, t, active, sel):
+        out += forced(t, active, Wu, sel)
+
+    def counted(t, active, Wu, sel):
+        seen.append(Wu.shape[0])
+        return forced(t, active, Wu, sel)
+
+    forced = fr._forced
+    monkeypatch.setattr(fr, "_forced", counted)
+    got = fr.run_many(Ws, check=False, bound_limits=True, start=120)
+    runs_with_input = sum(seen)
+    monkeypatch.setattr(fast, "_add_forced", every)
+    seen.clear()
+    want = fr.run_many(Ws, check=False, bound_limits=True, start=120)
+    assert runs_with_input < sum(seen)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a.values, b.values)
+        assert a.limits == b.limits and a.reached == b.reached
+
+
 def test_limit_bounds_equal_their_formula(eos_pair):
     """The bounds of the checked rows (their row Krylov products' largest magnitudes,
     taken tick by tick) equal ``sum_j max_q |(C M^q)_ij| |x_0j| + sum_c (sum_p |h_p|_ic)

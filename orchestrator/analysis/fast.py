@@ -508,8 +508,8 @@ class FastResponse(SteadyState):
             skip = np.all(bounds * (1.0 + 1e-6) < room, axis=0)
             skip[self._inner_cols] = True   # a block's sub-steps: all its limits cleared
             for _, G, lo, hi, _, cols, _, _ in self._inner:
-                skip[cols] &= hi > 0 and lo < 0 and all(
-                    _inner_bound(G, b[cols]) * (1.0 + 1e-6) < min(hi, -lo) for b in bounds)
+                skip[cols] &= hi > 0 and lo < 0 and bool(np.all(   # every record at once
+                    _inner_bound(G, bounds[:, cols].T) * (1.0 + 1e-6) < min(hi, -lo)))
         # outputs: C M^q x_0 + (h * w), per run type
         # Y holds the computed rows alone (a bounded row is not), in row order
         need = np.flatnonzero(~skip)

@@ -256,9 +256,12 @@ def _run_views(Y: np.ndarray, win: np.ndarray, whole: bool):
                                            (Y.strides[0], step * c * z, z))
 
 
-def _inner_bound(G: np.ndarray, b: np.ndarray) -> float:
-    """Upper bound of ``|G @ y|`` over the sub-steps from bounds ``b`` of ``|y|``."""
-    return float((np.abs(G) @ b).max())
+def _inner_bound(G: np.ndarray, b: np.ndarray):
+    """Upper bound of ``|G @ y|`` over the sub-steps from bounds ``b`` of ``|y|``: a
+    float, or one per column of ``b`` (n, E) (every record at once)."""
+    if b.ndim == 1:
+        return float((np.abs(G) @ b).max())
+    return (np.abs(G) @ b).max(axis=0)
 
 
 def _causal_conv(Hf: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -174,3 +174,19 @@ def test_inner_limits_from_the_extreme_sub_steps_equal_every_sub_step():
         fastparts._EXTREME.pop(id(G))
         assert got[1:] == full[1:]
         assert abs(got[0] - full[0]) <= 1e-14 * abs(full[0])
+
+
+def test_an_inner_bound_of_every_record_at_once_is_each_records():
+    """The bound of a limit inside a step for several records' state bounds at once (one
+    product) is the bound of each record's alone, and above every sub-step's value."""
+    from orchestrator.analysis.fastparts import _inner_bound
+
+    rng = np.random.default_rng(12)
+    G = rng.standard_normal((100, 5))
+    B = np.abs(rng.standard_normal((5, 7)))
+    got = _inner_bound(G, B)
+    want = np.array([_inner_bound(G, b) for b in B.T])
+    np.testing.assert_allclose(got, want, rtol=1e-15, atol=0)
+    for e in range(B.shape[1]):   # states inside their bounds: every sub-step below
+        y = B[:, e] * rng.uniform(-1.0, 1.0, (1000, 5))
+        assert np.abs(y @ G.T).max() <= got[e]

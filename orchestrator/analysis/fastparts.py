@@ -190,7 +190,7 @@ def _extreme_rows(G: np.ndarray) -> np.ndarray:
 
 
 def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, check: bool,
-                  bound: bool = False, bounded=None):
+                  bound: bool, bounded: list):
     """The limits inside a step of a record's rows ``Y`` (see `FastResponse._record`):
     ``limits`` and ``reached`` updated; with ``check``, the first one reached raises
     :class:`NonlinearError`.  The step of a block due at tick ``k`` starts from its state
@@ -198,8 +198,7 @@ def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, chec
     With ``bound``, a limit that the rows' largest values keep inside its range
     (:func:`_inner_bound`, every sub-step of every step at once) is not evaluated sub-step
     by sub-step: ``limits`` holds that bound, an upper bound of the fraction used, and
-    its name is appended to ``bounded`` (a list, when given)."""
-    bounded = [] if bounded is None else bounded
+    its name is appended to ``bounded``."""
     for ref, G, lo, hi, what, c, nx, period in inner:
         if bounds is not None and not np.isnan(bounds[c]).any():   # bounded, not computed
             limits[ref] = max(limits[ref], _inner_bound(G, bounds[c]) / min(hi, -lo))
@@ -257,10 +256,8 @@ def _run_views(Y: np.ndarray, win: np.ndarray, whole: bool):
 
 
 def _inner_bound(G: np.ndarray, b: np.ndarray):
-    """Upper bound of ``|G @ y|`` over the sub-steps from bounds ``b`` of ``|y|``: a
-    float, or one per column of ``b`` (n, E) (every record at once)."""
-    if b.ndim == 1:
-        return float((np.abs(G) @ b).max())
+    """Upper bound of ``|G @ y|`` over the sub-steps from bounds ``b`` of ``|y|``: one
+    number for ``b`` (n,), one per column for ``b`` (n, E) (every record at once)."""
     return (np.abs(G) @ b).max(axis=0)
 
 

@@ -10,14 +10,17 @@ co-simulation uses ``--workers`` processes; the linear engine runs in this proce
 time is split into the closing of the two configurations' loops (``linearize`` and
 compiling the runs, once per configuration: the "model build") and the 24 cases
 themselves (every case's record, metrics, files and summary), ``--repeat`` times on a
-fresh runner each (the median printed, and the range).  Every summary cell of the two is
-compared, for every linear run.
+fresh runner each (the median printed, and the range).  The build is timed twice in each
+repeat: with the store of built blocks off (every block from its FMU) and on, filled by
+an earlier build (:mod:`orchestrator.analysis.blockstore`, what a second command on the
+same FMUs finds).  Every summary cell of the two is compared, for every linear run.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -57,20 +60,30 @@ def main(argv=None) -> int:
                           workers=args.workers, progress=False)
         t_co = time.perf_counter() - t0
 
-        builds, cases, worst = [], [], 0.0
+        builds, stored, cases, worst = [], [], [], 0.0
         a = _summary(tmp / "cosim")
-        for i in range(max(1, args.repeat)):
-            # a cold build each time: nothing this process kept from the previous repeat
-            # (its FMU extractions and blocks, its loops' stability verdicts)
+        configs = {c.configuration: c for c in camp.cases}
+
+        def build(store: str):
+            # nothing this process kept from the previous build (its FMU extractions and
+            # blocks, its loops' stability verdicts); the store of built blocks off
+            # (every block from its FMU) or on (blocks an earlier process kept)
+            os.environ["JITTERFMU_BLOCK_CACHE"] = store
             lin_scenario._EXTRACTED.clear()
             linearcheck._VERDICTS.clear()
             linearcheck._SOURCES.clear()
             runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
             t0 = time.perf_counter()
-            configs = {c.configuration: c for c in camp.cases}
             for case in configs.values():   # the model build: one closed loop each
                 runner.compiled(case.scenario)
-            builds.append(time.perf_counter() - t0)
+            return runner, time.perf_counter() - t0
+
+        build("on")   # the store filled, as by an earlier command on these FMUs
+        for i in range(max(1, args.repeat)):
+            runner, t = build("off")
+            builds.append(t)
+            runner, t = build("on")
+            stored.append(t)
             t0 = time.perf_counter()
             li = run_campaign(dataclasses.replace(camp, engine="linear"), tmp / f"linear{i}",
                               runner, progress=False)
@@ -78,6 +91,7 @@ def main(argv=None) -> int:
             b = _summary(tmp / f"linear{i}")
             worst = max(worst, max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k]))
         t_build, t_li = float(np.median(builds)), float(np.median(cases))
+        t_stored = float(np.median(stored))
         fr = next(iter(runner._compiled.values()))
         mem = sum(t.O.nbytes + t.ML.nbytes + sum(P.nbytes for P in t.powers)
                   + sum(g.nbytes + h.nbytes for g, h in t.cols.values())
@@ -89,12 +103,15 @@ def main(argv=None) -> int:
     print(f"{f'co-simulation, {args.workers} workers':<44}{t_co:>10.2f}{1e3 * t_co / n:>15.1f}")
     print(f"{'linear: closing 2 configurations (build)':<44}{t_build:>10.2f}"
           f"{'':>15}  {_spread(builds)}")
+    print(f"{'  the same, blocks read from the store':<44}{t_stored:>10.2f}"
+          f"{'':>15}  {_spread(stored)}")
     print(f"{'linear: the 24 cases (records, metrics, files)':<44}{t_li:>10.2f}"
           f"{1e3 * t_li / n:>15.1f}  {_spread(cases)}")
     print(f"{'linear: total':<44}{t_build + t_li:>10.2f}")
     print(f"(linear rows: the median of {len(cases)} runs on fresh runners)")
     print(f"speed-up of the cases: {t_co / t_li:.0f}x, with the build: "
-          f"{t_co / (t_build + t_li):.1f}x")
+          f"{t_co / (t_build + t_li):.1f}x, with the build from stored blocks: "
+          f"{t_co / (t_stored + t_li):.1f}x")
     print(f"largest relative difference of a summary cell: {worst:.1e} "
           f"({len(a)} cells)")
     print(f"memory state {fr.n_memory} of {fr.lin.n}; run matrices of one configuration: "

@@ -425,7 +425,16 @@ def _block_key(plan, inst) -> tuple:
             hashlib.sha256(params.encode()).hexdigest(), tuple(blas_thread_counts()))
 
 
-def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:
+def _disk_key(plan, inst) -> str:
+    """The block's entry in the store of built blocks (:mod:`.blockstore`): what
+    :func:`_block_key` names, with the FMU's digest and not its path."""
+    from . import blockstore
+
+    return blockstore.entry_key(_block_key(plan, inst)[1:])
+
+
+def _instance_block(plan, inst, tmp: Path, extracted=None, live=None,
+                    keep: bool = True) -> Block:
     """The block of one instance, its FMU's resources extracted under ``tmp``.
 
     ``extracted`` (a dict) caches ``(FMU path, SHA-256) -> (resources folder, slave
@@ -435,14 +444,24 @@ def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:
     structure's discretisation, the amplifiers' and controllers' models), and those are
     built once.  Blocks are frozen and their matrices never written, so sharing them is
     safe; a source's block keeps its slave for its series and is built each time.
+    With ``live`` (``live() -> Block``, the block built again, nothing kept), blocks
+    are also read from and written to the store of built blocks of other processes
+    (:mod:`.blockstore`); ``live`` is a kept controller's ``rebuild``.  With ``keep``
+    false no block is read or kept (the extractions still are).
     """
     info = plan.fmus[inst.name]
     path = info.path  # the Python twin where there is one (fmu_kind = "python")
     bkey = blocks = None
-    if extracted is not None:
+    if extracted is not None and keep:
         blocks = extracted.setdefault("blocks", {})
         bkey = _block_key(plan, inst)
         got = blocks.get(bkey)
+        if got is None and live is not None:
+            from . import blockstore
+
+            got = blockstore.load(_disk_key(plan, inst), live)
+            if got is not None:
+                blocks[bkey] = got
         if got is not None:
             return got
     key = (path, info.sha256)
@@ -471,6 +490,10 @@ def _instance_block(plan, inst, tmp: Path, extracted=None) -> Block:
         if len(blocks) >= _KEEP_BLOCKS:
             blocks.clear()
         blocks[bkey] = block
+        if live is not None:
+            from . import blockstore
+
+            blockstore.save(_disk_key(plan, inst), block)
     return block
 
 

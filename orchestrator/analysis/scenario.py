@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import atexit
+import functools
 import json
 import math
 import shutil
@@ -557,7 +558,15 @@ def instance_block(plan, inst):
         As :func:`~orchestrator.analysis.blocks._instance_block`.
     """
     with _EXTRACTING:   # threads linearising at once share the index and its folder
-        return _instance_block(plan, inst, *_extractions())
+        return _instance_block(plan, inst, *_extractions(),
+                               live=functools.partial(_live_block, plan, inst))
+
+
+def _live_block(plan, inst):
+    """The block of one instance built from its FMU (nothing read from or kept in the
+    process's or the store's blocks): a kept controller's ``rebuild`` on first use."""
+    with _EXTRACTING:
+        return _instance_block(plan, inst, *_extractions(), keep=False)
 
 
 def _extractions() -> tuple:

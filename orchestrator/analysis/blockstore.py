@@ -11,8 +11,8 @@ same FMUs build each once on a machine.
 * **Key**: the FMU file's SHA-256 (not its path), the instance's name, parameters,
   periods and start time, the calling thread's BLAS thread count (as in the process),
   and the digest of the code that builds a block (this package's ``blocks`` module, the
-  FMUs' packages ``structfmu``, ``piezofmu``, ``ctrlfmu``, ``acsfmu``, ``fmutools``), the
-  numpy and scipy versions and the machine.  Any change to one of them is another entry.
+  FMUs' packages ``structfmu``, ``piezofmu``, ``ctrlfmu``, ``acsfmu``, ``fmutools``,
+  ``fmukit``), the numpy, scipy and pythonfmu versions and the machine.  Any change to one of them is another entry.
 * **Data, never code**: an entry is one ``.npz`` read with ``allow_pickle=False`` (the
   arrays and one JSON header), used only if it is a regular file of the current user
   that others cannot write, in the private cache (:func:`fmutools.fmucache.cache_root`,
@@ -50,7 +50,7 @@ _MAX_ENTRIES = 512
 #: Reads and writes of this process: ``hit``, ``miss``, ``written``, ``refused``.
 STATS = {"hit": 0, "miss": 0, "written": 0, "refused": 0}
 _LOCK = threading.Lock()
-_PACKAGES = ("structfmu", "piezofmu", "ctrlfmu", "acsfmu", "fmutools")
+_PACKAGES = ("structfmu", "piezofmu", "ctrlfmu", "acsfmu", "fmutools", "fmukit")
 
 
 def enabled() -> bool:
@@ -62,19 +62,25 @@ def enabled() -> bool:
 
 @functools.cache
 def code_digest() -> str:
-    """SHA-256 of the code a block is built by, the numpy and scipy versions and the
-    machine (read once per process)."""
-    import importlib
+    """SHA-256 of the code a block is built by, the numpy, scipy and pythonfmu versions
+    and the machine (read once per process)."""
+    import importlib.util
+    from importlib.metadata import PackageNotFoundError, version
+
     import scipy
 
     h = hashlib.sha256()
     files = [Path(__file__).with_name("blocks.py")]
     for pkg in _PACKAGES:
-        root = Path(importlib.import_module(pkg).__file__).parent
+        root = Path(importlib.util.find_spec(pkg).origin).parent   # found, not imported
         files += sorted(root.rglob("*.py"))
     for f in files:
         h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
-    h.update(json.dumps([np.__version__, scipy.__version__, platform.machine(),
+    try:
+        fmu_version = version("pythonfmu")
+    except PackageNotFoundError:
+        fmu_version = ""
+    h.update(json.dumps([np.__version__, scipy.__version__, fmu_version, platform.machine(),
                          platform.node(), os.environ.get("OPENBLAS_CORETYPE", "")]).encode())
     return h.hexdigest()
 

@@ -459,9 +459,9 @@ def _instance_block(plan, inst, tmp: Path, extracted=None, live=None,
         if got is None and live is not None:
             from . import blockstore
 
-            got = blockstore.load(_disk_key(plan, inst), live)
-            if got is not None:
-                blocks[bkey] = got
+            fields = blockstore.load(_disk_key(plan, inst), live)
+            if fields is not None:
+                got = blocks[bkey] = Block(**fields)
         if got is not None:
             return got
     key = (path, info.sha256)

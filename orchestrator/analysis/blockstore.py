@@ -160,12 +160,11 @@ def _pack(block) -> tuple[dict, dict]:
     return arrays, header
 
 
-def _unpack(arrays: dict, header: dict, rebuild):
-    """The block of an entry's arrays and header (raises on anything malformed)."""
+def _unpack(arrays: dict, header: dict, rebuild) -> dict:
+    """The block's fields from an entry's arrays and header (raises on anything
+    malformed)."""
     from structfmu.reduced import ReducedModel
     from structfmu.sensors import SensorLowpass
-
-    from .blocks import Block
 
     cont = header["continuous"]
     if cont is not None:
@@ -182,17 +181,18 @@ def _unpack(arrays: dict, header: dict, rebuild):
             input_names=tuple(m["input_names"]), output_names=tuple(m["output_names"]),
             output_kinds=tuple(m["output_kinds"]), name=m["name"], meta=m["meta"],
             accel_lowpass=SensorLowpass(*m["accel_lowpass"]) if m["accel_lowpass"] else None)
-    return Block(str(header["name"]), str(header["kind"]), int(header["period"]),
-                 arrays["A"], arrays["B"], arrays["C"], arrays["D"],
-                 tuple(map(str, header["inputs"])), tuple(map(str, header["outputs"])),
-                 arrays["feedthrough"].astype(bool),
-                 rebuild=rebuild if header["kind"] == "controller" else None,
-                 active=bool(header["active"]), continuous=cont,
-                 limits=tuple((str(o), float(lo), float(hi), str(w))
-                              for o, lo, hi, w in header["limits"]),
-                 unmodelled=tuple(map(str, header["unmodelled"])),
-                 flags=tuple(map(str, header["flags"])), model=model,
-                 t_on=float(header["t_on"]), inner=inner)
+    return dict(name=str(header["name"]), kind=str(header["kind"]),
+                period=int(header["period"]), A=arrays["A"], B=arrays["B"], C=arrays["C"],
+                D=arrays["D"], inputs=tuple(map(str, header["inputs"])),
+                outputs=tuple(map(str, header["outputs"])),
+                feedthrough=arrays["feedthrough"].astype(bool),
+                rebuild=rebuild if header["kind"] == "controller" else None,
+                active=bool(header["active"]), continuous=cont,
+                limits=tuple((str(o), float(lo), float(hi), str(w))
+                             for o, lo, hi, w in header["limits"]),
+                unmodelled=tuple(map(str, header["unmodelled"])),
+                flags=tuple(map(str, header["flags"])), model=model,
+                t_on=float(header["t_on"]), inner=inner)
 
 
 class _LiveRebuild:
@@ -208,8 +208,9 @@ class _LiveRebuild:
         return self._block.rebuild(factor)
 
 
-def load(key: str, live):
-    """The kept block of entry ``key``, or None (off, missing, not ours, malformed).
+def load(key: str, live) -> dict | None:
+    """The fields of the kept block of entry ``key`` (``Block(**fields)``), or None
+    (off, missing, not ours, malformed).
 
     Parameters
     ----------
@@ -221,7 +222,7 @@ def load(key: str, live):
 
     Returns
     -------
-    Block or None
+    dict or None
     """
     from fmutools.compiled import is_own_file
 
@@ -241,7 +242,7 @@ def load(key: str, live):
         if header.get("format") != _FORMAT or header.get("version") != _VERSION \
                 or header.get("arrays") != _arrays_digest(arrays):
             raise ValueError("another format, or arrays that are not the ones written")
-        block = _unpack(arrays, header, _LiveRebuild(live))
+        fields = _unpack(arrays, header, _LiveRebuild(live))
     except (OSError, ValueError, KeyError, TypeError, IndexError, zipfile.BadZipFile):
         STATS["refused"] += 1
         return None
@@ -250,7 +251,7 @@ def load(key: str, live):
         os.utime(path)   # recently used: the last to go when the store is trimmed
     except OSError:
         pass
-    return block
+    return fields
 
 
 def save(key: str, block) -> bool:

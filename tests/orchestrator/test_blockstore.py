@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from orchestrator.analysis import blockstore
+from orchestrator.analysis._threads import blas_threads_kept, one_blas_thread
 from orchestrator.analysis.blocks import _disk_key
 from orchestrator.analysis import scenario as lin_scenario
 from orchestrator.analysis.scenario import linearize
@@ -114,10 +115,15 @@ def test_a_loop_of_another_process_reads_its_blocks_and_they_are_the_built_ones(
 
 
 def test_a_new_process_reads_the_store_and_closes_the_same_loop(fmus, store, tmp_path):
-    first = _lin(fmus)
+    # both processes on one BLAS thread (the count is a part of the key)
+    with blas_threads_kept():
+        one_blas_thread()
+        first = _lin(fmus)
     code = ("import json, sys, warnings, numpy as np\n"
             "from orchestrator.analysis import blockstore, linearize\n"
+            "from orchestrator.analysis._threads import one_blas_thread\n"
             "warnings.simplefilter('ignore')\n"
+            "one_blas_thread()\n"
             f"lin = linearize({TRUSS!r}, fmu_dir=sys.argv[1])\n"
             "np.save(sys.argv[2], lin.lifted())\n"
             "print(json.dumps(blockstore.STATS))\n")
@@ -125,7 +131,7 @@ def test_a_new_process_reads_the_store_and_closes_the_same_loop(fmus, store, tmp
                          cwd=ROOT, env=dict(os.environ), capture_output=True, text=True,
                          check=True)
     stats = json.loads(out.stdout.strip().splitlines()[-1])
-    assert stats["hit"] == sum(b.kind in blockstore.KEPT for b in first.blocks.values())
+    assert stats["hit"] == sum(b.kind in blockstore.KEPT for b in first.blocks.values()), stats
     assert stats["written"] == 0
     np.testing.assert_array_equal(np.load(tmp_path / "l.npy"), first.lifted())
 

@@ -45,8 +45,9 @@ __all__ = ["STATS", "code_digest", "enabled", "entry_key", "load", "save"]
 #: Kinds of block kept (the ACS builds in a millisecond; sources hold their slave).
 KEPT = ("structure", "piezo", "controller")
 _FORMAT, _VERSION = "jitterfmu-block", 1
-#: Entries kept at most; the oldest go first beyond it.
+#: Entries and bytes kept at most; the least recently used go first beyond either.
 _MAX_ENTRIES = 512
+_MAX_BYTES = 1 << 30
 #: Reads and writes of this process: ``hit``, ``miss``, ``written``, ``refused``.
 STATS = {"hit": 0, "miss": 0, "written": 0, "refused": 0}
 _LOCK = threading.Lock()
@@ -290,16 +291,20 @@ def save(key: str, block) -> bool:
 
 
 def _trim(folder: Path) -> None:
-    """Remove the oldest entries beyond :data:`_MAX_ENTRIES`."""
+    """Remove the least recently used entries beyond :data:`_MAX_ENTRIES` entries or
+    :data:`_MAX_BYTES` bytes (a read touches its entry)."""
     with _LOCK:
-        entries = list(folder.glob("*.npz"))
-        if len(entries) <= _MAX_ENTRIES:
-            return
-        def age(p):
+        entries = []
+        for p in folder.glob("*.npz"):
             try:
-                return p.stat().st_mtime
+                st = p.stat()
             except OSError:
-                return 0.0
-        for p in sorted(entries, key=age)[:len(entries) - _MAX_ENTRIES]:
-            p.unlink(missing_ok=True)
+                continue
+            entries.append((st.st_mtime, st.st_size, p))
+        entries.sort(key=lambda e: e[0], reverse=True)   # the newest first
+        total = 0
+        for i, (_, size, p) in enumerate(entries):
+            total += size
+            if i >= _MAX_ENTRIES or total > _MAX_BYTES:
+                p.unlink(missing_ok=True)
 

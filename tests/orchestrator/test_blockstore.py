@@ -194,3 +194,28 @@ def test_the_store_off_reads_and_writes_nothing(fmus, store, monkeypatch):
     _lin(fmus)
     assert not store.exists() or not list(store.glob("*.npz"))
     assert blockstore.STATS == {"hit": 0, "miss": 0, "written": 0, "refused": 0}
+
+
+def test_the_least_recently_used_entries_go_beyond_the_stores_bounds(fmus, store,
+                                                                      monkeypatch):
+    _lin(fmus)
+    entries = sorted(store.glob("*.npz"))
+    n = len(entries)
+
+    def age():   # distinct ages, the first entry the oldest
+        for i, p in enumerate(entries):
+            os.utime(p, (1e9 + i, 1e9 + i))
+    age()
+    fresh(monkeypatch)
+    _lin(fmus)                             # every entry read: each touched
+    assert min(p.stat().st_mtime for p in entries) > 1e9 + n
+    age()
+    monkeypatch.setattr(blockstore, "_MAX_ENTRIES", n - 2)
+    blockstore._trim(store)                # by count: the two oldest go
+    assert set(store.glob("*.npz")) == set(entries[2:])
+    age_left = entries[2:]
+    size = sum(p.stat().st_size for p in age_left[1:])
+    monkeypatch.setattr(blockstore, "_MAX_ENTRIES", 512)
+    monkeypatch.setattr(blockstore, "_MAX_BYTES", size)
+    blockstore._trim(store)                # by bytes: the newest that fit stay
+    assert set(store.glob("*.npz")) == set(age_left[1:])

@@ -389,3 +389,51 @@ def _limit_bounds(fr, t, pos, X, Wus, actives) -> np.ndarray:
             h1 = np.abs(fr._columns(t, active)[1][:, pos]).sum(axis=0)  # (p, k)
             b[e] += np.abs(Wu).max(axis=1) @ h1.T                          # (n_u, p)
     return b.max(axis=1)
+
+
+def _pair_power(a, L: int):
+    """``a^L`` of a stack of 2x2 blocks ``a`` (n, 2, 2), by squaring."""
+    out = np.broadcast_to(np.eye(2), a.shape).copy()
+    sq = a
+    while L:
+        if L & 1:
+            out = sq @ out
+        L >>= 1
+        if L:
+            sq = sq @ sq
+    return out
+
+
+class _BlockPower:
+    """``M^L`` of a run whose coupling leaves pairs alone: their own 2x2 powers ``P``
+    (at the pair states ``i``, ``i + 1`` for ``i`` in ``at``) plus the dense columns
+    ``X`` of the others (``cols``).  Multiplies as the matrix (``@``); ``toarray()``,
+    ``copy()`` and ``numpy.asarray`` give the matrix itself."""
+
+    def __init__(self, s, at, P, cols, X):
+        self.shape = (s, s)
+        self.at, self.P, self.cols, self.X = at, P, cols, X
+
+    @property
+    def nbytes(self) -> int:
+        return self.P.nbytes + self.X.nbytes
+
+    def __matmul__(self, Y):
+        Y = np.asarray(Y)
+        flat = Y.ndim == 1
+        Y = Y.reshape(self.shape[0], -1)
+        out = self.X @ Y[self.cols]
+        i, P = self.at, self.P
+        q, v = Y[i], Y[i + 1]
+        out[i] += P[:, 0, 0, None] * q + P[:, 0, 1, None] * v
+        out[i + 1] += P[:, 1, 0, None] * q + P[:, 1, 1, None] * v
+        return out[:, 0] if flat else out
+
+    def toarray(self) -> np.ndarray:
+        """The matrix ``(s, s)``."""
+        return self @ np.eye(self.shape[0])
+
+    copy = toarray
+
+    def __array__(self, dtype=None, copy=None):
+        return self.toarray() if dtype is None else self.toarray().astype(dtype)

@@ -112,6 +112,39 @@ def test_the_form_rebuilds_the_eos_tick_maps(eos_loops, config):
 
 
 @pytest.mark.parametrize("config", ["isolation off", "isolation on"])
+def test_the_forms_products_are_exact_entry_by_entry(eos_loops, config):
+    """``O M`` and ``M X`` by the form (its zero coupling rows left out, the other states'
+    columns sparse where they are) within the round-off bound of each entry: the tick
+    maps' entries span 1e-16 to 3e11 with isolation on, so a tolerance on the largest
+    entry alone would not see an error in the structure's columns.  Reference: the dense
+    product, and the bound ``n eps (|O| |M|)`` with ``|M|`` of the form's own factors."""
+    fr = eos_loops[0][config]
+    loop = modal_loop(fr)
+    sparse = []
+    for sig in loop._base:
+        f = loop._form(sig, loop.block)
+        n_p, k = f.n_p, f.k_in
+        M = f.dense()
+        Mabs = np.zeros_like(M)
+        Mabs[:n_p] = np.abs(f.gamma) @ np.abs(f.W[:k])
+        Mabs[n_p:] = np.abs(f.W[k:])
+        i = np.arange(0, n_p, 2)
+        for r, c in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            Mabs[i + r, i + c] += np.abs(f.a[:, r, c])
+        rng = np.random.default_rng(1)
+        # rows and columns of mixed scales, as the memory state's are
+        scale = 10.0 ** rng.uniform(-12, 6, f.s)
+        X = rng.standard_normal((f.s, 5)) * scale[:, None]
+        O = rng.standard_normal((6, f.s)) / scale
+        tol = 4 * f.s * np.finfo(float).eps
+        assert np.all(np.abs(f.right(X) - M @ X) <= tol * (Mabs @ np.abs(X)))
+        assert np.all(np.abs(f.left(O) - O @ M) <= tol * (np.abs(O) @ Mabs))
+        sparse.append(not isinstance(f._parts()[2], np.ndarray))
+    # the sparse kernel is the one checked where the coupling is wide (isolation on)
+    assert any(sparse) == (config == "isolation on")
+
+
+@pytest.mark.parametrize("config", ["isolation off", "isolation on"])
 def test_structured_records_equal_the_dense_engine_on_eos(eos_loops, config):
     """Nominal and perturbed samples (frequencies +-5 %, damping x0.5-2 per mode): every
     record of a batch (random sources on every channel) equal to the dense engine's to

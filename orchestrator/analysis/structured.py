@@ -44,12 +44,6 @@ __all__ = ["ModalLoop", "StructuredResponse", "StructureRefused", "modal_loop", 
 _FORM_TOL = 1e-11
 # proportional damping of the Ritz block: V^T D V diagonal to this fraction
 _PROPORTIONAL_TOL = 1e-10
-# the coupling rows' columns of the other states are multiplied as a sparse matrix when
-# they are at least this many entries and at most this fraction of them non-zero (with
-# isolation on 1215 of the EOS loop's 18144: the 98 row products of its 99-tick run
-# 19 ms instead of 30 ms with the pair rows alone, 23 ms with them dense)
-_SPARSE_MIN = 4096
-_SPARSE_FILL = 0.2
 
 
 class StructureRefused(AnalysisError):
@@ -92,10 +86,7 @@ class _Form:
         """``M X`` for ``X`` (s, c)."""
         n_p, c = self.n_p, X.shape[1]
         rows, Wp, rest = self._parts()
-        if isinstance(rest, np.ndarray):
-            Z = rest @ X[n_p:]
-        else:
-            Z = rest.T @ X[n_p:]
+        Z = rest @ X[n_p:]
         Z[rows] += Wp @ X[:n_p]
         Y = np.empty((X.shape[0], c))
         np.matmul(self.a, X[:n_p].reshape(-1, 2, c), out=Y[:n_p].reshape(-1, 2, c))
@@ -104,21 +95,17 @@ class _Form:
         return Y
 
     def _parts(self) -> tuple:
-        """``W`` without its zeros, for :meth:`left` and :meth:`right`: the rows that
-        read the pairs (with isolation on 60 of the EOS loop's 144) on the pair columns,
-        and the other columns, sparse (their transpose) where at most a fifth of them is
-        non-zero.  Exact: only zero terms are left out."""
+        """``W`` in the two parts :meth:`left` and :meth:`right` multiply: the rows that
+        read the pairs on the pair columns (with isolation on 60 of the EOS loop's 144:
+        its 99-tick run's 98 row products 23 ms instead of 30 ms), and the other
+        columns.  Exact: only zero terms are left out.  (Those columns as a sparse
+        matrix, 1215 of 18144 entries non-zero, took 19 ms, but a Monte Carlo worker
+        then held 1.2 GB instead of 0.88 GB.)"""
         if self._split is None:
             n_p = self.n_p
             rows = np.flatnonzero(np.any(self.W[:, :n_p] != 0.0, axis=1))
-            rest = self.W[:, n_p:]
-            if rest.size >= _SPARSE_MIN and np.count_nonzero(rest) <= _SPARSE_FILL * rest.size:
-                from scipy.sparse import csr_matrix
-
-                rest = csr_matrix(rest.T)
-            else:
-                rest = np.ascontiguousarray(rest)
-            self._split = (rows, np.ascontiguousarray(self.W[rows, :n_p]), rest)
+            self._split = (rows, np.ascontiguousarray(self.W[rows, :n_p]),
+                           np.ascontiguousarray(self.W[:, n_p:]))
         return self._split
 
     def left(self, O: np.ndarray) -> np.ndarray:
@@ -130,10 +117,7 @@ class _Form:
         coef[:, self.k_in:] = O[:, n_p:]
         Y = np.empty((O.shape[0], self.s))
         np.matmul(coef[:, rows], Wp, out=Y[:, :n_p])
-        if isinstance(rest, np.ndarray):
-            np.matmul(coef, rest, out=Y[:, n_p:])
-        else:
-            Y[:, n_p:] = (rest @ coef.T).T
+        np.matmul(coef, rest, out=Y[:, n_p:])
         q, v = O[:, 0:n_p:2], O[:, 1:n_p:2]
         Y[:, 0:n_p:2] += q * a[:, 0, 0] + v * a[:, 1, 0]
         Y[:, 1:n_p:2] += q * a[:, 0, 1] + v * a[:, 1, 1]

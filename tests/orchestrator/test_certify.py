@@ -118,8 +118,14 @@ def test_guaranteed_and_found_bracket_the_true_margin(lin, band, f, d):
 
 
 def test_model_check_and_coverage(lin):
+    from orchestrator.analysis._threads import blas_thread_counts
+
     uset = uncertain_set(lin, _one_mode((0.1, 1000)))
+    counts = blas_thread_counts()
     res = certify(lin, uset)
+    # its worker threads' one BLAS thread each is given back to the process (before,
+    # the process computed on one thread from then on, and built FMUs in other bits)
+    assert blas_thread_counts() == counts
     assert res["complete"] and res["opened"] == []
     assert res["model_check"] < 1e-6
     assert res["period_s"] == pytest.approx(4e-3)

@@ -24,7 +24,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
-__all__ = ["blas_thread_counts", "blas_threads_kept", "map_threads", "one_blas_thread"]
+__all__ = ["blas_pool", "blas_thread_counts", "blas_threads_kept", "map_threads", "one_blas_thread"]
 
 
 # the thread-count query under the names OpenBLAS builds export (plain, and the
@@ -95,6 +95,25 @@ def blas_threads_kept():
             fn(n)
 
 
+@contextmanager
+def blas_pool(workers: int):
+    """A pool of ``workers`` threads of one BLAS thread each, the calling thread's count
+    given back when the pool closes (a worker's one thread leaks into the process:
+    :func:`blas_threads_kept`).
+
+    Parameters
+    ----------
+    workers : int
+        Threads of the pool.
+
+    Yields
+    ------
+    concurrent.futures.ThreadPoolExecutor
+    """
+    with blas_threads_kept(), ThreadPoolExecutor(workers, initializer=one_blas_thread) as pool:
+        yield pool
+
+
 def map_threads(fn, items, workers: int | None = None) -> list:
     """``[fn(x) for x in items]``, the items in threads (one BLAS thread each).
 
@@ -115,5 +134,5 @@ def map_threads(fn, items, workers: int | None = None) -> list:
     n = min(len(items), workers or os.cpu_count() or 1)
     if n <= 1:
         return [fn(x) for x in items]
-    with blas_threads_kept(), ThreadPoolExecutor(n, initializer=one_blas_thread) as pool:
+    with blas_pool(n) as pool:
         return list(pool.map(fn, items))

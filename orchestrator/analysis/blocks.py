@@ -20,6 +20,7 @@ from piezofmu.actuator import inner_rows, linear_map
 from structfmu.discrete import discretize, step_matrices
 from structfmu.statespace import first_order
 
+from . import blockstore
 from ._threads import blas_thread_counts
 
 
@@ -428,8 +429,6 @@ def _block_key(plan, inst) -> tuple:
 def _disk_key(plan, inst) -> str:
     """The block's entry in the store of built blocks (:mod:`.blockstore`): what
     :func:`_block_key` names, with the FMU's digest and not its path."""
-    from . import blockstore
-
     return blockstore.entry_key(_block_key(plan, inst)[1:])
 
 
@@ -451,15 +450,14 @@ def _instance_block(plan, inst, tmp: Path, extracted=None, live=None,
     """
     info = plan.fmus[inst.name]
     path = info.path  # the Python twin where there is one (fmu_kind = "python")
-    bkey = blocks = None
+    bkey = blocks = dkey = None
     if extracted is not None and keep:
         blocks = extracted.setdefault("blocks", {})
         bkey = _block_key(plan, inst)
         got = blocks.get(bkey)
         if got is None and live is not None:
-            from . import blockstore
-
-            fields = blockstore.load(_disk_key(plan, inst), live)
+            dkey = _disk_key(plan, inst)
+            fields = blockstore.load(dkey, live)
             if fields is not None:
                 got = blocks[bkey] = Block(**fields)
         if got is not None:
@@ -490,10 +488,8 @@ def _instance_block(plan, inst, tmp: Path, extracted=None, live=None,
         if len(blocks) >= _KEEP_BLOCKS:
             blocks.clear()
         blocks[bkey] = block
-        if live is not None:
-            from . import blockstore
-
-            blockstore.save(_disk_key(plan, inst), block)
+        if dkey is not None:
+            blockstore.save(dkey, block)
     return block
 
 

@@ -259,15 +259,11 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
         """The grid points of ``nu`` not proven at ``k_test`` (their bounds kept), each
         chunk with the largest scale known to hold on it.  The chunks are independent:
         two threads share them (numpy releases the interpreter in its kernels)."""
-        from concurrent.futures import ThreadPoolExecutor
-
-        from ._threads import blas_threads_kept, one_blas_thread
+        from ._threads import blas_pool
 
         kept = []
         starts = range(0, nu.size, _CHUNK)
-        # the workers' one BLAS thread is the process's "local" count: given back after
-        with blas_threads_kept(), ThreadPoolExecutor(_WORKERS,
-                                                     initializer=one_blas_thread) as pool:
+        with blas_pool(_WORKERS) as pool:
             done = pool.map(lambda c0: chunk(nu[c0:c0 + _CHUNK], k_test, k_box), starts)
             for b, fail in done:
                 np.maximum(self_bound, b.self_bound, out=self_bound)
@@ -277,12 +273,9 @@ def certify(lin, uset, *, k_max: float = 4.0, tol: float = 0.005, progress=None,
         return kept
 
     def bisect(kept, lo, hi):
-        from concurrent.futures import ThreadPoolExecutor
+        from ._threads import blas_pool
 
-        from ._threads import blas_threads_kept, one_blas_thread
-
-        with blas_threads_kept(), ThreadPoolExecutor(_WORKERS,
-                                                     initializer=one_blas_thread) as pool:
+        with blas_pool(_WORKERS) as pool:
             while hi - lo > tol * max(hi, 1e-3):
                 mid = 0.5 * (lo + hi)
                 # proven there already where k_ok >= mid (the bound grows with k); the

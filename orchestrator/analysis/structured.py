@@ -63,7 +63,10 @@ class _Form:
         self.a, self.gamma, self.W, self.N = a, gamma, W, N
         self.n_p = 2 * a.shape[0]
         self.k_in = gamma.shape[1]
-        self._split = None
+        # W in the two parts left and right multiply (_parts)
+        rows = np.flatnonzero(np.any(W[:, :self.n_p] != 0.0, axis=1))
+        self._split = (rows, np.ascontiguousarray(W[rows, :self.n_p]),
+                       np.ascontiguousarray(W[:, self.n_p:]))
 
     @property
     def s(self) -> int:
@@ -101,11 +104,6 @@ class _Form:
         columns.  Exact: only zero terms are left out.  (Those columns as a sparse
         matrix, 1215 of 18144 entries non-zero, took 19 ms, but a Monte Carlo worker
         then held 1.2 GB instead of 0.88 GB.)"""
-        if self._split is None:
-            n_p = self.n_p
-            rows = np.flatnonzero(np.any(self.W[:, :n_p] != 0.0, axis=1))
-            self._split = (rows, np.ascontiguousarray(self.W[rows, :n_p]),
-                           np.ascontiguousarray(self.W[:, n_p:]))
         return self._split
 
     def left(self, O: np.ndarray) -> np.ndarray:

@@ -19,11 +19,16 @@ class SteadyState:
 
     def period_map(self) -> np.ndarray:
         """The memory state's map over one super-period, ``(n_memory, n_memory)``."""
-        Phi = None
+        Phi = first = None
         for sig, L in self._runs:   # the first run's map starts it: no product with I
             ML = self._type(sig, L).ML
-            Phi = ML.copy() if Phi is None else ML @ Phi
-        return Phi
+            if Phi is None:
+                Phi = first = ML
+            elif isinstance(ML, np.ndarray) and hasattr(Phi, "left"):
+                Phi = Phi.left(ML)   # ML @ Phi with Phi a structured tick map: its cost
+            else:
+                Phi = ML @ np.asarray(Phi)
+        return np.array(Phi) if Phi is first else Phi   # never a run's own map
 
     def period_schur(self) -> tuple:
         """Sorted complex Schur form of the balanced super-period map, kept once computed

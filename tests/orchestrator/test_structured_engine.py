@@ -144,6 +144,50 @@ def test_the_forms_products_are_exact_entry_by_entry(eos_loops, config):
     assert all(skipped)
 
 
+def test_power_chains_compose_the_power_at_the_fewest_flops():
+    """``_power_chain``: ``k 2^j + r = L`` and no cheaper way of the same kind, against a
+    search over every ``(k, j)`` with ``k 2^j <= L`` and the binary digits of ``L``, for
+    products from 1/20 of a squaring to one."""
+    for c in (0.05, 0.125, 0.39, 1.0):
+        for L in range(2, 200):
+            chain, cost = structured._power_chain(L, 1.0, c)
+            binary = (L.bit_length() - 1) + (bin(L).count("1") - 1) * c
+            every = [(k - 1 + L - k * 2 ** j) * c + j for j in range(L.bit_length())
+                     for k in range(1, (L >> j) + 1)]
+            assert cost == pytest.approx(min(every + [binary]), rel=1e-12)
+            if chain is None:
+                assert cost == pytest.approx(binary, rel=1e-12)
+            else:
+                k, j, r = chain
+                assert k * 2 ** j + r == L
+                assert cost == pytest.approx((k - 1 + r) * c + j, rel=1e-12)
+    # a product at an eighth of a squaring (500 modes, isolation on): 4.75 against 6.375
+    assert structured._power_chain(99, 1.0, 0.125) == ((12, 3, 3), pytest.approx(4.75))
+
+
+def test_every_power_chain_and_the_period_map_equal_the_dense_ones(eos_loops, monkeypatch):
+    """With isolation on (a coupling dense enough for squaring), ``M^99`` by each kind of
+    chain equals ``numpy.linalg.matrix_power`` of the dense tick map to 1e-12 of its
+    largest entry; the super-period map (the ACS tick's map multiplied as a structured
+    one) equals the product of the dense maps to the same."""
+    fr = eos_loops[0]["isolation on"]
+    loop = modal_loop(fr)
+    sig = next(s for s, L in fr._runs if L == 99)
+    f = loop._form(sig, loop.block)
+    ref = np.linalg.matrix_power(f.dense(), 99)
+    for chain in (None, (3, 5, 3), (12, 3, 3), (99, 0, 0), (1, 6, 35)):
+        monkeypatch.setattr(structured, "_power_chain", lambda L, sq, pr, c=chain: (c, 0.0))
+        P = f.power(99)
+        assert np.abs(P - ref).max() <= 1e-12 * np.abs(ref).max(), chain
+    monkeypatch.undo()
+    got = loop.nominal()
+    Phi = None
+    for s, L in fr._runs:
+        Md = np.linalg.matrix_power(loop._form(s, loop.block).dense(), L)
+        Phi = Md if Phi is None else Md @ Phi
+    assert np.abs(got.period_map() - Phi).max() <= 1e-12 * np.abs(Phi).max()
+
+
 @pytest.mark.parametrize("config", ["isolation off", "isolation on"])
 def test_structured_records_equal_the_dense_engine_on_eos(eos_loops, config):
     """Nominal and perturbed samples (frequencies +-5 %, damping x0.5-2 per mode): every

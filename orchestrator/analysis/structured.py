@@ -36,7 +36,8 @@ import numpy as np
 
 from .blocks import AnalysisError
 from .fast import FastResponse, _RunType
-from .fastparts import _BlockPower, _pair_power, _tick_map
+from .fastparts import (_BlockPower, _coupled_power, _pair_power, _power_chain,
+                        _tick_map)
 
 __all__ = ["ModalLoop", "StructuredResponse", "StructureRefused", "modal_loop", "respond"]
 
@@ -45,6 +46,10 @@ __all__ = ["ModalLoop", "StructuredResponse", "StructureRefused", "modal_loop", 
 _FORM_TOL = 1e-11
 # proportional damping of the Ritz block: V^T D V diagonal to this fraction
 _PROPORTIONAL_TOL = 1e-10
+
+
+# the ways of M^L in _Form.run, in the order of their costs there
+_WAYS = ("recursion", "squaring", "coupling")
 
 
 class StructureRefused(AnalysisError):
@@ -135,45 +140,58 @@ class _Form:
         """``M^L``, the rows ``C M^q`` (L, r, s) and the columns ``M^q N`` (s, L, c),
         ``q < L``, in one recursion over the run's ticks.
 
-        ``M^L`` of the pairs no coupling row reads is their own 2x2 power, of the other
-        columns ``L`` products, or all of it by squaring where that costs fewer flops
-        (a dense coupling: :func:`_power_chain`); a single tick is the form itself (it
-        multiplies as ``M``)."""
-        s, n_p = self.s, self.n_p
+        ``M^L`` the cheapest in flops of: the pairs no coupling row reads by their own
+        2x2 power and the other columns by ``L`` products; squaring a power of
+        structured products (:func:`~.fastparts._power_chain`); or the coupling's rows
+        carried along the recursion (:func:`~.fastparts._coupled_power`, a large model
+        with a dense coupling: 500 modes with isolation on).  A single tick is the form
+        itself (it multiplies as ``M``)."""
+        s, n_p, step = self.s, self.n_p, self.step_cost()
         read = np.any(self.W[:, :n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
         cols = np.concatenate([np.flatnonzero(np.repeat(read, 2)), np.arange(n_p, s)])
-        chain, squaring = _power_chain(L, 2.0 * s ** 3, s * self.step_cost())
-        dense = L > 1 and cols.size * L * self.step_cost() > squaring
-        k = 0 if dense or L == 1 else cols.size
+        chain, squaring = _power_chain(L, 2.0 * s ** 3, s * step)
+        costs = (cols.size * L * step, squaring,
+                 (L - 1) * self.W.shape[0] * step + 2.0 * n_p * L * self.k_in * s)
+        how = _WAYS[int(np.argmin(costs))] if L > 1 else "form"
+        k = cols.size if how == "recursion" else 0
         X = np.zeros((s, k + N.shape[1]))
         X[cols[:k], np.arange(k)] = 1.0
         X[:, k:] = N
-        O = np.empty((L, C.shape[0], s))
+        r = C.shape[0]
+        O = np.empty((L, r, s))
         K = np.empty((s, L, N.shape[1]))
         O[0], K[:, 0] = C, N
+        if how == "coupling":   # the coupling's rows W M^q along with C M^q
+            R, Zu = np.vstack([C, self.W]), np.empty((L, self.k_in, s))
+            Zu[0] = self.W[:self.k_in]
         for q in range(1, L + 1):
-            if q < L and C.shape[0]:
+            if q < L and how == "coupling":
+                R = self.left(R)
+                O[q], Zu[q] = R[:r], R[r:r + self.k_in]
+            elif q < L and r:
                 O[q] = self.left(O[q - 1])
             if X.shape[1] and (k or q < L):
                 X = self.right(X)
                 if q < L:
                     K[:, q] = X[:, k:]
-        if L == 1:
+        if how == "form":
             ML = self
-        elif dense and chain is None:   # by squaring, left to right
+        elif how == "coupling":
+            ML = _coupled_power(self.a, self.gamma, Zu, R[r + self.k_in:])
+        elif how == "squaring" and chain is None:   # left to right, by L's digits
             ML = self.dense()
             for bit in bin(L)[3:]:
                 ML = ML @ ML
                 if bit == "1":
                     ML = self.right(ML)
-        elif dense:   # M^k by structured products, squared j times, times M^r
-            k, j, r = chain
+        elif how == "squaring":   # M^m by structured products, squared j times, M^e
+            m, j, e = chain
             ML = self.dense()
-            for _ in range(k - 1):
+            for _ in range(m - 1):
                 ML = self.right(ML)
             for _ in range(j):
                 ML = ML @ ML
-            for _ in range(r):
+            for _ in range(e):
                 ML = self.right(ML)
         else:
             free = np.flatnonzero(~read)
@@ -199,24 +217,6 @@ class _Form:
 
     def __array__(self, dtype=None, copy=None):
         return self.dense() if dtype is None else self.dense().astype(dtype)
-
-
-def _power_chain(L: int, square: float, product: float) -> tuple:
-    """The cheapest ``(k, j, r)`` with ``L = k 2^j + r`` for ``M^L = M^r (M^k)^(2^j)``, and
-    its flops: ``k - 1 + r`` structured products with ``M`` (``product`` flops each) and
-    ``j`` dense squarings (``square`` each).  Where a product costs a fraction of a
-    squaring (the coupling of a large model), a longer run of products before fewer
-    squarings pays: at 500 modes, with isolation on, ``M^99`` as ``M^3 (M^12)^8`` costs
-    4.8 squarings' flops against 6.4 by the binary digits of 99."""
-    # None: by the binary digits of L, left to right (a factor M a structured product)
-    best = (None, (L.bit_length() - 1) * square + (bin(L).count("1") - 1) * product)
-    for j in range(L.bit_length()):
-        k = L >> j
-        r = L - (k << j)
-        cost = (k - 1 + r) * product + j * square
-        if cost < best[1]:
-            best = ((k, j, r), cost)
-    return best
 
 
 class ModalLoop:

@@ -21,9 +21,7 @@ structure of the problem instead:
   use, so a loop driven by one source pays for that source alone.
 * **Records together.**  The events of one configuration share its loop:
   :meth:`FastResponse.run_many` runs their state recursions as one product per run and
-  their free responses as one product per run type.
-
-The state recursion is one small product per run, the rest a few large products.
+  their free responses as one product per run type (every record in it).
 
 The result equals :meth:`LinearScenario.simulate` to round-off (tested), which equals
 the co-simulation of a linear scenario to round-off.  Where the FMUs would leave the
@@ -529,10 +527,12 @@ class FastResponse(SteadyState):
                 pidx, win = np.asarray(idx)[part], windows[key][part]
                 n_u = len(pidx)
                 views = _run_views(Y, win, sel.size == need.size)   # in place: no copy
-                out = np.empty((E, n_u, t.L * sel.size)) if views is None else views
-                Ot = self._rows(t, sel).T
+                # the free parts, every record in one product (17 against 20 ms apart)
+                out = (X0[:, pidx].reshape(E * n_u, s) @ self._rows(t, sel).T).reshape(
+                    E, n_u, t.L * sel.size)
+                if views is not None:
+                    views[...], out = out, views
                 for e, (Wa, active) in enumerate(zip(Was, actives)):
-                    np.matmul(X0[e, pidx], Ot, out=out[e])                         # free
                     if active.size:
                         _add_forced(out[e], Wa[win], self._forced, t, active, sel)
                 if views is not None:

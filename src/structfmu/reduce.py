@@ -141,7 +141,7 @@ def eigenpairs(K, M, n_modes: int, shift: float = 0.0, truss=None):
     return lam, phi, fac
 
 
-def ritz_vectors(K, M, phi, loads, fac):
+def ritz_vectors(K, M, phi, loads, fac, names=None):
     """Static Ritz vectors orthogonalised against the eigenvectors (Eq. 5).
 
     Returns ``T_o`` with ``T_o^T M T_o = I`` and ``phi^T M T_o = 0``.
@@ -156,6 +156,8 @@ def ritz_vectors(K, M, phi, loads, fac):
         Load patterns, one column per Ritz vector (columns of ``E``).
     fac : object
         Factorisation of ``K - shift M`` returned third by :func:`eigenpairs`.
+    names : sequence of str, optional
+        The loads' names, for the message of a singular Ritz block.
 
     Returns
     -------
@@ -184,10 +186,16 @@ def ritz_vectors(K, M, phi, loads, fac):
                                  f"{phi.shape[1]} retained eigenvectors; drop their Ritz "
                                  "vectors or keep fewer modes")
         G = G / np.outer(norm, norm)
-        if la.eigvalsh(G).min() <= 1e-12:
-            raise ReductionError("the Ritz block is singular: the static shapes of the active "
-                                 "members are (nearly) linearly dependent on each other or "
-                                 "on the retained eigenvectors; drop one Ritz vector")
+        w, v = la.eigh(G)
+        if w[0] <= 1e-12:   # the load that leads the most dependent combination
+            j = int(np.argmax(np.abs(v[:, 0])))
+            load = repr(names[j]) if names is not None else f"number {j}"
+            n, n_m = K.shape[0], phi.shape[1]
+            raise ReductionError(
+                f"the Ritz block is singular: with {n_m} of the {n} free DOFs kept as "
+                f"eigenvectors, the static shapes of the {ref.size} loads are linearly "
+                f"dependent in what is left (their smallest Gram eigenvalue {w[0]:.1e} of "
+                f"1); keep fewer modes, or drop the Ritz vector of load {load}")
         To = To / norm
     L = la.cholesky(G, lower=True)
     To = la.solve_triangular(L, To.T, lower=True).T
@@ -291,7 +299,8 @@ def reduce_matrices(K, M, E, H, n_modes: int, *, input_names, output_names, outp
             raise ReductionError(f"no input channel {s!r} for a Ritz vector; inputs: "
                                  f"{', '.join(names)}")
     cols = [names.index(s) for s in ritz_inputs]
-    To = ritz_vectors(K, M, phi, E[:, cols], fac) if cols else np.zeros((K.shape[0], 0))
+    To = (ritz_vectors(K, M, phi, E[:, cols], fac, list(ritz_inputs)) if cols
+          else np.zeros((K.shape[0], 0)))
     model = reduced_from_basis(lam, phi, To, K, E, H, input_names=names,
                                output_names=output_names, output_kinds=output_kinds,
                                damping=damping, name=name,

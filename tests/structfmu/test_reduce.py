@@ -81,8 +81,26 @@ def test_singular_ritz_block_is_reported():
     tr = rod_chain(4)
     # two actuators on the same element give the same static shape
     tr = tr.replace(active=(ActiveMember("a", 1, None, None), ActiveMember("b", 1, None, None)))
-    with pytest.raises(ReductionError, match="Ritz block is singular"):
+    with pytest.raises(ReductionError, match="Ritz block is singular") as err:
         reduce(tr, 1)
+    assert "drop the Ritz vector of load 'fc_" in str(err.value)
+
+
+def test_a_ritz_block_left_too_few_dofs_is_refused_with_its_counts():
+    """EOS with every mount leg active (69 loads) on its 780 free DOFs: 650 modes reduce
+    (with their 69 Ritz vectors), 700 leave 80 DOFs for 69 static residuals, which are then
+    dependent: refused in one sentence that gives the counts and a load to drop."""
+    from structfmu.models import eos_testbed as et
+
+    truss = et.build(active_legs="all")
+    model = et.reduced(650, truss=truss)
+    assert model.n_modes == 650 and model.n_ritz == 69
+    with pytest.raises(ReductionError) as err:
+        et.reduced(700, truss=truss)
+    msg = str(err.value)
+    assert "with 700 of the 780 free DOFs kept as eigenvectors" in msg
+    assert "the static shapes of the 69 loads are linearly dependent" in msg
+    assert "keep fewer modes, or drop the Ritz vector of load '" in msg
 
 
 def test_unknown_ritz_input():

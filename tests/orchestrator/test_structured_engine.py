@@ -340,11 +340,13 @@ def test_monte_carlo_samples_equal_with_either_engine(eos_loops, monkeypatch):
 
 
 @pytest.mark.long   # make test-full: reduces a 300-mode model, 6 s
-def test_a_300_mode_model_reduces_and_runs_structured(eos_loops):
+def test_a_300_mode_model_reduces_and_runs_structured(eos_loops, monkeypatch):
     """The EOS testbed reduced to 300 modes (with its 59 Ritz vectors, which at that
     count are 1e-6 of their static shapes beside the eigenvectors and were refused as
     a singular Ritz block): the basis is mass-orthonormal, and its loop (isolation on)
-    gives the dense engine's records through the structured one, nominal and perturbed."""
+    gives the dense engine's records through the structured one, nominal and perturbed,
+    its 99-tick run's ``M^L`` from the coupling's rows (fewer flops than squaring at this
+    size)."""
     from structfmu.fem import assemble
     from structfmu.models import eos_testbed as et
     from structfmu.reduce import reduce
@@ -363,4 +365,8 @@ def test_a_300_mode_model_reduces_and_runs_structured(eos_loops):
                                              blockwise=True))
     fr = FastResponse(lin, fr0.refs)
     assert fr.n_memory > 2 * (300 + 59)
+    coupled = []
+    monkeypatch.setattr(structured, "_coupled_power",
+                        lambda *a: coupled.append(1) or fastparts._coupled_power(*a))
     _nominal_and_perturbed_equal(fr, np.random.default_rng(5), 2)
+    assert coupled   # the 99-tick runs' M^L

@@ -111,9 +111,8 @@ def structured_flops(camp, runner, ctx) -> tuple:
                 apply = 2.0 * s * ML.cols.size + 6.0 * ML.at.size
             elif ML is f:
                 apply = c
-            else:
-                flop += ((L.bit_length() - 1) * 2.0 * s ** 3
-                         + (bin(L).count("1") - 1) * s * c)
+            else:   # the way the form took: the cheapest in its own count
+                flop += min(f.power_costs(L)[0])
                 apply = 2.0 * s * s
             flop += n_u * apply * E                                  # state recursion
             flop += 2.0 * n_u * L * k_sum * s                         # input side

@@ -432,17 +432,17 @@ def _coupled_power(a, gamma, Zu, last) -> np.ndarray:
     (261 against 388 ms on one core)."""
     L, k, s = Zu.shape
     n_p = 2 * a.shape[0]
-    G = np.empty((L, n_p, k))   # G[l] = a^(L-1-l) gamma
+    G = np.empty((n_p, L, k))   # G[:, l] = a^(L-1-l) gamma
     g = gamma
     for j in range(L - 1, -1, -1):
-        G[j] = g
+        G[:, j] = g
         if j:
             gq, gv = g[0::2], g[1::2]
             g = np.empty_like(g)
             g[0::2] = a[:, 0, 0, None] * gq + a[:, 0, 1, None] * gv
             g[1::2] = a[:, 1, 0, None] * gq + a[:, 1, 1, None] * gv
     ML = np.empty((s, s))
-    np.matmul(G.transpose(1, 0, 2).reshape(n_p, L * k), Zu.reshape(L * k, s), out=ML[:n_p])
+    np.matmul(G.reshape(n_p, L * k), Zu.reshape(L * k, s), out=ML[:n_p])
     ML[n_p:] = last
     P = _pair_power(a, L)
     i = np.arange(0, n_p, 2)

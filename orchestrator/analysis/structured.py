@@ -25,9 +25,9 @@ is relinearised.  The :class:`StructuredResponse` it returns is a ``FastResponse
 whose run types (``M^L``, the row Krylov products ``C M^q``, the column Krylov products
 ``M^q N`` and Markov parameters) come from block-wise recursions: ``M^L`` of the pairs the
 coupling never reads is their own 2x2 power, the rest by recursion or, where the
-coupling is dense, by squaring a power of structured products (the cheapest, counted in
-flops).  Its records equal the dense engine's to round-off (tested on the truss and the
-EOS loops).
+coupling is dense, by squaring a power of structured products or from the coupling's
+own rows carried along (the cheapest, counted in flops).  Its records equal the dense
+engine's to round-off (tested on the truss and the EOS loops).
 """
 
 from __future__ import annotations
@@ -136,6 +136,16 @@ class _Form:
         others by ``L`` products, or all by squaring where that costs fewer flops."""
         return self.run(L, np.zeros((0, self.s)), np.zeros((self.s, 0)))[0]
 
+    def power_costs(self, L: int) -> tuple:
+        """Flops of ``M^L`` each way of :meth:`run` (``_WAYS``: the recursion of the
+        columns the coupling reads, squaring, the coupling's rows), and the squaring's
+        chain (:func:`~.fastparts._power_chain`)."""
+        s, n_p, step = self.s, self.n_p, self.step_cost()
+        read = np.any(self.W[:, :n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
+        chain, squaring = _power_chain(L, 2.0 * s ** 3, s * step)
+        return ((2 * int(read.sum()) + s - n_p) * L * step, squaring,
+                (L - 1) * self.W.shape[0] * step + 2.0 * n_p * L * self.k_in * s), chain
+
     def run(self, L: int, C: np.ndarray, N: np.ndarray) -> tuple:
         """``M^L``, the rows ``C M^q`` (L, r, s) and the columns ``M^q N`` (s, L, c),
         ``q < L``, in one recursion over the run's ticks.
@@ -146,12 +156,10 @@ class _Form:
         carried along the recursion (:func:`~.fastparts._coupled_power`, a large model
         with a dense coupling: 500 modes with isolation on).  A single tick is the form
         itself (it multiplies as ``M``)."""
-        s, n_p, step = self.s, self.n_p, self.step_cost()
+        s, n_p = self.s, self.n_p
         read = np.any(self.W[:, :n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
         cols = np.concatenate([np.flatnonzero(np.repeat(read, 2)), np.arange(n_p, s)])
-        chain, squaring = _power_chain(L, 2.0 * s ** 3, s * step)
-        costs = (cols.size * L * step, squaring,
-                 (L - 1) * self.W.shape[0] * step + 2.0 * n_p * L * self.k_in * s)
+        costs, chain = self.power_costs(L)
         how = _WAYS[int(np.argmin(costs))] if L > 1 else "form"
         k = cols.size if how == "recursion" else 0
         X = np.zeros((s, k + N.shape[1]))

@@ -432,25 +432,25 @@ def _coupled_power(a, gamma, Zu, last) -> np.ndarray:
     (261 against 388 ms on one core)."""
     L, k, s = Zu.shape
     n_p = 2 * a.shape[0]
-    G = np.empty((n_p, L, k))   # G[:, l] = a^(L-1-l) gamma
-    g = gamma
-    for j in range(L - 1, -1, -1):
-        G[:, j] = g
-        if j:
-            gq, gv = g[0::2], g[1::2]
-            g = np.empty_like(g)
-            g[0::2] = a[:, 0, 0, None] * gq + a[:, 0, 1, None] * gv
-            g[1::2] = a[:, 1, 0, None] * gq + a[:, 1, 1, None] * gv
+    G = np.empty((n_p // 2, 2, L, k))   # G[:, :, l] = a^(L-1-l) gamma, pair by pair
+    G[:, :, L - 1] = gamma.reshape(-1, 2, k)
+    for j in range(L - 2, -1, -1):
+        np.matmul(a, G[:, :, j + 1], out=G[:, :, j])
     ML = np.empty((s, s))
     np.matmul(G.reshape(n_p, L * k), Zu.reshape(L * k, s), out=ML[:n_p])
     ML[n_p:] = last
-    P = _pair_power(a, L)
-    i = np.arange(0, n_p, 2)
-    ML[i, i] += P[:, 0, 0]
-    ML[i, i + 1] += P[:, 0, 1]
-    ML[i + 1, i] += P[:, 1, 0]
-    ML[i + 1, i + 1] += P[:, 1, 1]
+    _add_pairs(ML, _pair_power(a, L))
     return ML
+
+
+def _add_pairs(M: np.ndarray, P: np.ndarray) -> None:
+    """``M += blockdiag(P)`` on its first ``2 len(P)`` rows and columns (``P`` (n, 2, 2):
+    the pairs' 2x2 blocks)."""
+    i = np.arange(0, 2 * P.shape[0], 2)
+    M[i, i] += P[:, 0, 0]
+    M[i, i + 1] += P[:, 0, 1]
+    M[i + 1, i] += P[:, 1, 0]
+    M[i + 1, i + 1] += P[:, 1, 1]
 
 
 class _BlockPower:

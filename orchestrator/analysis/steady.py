@@ -24,10 +24,8 @@ class SteadyState:
             ML = self._type(sig, L).ML
             if Phi is None:
                 Phi = first = ML
-            elif isinstance(ML, np.ndarray) and hasattr(Phi, "left"):
-                Phi = Phi.left(ML)   # ML @ Phi with Phi a structured tick map: its cost
-            else:
-                Phi = ML @ np.asarray(Phi)
+            else:   # a structured map (a tick's form, a block power): at its own cost
+                Phi = ML @ Phi
         return np.array(Phi) if Phi is first else Phi   # never a run's own map
 
     def period_schur(self) -> tuple:

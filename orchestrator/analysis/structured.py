@@ -36,8 +36,8 @@ import numpy as np
 
 from .blocks import AnalysisError
 from .fast import FastResponse, _RunType
-from .fastparts import (_BlockPower, _coupled_power, _pair_power, _power_chain,
-                        _tick_map)
+from .fastparts import (_add_pairs, _BlockPower, _coupled_power, _pair_power,
+                        _power_chain, _tick_map)
 
 __all__ = ["ModalLoop", "StructuredResponse", "StructureRefused", "modal_loop", "respond"]
 
@@ -63,7 +63,9 @@ class _Form:
     input rows, ``W`` (k_in + n_rest, s) the coupling rows (``Lu`` over ``MR``), ``N``
     (s, m) the input columns, ``n_p`` the pair states."""
 
-    __slots__ = ("a", "gamma", "W", "N", "n_p", "k_in", "_split")
+    __slots__ = ("a", "gamma", "W", "N", "n_p", "k_in", "_split", "_read")
+    # ``ndarray @ form`` is the form's left product (numpy defers to __rmatmul__)
+    __array_ufunc__ = None
 
     def __init__(self, a, gamma, W, N):
         self.a, self.gamma, self.W, self.N = a, gamma, W, N
@@ -73,6 +75,8 @@ class _Form:
         rows = np.flatnonzero(np.any(W[:, :self.n_p] != 0.0, axis=1))
         self._split = (rows, np.ascontiguousarray(W[rows, :self.n_p]),
                        np.ascontiguousarray(W[:, self.n_p:]))
+        # the pairs some coupling row reads
+        self._read = np.any(W[:, :self.n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
 
     @property
     def s(self) -> int:
@@ -84,15 +88,12 @@ class _Form:
         M = np.zeros((s, s))
         M[:n_p] = self.gamma @ self.W[:self.k_in]
         M[n_p:] = self.W[self.k_in:]
-        i = np.arange(0, n_p, 2)
-        M[i, i] += self.a[:, 0, 0]
-        M[i, i + 1] += self.a[:, 0, 1]
-        M[i + 1, i] += self.a[:, 1, 0]
-        M[i + 1, i + 1] += self.a[:, 1, 1]
+        _add_pairs(M, self.a)
         return M
 
     def right(self, X: np.ndarray) -> np.ndarray:
-        """``M X`` for ``X`` (s, c)."""
+        """``M X`` for ``X`` (s, c) (a matrix, or anything ``numpy.asarray`` makes one)."""
+        X = np.asarray(X)
         n_p, c = self.n_p, X.shape[1]
         rows, Wp, rest = self._parts()
         Z = rest @ X[n_p:]
@@ -141,9 +142,8 @@ class _Form:
         columns the coupling reads, squaring, the coupling's rows), and the squaring's
         chain (:func:`~.fastparts._power_chain`)."""
         s, n_p, step = self.s, self.n_p, self.step_cost()
-        read = np.any(self.W[:, :n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
         chain, squaring = _power_chain(L, 2.0 * s ** 3, s * step)
-        return ((2 * int(read.sum()) + s - n_p) * L * step, squaring,
+        return ((2 * int(self._read.sum()) + s - n_p) * L * step, squaring,
                 (L - 1) * self.W.shape[0] * step + 2.0 * n_p * L * self.k_in * s), chain
 
     def run(self, L: int, C: np.ndarray, N: np.ndarray) -> tuple:
@@ -156,8 +156,7 @@ class _Form:
         carried along the recursion (:func:`~.fastparts._coupled_power`, a large model
         with a dense coupling: 500 modes with isolation on).  A single tick is the form
         itself (it multiplies as ``M``)."""
-        s, n_p = self.s, self.n_p
-        read = np.any(self.W[:, :n_p] != 0.0, axis=0).reshape(-1, 2).any(axis=1)
+        s, n_p, read = self.s, self.n_p, self._read
         cols = np.concatenate([np.flatnonzero(np.repeat(read, 2)), np.arange(n_p, s)])
         costs, chain = self.power_costs(L)
         how = _WAYS[int(np.argmin(costs))] if L > 1 else "form"
@@ -208,6 +207,7 @@ class _Form:
         return ML, O, K
 
     __matmul__ = right
+    __rmatmul__ = left
 
     def toarray(self) -> np.ndarray:
         """The tick map ``(s, s)`` (as :meth:`dense`)."""

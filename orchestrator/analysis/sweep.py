@@ -22,6 +22,7 @@ from .. import metrics as M
 from .blocks import AnalysisError
 from .fast import FastResponse
 from .steady import balance
+from .structpoles import unstable_count
 
 __all__ = ["WheelSweep", "steady_jitter", "unstable_poles", "wheel_sweep"]
 
@@ -72,7 +73,10 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
     """Poles of the loop over its super-period with ``|z| > 1 + tol`` (none if stable).
 
     A free rigid body is a double pole at 1, which a solver finds only to about
-    ``sqrt(eps)``: ``tol`` sits above that.
+    ``sqrt(eps)``: ``tol`` sits above that.  A structured loop whose super-period map is
+    its modes' own powers plus a low-rank coupling is counted from that form
+    (:func:`.structpoles.unstable_count`); the dense eigenvalues give the poles where it
+    finds any, and decide where it does not apply or is not certain.
 
     Parameters
     ----------
@@ -88,6 +92,8 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
     """
     if fr._schur is not None:   # a steady state has been solved on this loop
         ev = np.diag(fr._schur[0])
+    elif unstable_count(fr, tol) == 0:   # from the structure: no dense eigenvalues
+        return []
     else:
         Phi_b, _ = balance(fr.period_map())
         ev = np.linalg.eigvals(Phi_b)

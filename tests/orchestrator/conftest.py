@@ -48,3 +48,16 @@ def cache(tmp_path, monkeypatch):
     monkeypatch.setenv("JITTERFMU_CACHE", str(root))
     monkeypatch.setattr(fmucache, "_VERIFIED", set())
     return root
+
+
+@pytest.fixture(scope="module")
+def eos_loops(suite_fmu_dir):
+    """The EOS budget's nominal loops (RWA case), isolation off and on, and the runner."""
+    from orchestrator.campaign import LinearRunner, load_campaign
+    from orchestrator.experiments import eos
+
+    fmu_dir = eos.ensure_fmus(suite_fmu_dir)
+    camp = load_campaign(eos.CAMPAIGN)
+    runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
+    cases = {c.configuration: c for c in camp.cases if c.event == "RWA"}
+    return {cf: runner.compiled(c.scenario) for cf, c in cases.items()}, runner, cases

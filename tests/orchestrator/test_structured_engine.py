@@ -10,10 +10,9 @@ budget (isolation off and on) and of the ten-bay truss.
 
 from __future__ import annotations
 
-import math
-
 import copy
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -25,20 +24,9 @@ from orchestrator.analysis.structured import (ModalLoop, StructuredResponse,
                                               StructureRefused, modal_loop, respond)
 from orchestrator.analysis.sweep import unstable_poles
 from orchestrator.campaign import LinearRunner, load_campaign
-from orchestrator.experiments import eos
 from orchestrator.experiments.eos import CAMPAIGN as EOS_CAMPAIGN
 
 pytestmark = pytest.mark.slow
-
-
-@pytest.fixture(scope="module")
-def eos_loops(suite_fmu_dir):
-    """The EOS budget's nominal loops (RWA case), isolation off and on, and the runner."""
-    fmu_dir = eos.ensure_fmus(suite_fmu_dir)
-    camp = load_campaign(EOS_CAMPAIGN)
-    runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
-    cases = {c.configuration: c for c in camp.cases if c.event == "RWA"}
-    return {cf: runner.compiled(c.scenario) for cf, c in cases.items()}, runner, cases
 
 
 @pytest.fixture(scope="module")
@@ -231,12 +219,10 @@ def test_structured_records_equal_the_dense_engine_on_eos(eos_loops, config):
         assert unstable_poles(got) == unstable_poles(want) == []
 
 
-@pytest.mark.long   # make test-full: eigenvalues of unstable samples on both engines, 7 s
-def test_unstable_samples_have_the_same_poles(eos_loops):
-    """The EOS loop with the ACS it had before its redesign (0.1 Hz on the rigid body)
-    takes damping from its 2.58 Hz mode: samples around that mode's threshold damping
-    are unstable or not, and the structured loop's poles outside the unit circle are
-    the dense loop's (verdict and values), its records too (a growing record)."""
+def old_acs_loop(eos_loops) -> tuple:
+    """The isolation-off RWA loop with the ACS it had before its redesign (0.1 Hz on the
+    rigid body), and the index of its 2.58 Hz mode, which that ACS destabilises below
+    a threshold damping."""
     _, runner, cases = eos_loops
     old = copy.deepcopy(cases["isolation off"].scenario)
     old["fmus"]["acs"]["parameters"].update(
@@ -244,7 +230,16 @@ def test_unstable_samples_have_the_same_poles(eos_loops):
         notch_hz_x=0.0, lowpass_hz_x=0.0, lowpass_hz_y=0.0, lowpass_hz_z=0.0)
     fr = runner.compiled(old)
     f = fr.lin.blocks["structure"].model.frequencies_hz
-    mode = int(np.argmin(np.abs(f - 2.58)))
+    return fr, int(np.argmin(np.abs(f - 2.58)))
+
+
+@pytest.mark.long   # make test-full: eigenvalues of unstable samples on both engines, 7 s
+def test_unstable_samples_have_the_same_poles(eos_loops):
+    """The EOS loop with the ACS it had before its redesign (0.1 Hz on the rigid body)
+    takes damping from its 2.58 Hz mode: samples around that mode's threshold damping
+    are unstable or not, and the structured loop's poles outside the unit circle are
+    the dense loop's (verdict and values), its records too (a growing record)."""
+    fr, mode = old_acs_loop(eos_loops)
     rng = np.random.default_rng(2)
     verdicts = []
     W = rng.standard_normal((801, fr.m))

@@ -17,6 +17,7 @@ import numpy as np
 from orchestrator.analysis import structured
 from orchestrator.analysis.blocks import structure_block
 from orchestrator.analysis.fast import FastResponse
+from orchestrator.analysis.structpoles import _Coupling, period_split, winding_count
 from orchestrator.analysis.structured import StructuredResponse, respond
 from orchestrator.analysis.uncertainty import draw
 from orchestrator.campaign import montecarlo as mcm
@@ -87,7 +88,13 @@ def structured_flops(camp, runner, ctx) -> tuple:
                               b.period, b.period * lin.base, b.feedthrough, blockwise=True)
         fr = respond(lin.with_block(blk), ctx["refs"], fr0)
         if not isinstance(fr, StructuredResponse):
-            rows.append(f"{cf}: dense ({fr0.structure_reason})")
+            why = fr0.structure_reason
+            if why is None:   # the nominal form stands, the sample's patch was refused
+                try:
+                    structured.modal_loop(fr0).sample(blk)
+                except structured.StructureRefused as exc:
+                    why = str(exc)
+            rows.append(f"{cf}: dense ({why})")
             continue
         Ws = [ctx["inputs"][(cf, ev)][1] for ev in ctx["events"]]
         E, K = len(Ws), Ws[0].shape[0]
@@ -117,10 +124,21 @@ def structured_flops(camp, runner, ctx) -> tuple:
             flop += n_u * apply * E                                  # state recursion
             flop += 2.0 * n_u * L * k_sum * s                         # input side
             flop += 2.0 * E * max(1, round(n_u * kept)) * s * L * n_los   # free responses
-        flop += 10.0 * s ** 3                                        # poles
+        split, why = period_split(fr)
+        if split is None:                                            # poles: eigenvalues
+            flop += 10.0 * s ** 3
+            poles = f"poles by dense eigenvalues ({why})"
+        else:                                                        # or the winding
+            points = winding_count(split.A, split.U, split.W, split.n_p)[1]
+            coupling = _Coupling(split.A, split.U, split.W, split.n_p)
+            k = coupling.k
+            flop += points * (4.0 * coupling.XY.size + 2.0 * coupling.L.size * k
+                              + 32.0 / 3.0 * k ** 3)
+            poles = (f"poles counted from the structure at {points} points "
+                     f"(a {k}x{k} determinant each)")
         rows.append(f"{cf}: memory state {s} = {f.n_p} pair states + {s - f.n_p} others, "
                     f"coupling {f.W.shape[0]} rows ({f.k_in} structure inputs), a product "
-                    f"{c / (2.0 * s * s):.0%} of a dense one")
+                    f"{c / (2.0 * s * s):.0%} of a dense one; {poles}")
     return flop / 1e9, rows
 
 
@@ -213,9 +231,10 @@ def stages(camp, runner, ctx, n: int) -> dict:
     """Median seconds of each stage of a structured sample on one core, per
     configuration, over samples ``1 .. n``: the perturbed structure block, the sample's
     run types (``M^L``, the row and column Krylov products), the super-period map and
-    its poles (balancing and eigenvalues), and the 12 records (input sides, state
+    its poles (:func:`~orchestrator.analysis.sweep.unstable_poles`: counted from the
+    structure, or balancing and eigenvalues), and the 12 records (input sides, state
     recursion, free and forced responses, limit bounds)."""
-    from orchestrator.analysis.steady import balance
+    from orchestrator.analysis.sweep import unstable_poles
 
     items = camp.uncertainty["parameters"]
     draws = _draws(camp, ctx, n + 1)
@@ -235,7 +254,7 @@ def stages(camp, runner, ctx, n: int) -> dict:
             for sig, L in fr._runs:
                 fr._type(sig, L)
             t2 = time.perf_counter()
-            np.linalg.eigvals(balance(fr.period_map())[0])
+            unstable_poles(fr)   # from the structure where it can, else eigenvalues
             t3 = time.perf_counter()
             Ws, scales = zip(*(mcm._sample_input(runner, fr, *ctx["inputs"][(cf, ev)],
                                                  draws, items, s) for ev in ctx["events"]))

@@ -309,6 +309,33 @@ def test_a_sample_that_changes_more_than_the_modes_runs_dense(eos_loops):
     assert type(respond(fr.lin.with_gain(ctrl, 0.9), fr.refs, fr)) is FastResponse
 
 
+def test_a_ritz_block_equal_to_round_off_is_the_nominal_ones(eos_loops):
+    """A sample's static Ritz block computed on another count of BLAS threads differs
+    from the nominal one in its last bits: that sample is still structured (its records
+    the dense engine's on its own block, to 1e-12 of peak); a Ritz block changed by
+    1e-9 is refused."""
+    fr = eos_loops[0]["isolation off"]
+    loop = modal_loop(fr)
+    b = loop.block
+    nm, nr = b.model.n_modes, b.model.n_ritz
+    o = slice(2 * nm, 2 * nm + 2 * nr)
+    rng = np.random.default_rng(6)
+    for eps, structured_ in ((4e-16, True), (1e-9, False)):
+        A, B = b.A.copy(), b.B.copy()
+        A[o, o] *= 1 + eps * rng.standard_normal(A[o, o].shape)
+        B[o] *= 1 + eps * rng.standard_normal(B[o].shape)
+        lin = fr.lin.with_block(dataclasses.replace(b, A=A, B=B))
+        got = respond(lin, fr.refs, fr)
+        assert isinstance(got, StructuredResponse) is structured_
+        if structured_:
+            W = rng.standard_normal((401, fr.m))
+            _assert_same_records(got.run_many([W], check=False),
+                                 FastResponse(lin, fr.refs, like=fr).run_many([W], check=False))
+        else:
+            with pytest.raises(StructureRefused, match="static Ritz block"):
+                loop.sample(lin.blocks[loop.name], lin)
+
+
 def test_monte_carlo_samples_equal_with_either_engine(eos_loops, monkeypatch):
     """Two samples of the shipped EOS Monte Carlo (12 events x 2 configurations, 8 s
     records, metrics and statuses): the same numbers through the structured loops as

@@ -131,11 +131,9 @@ def structured_flops(camp, runner, ctx) -> tuple:
         else:                                                        # or the winding
             points = winding_count(split.A, split.U, split.W, split.n_p)[1]
             coupling = _Coupling(split.A, split.U, split.W, split.n_p)
-            k = coupling.k
-            flop += points * (4.0 * coupling.XY.size + 2.0 * coupling.L.size * k
-                              + 32.0 / 3.0 * k ** 3)
+            flop += points * coupling.point_flops()
             poles = (f"poles counted from the structure at {points} points "
-                     f"(a {k}x{k} determinant each)")
+                     f"(a {coupling.k}x{coupling.k} determinant each)")
         rows.append(f"{cf}: memory state {s} = {f.n_p} pair states + {s - f.n_p} others, "
                     f"coupling {f.W.shape[0]} rows ({f.k_in} structure inputs), a product "
                     f"{c / (2.0 * s * s):.0%} of a dense one; {poles}")

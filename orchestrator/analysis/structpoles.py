@@ -165,6 +165,11 @@ class _Coupling:
         self.poles = np.linalg.eigvals(A[keep]).ravel()   # of f near the circle
         self.R0 = W[:, n_p:] @ U[n_p:]
 
+    def point_flops(self) -> float:
+        """Flops of :meth:`phase` at one point: the pair terms (real and imaginary
+        parts), the compression's product and the complex k-by-k LU."""
+        return 4.0 * self.XY.size + 2.0 * self.L.size * self.k + 32.0 / 3.0 * self.k ** 3
+
     def phase(self, z) -> tuple:
         """Phase and log-magnitude of ``f`` at the points ``z``."""
         zc = z[:, None]

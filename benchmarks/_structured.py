@@ -142,8 +142,9 @@ def structured_flops(camp, runner, ctx) -> tuple:
 
 def scaling(camp, runner, ctx, modes, n: int) -> list:
     """Per-sample seconds on one core of both engines with the EOS structure reduced
-    to each count of ``modes`` (all mount legs active, as the budget's), memory states
-    and the bytes the structured loops keep."""
+    to each count of ``modes`` (all mount legs active, as the budget's), memory states,
+    the bytes the structured loops keep and the structured sample's stages
+    (:func:`stages`)."""
     from structfmu.models import eos_testbed as et
 
     out = []
@@ -166,6 +167,8 @@ def scaling(camp, runner, ctx, modes, n: int) -> list:
                  "models": models}
         build = time.perf_counter() - t0
         t = per_sample(camp, runner, ctx_n, n)
+        with engine(ctx_n, "structured"):   # the forms per_sample built, reused
+            parts = stages(camp, runner, ctx_n, n)
         kept = 0
         for cf in ctx["configs"]:
             loop = ctx_n["_forms"]["structured"].get(cf, (None,))[0]
@@ -174,14 +177,15 @@ def scaling(camp, runner, ctx, modes, n: int) -> list:
                 for d in loop._base.values())
         out.append({"modes": n_modes, "ritz": model.n_ritz,
                     "memory_states": [base[cf][2].n_memory for cf in ctx["configs"]],
-                    "build_s": build, "form_bytes": kept, **t})
+                    "build_s": build, "form_bytes": kept, "stages_s": parts, **t})
     return out
 
 
-def exponent(rows: list, key: str) -> float:
-    """Slope of log(seconds) against log(memory state) over ``rows`` (least squares)."""
+def exponent(rows: list, key: str, less=None) -> float:
+    """Slope of log(seconds) against log(memory state) over ``rows`` (least squares);
+    ``less(row)`` seconds taken off each row's first (a stage left out)."""
     s = np.array([sum(r["memory_states"]) for r in rows], float)
-    y = np.array([r[key] for r in rows], float)
+    y = np.array([r[key] - (less(r) if less else 0.0) for r in rows], float)
     return float(np.polyfit(np.log(s), np.log(y), 1)[0])
 
 

@@ -25,7 +25,8 @@ Run::
   statuses agree; the structured floor (the flops of a structured sample, in its own
   shapes, over this machine's one-thread square dgemm rate); and both engines with the
   EOS structure reduced to each of ``--modes`` (memory states, the slope of the
-  per-sample cost against the memory state, the bytes of the structured forms).
+  per-sample cost against the memory state, the bytes of the structured forms, each
+  configuration's poles and the slope without them).
 * **The exact floor of a sample** (``--no-floor`` leaves it out): the products an exact
   engine cannot leave out, on the nominal loops the samples perturb (their memory
   states, live rows and driven channels): the free responses of the 24 records after the
@@ -335,14 +336,21 @@ def main(argv=None) -> int:
     for r in s_rows:
         print(f"    {r}")
     if scale:
+        cfs = list(scale[0]["stages_s"])
         print(f"  {'modes':>6}{'memory states':>16}{'structured (s)':>16}{'dense (s)':>11}"
-              f"{'forms (MB)':>12}")
+              f"{'forms (MB)':>12}  poles (ms; " + ", ".join(cfs) + ")")
         for r in scale:
+            poles = "/".join(f"{1e3 * r['stages_s'][cf]['poles']:.1f}" for cf in cfs)
             print(f"  {r['modes']:>6}{'/'.join(map(str, r['memory_states'])):>16}"
-                  f"{r['structured_s']:>16.3f}{r['dense_s']:>11.3f}{r['form_bytes'] / 1e6:>12.1f}")
+                  f"{r['structured_s']:>16.3f}{r['dense_s']:>11.3f}"
+                  f"{r['form_bytes'] / 1e6:>12.1f}  {poles}")
         if len(scale) > 1:
             print(f"  cost ~ s^{_structured.exponent(scale, 'structured_s'):.2f} structured, "
                   f"s^{_structured.exponent(scale, 'dense_s'):.2f} dense (s the memory state)")
+            for cf in cfs:   # what the slope would be without one stage: the poles
+                slope = _structured.exponent(scale, "structured_s",
+                                             lambda r, cf=cf: r["stages_s"][cf]["poles"])
+                print(f"  structured without the poles of {cf}: s^{slope:.2f}")
     for cf, v in votes.items():
         print(f"  stability of {args.verdicts} samples, {cf}: {v['agree']} verdicts equal; "
               f"unstable {v['unstable_structured']} structured, {v['unstable_dense']} dense "

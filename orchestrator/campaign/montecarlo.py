@@ -36,6 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from ..progress import ProgressBar
+from .mcloop import STRUCTURAL, engine_paths, sample_loop
+from .mcloop import perturbed as _perturbed   # noqa: F401 (its old name)
 from .mcparts import PARTS_DIR, PARTS_FORMAT, load_parts, save_part
 from .mcresults import (DIVERGING, LIMIT, SAMPLES_FILE, UNCERTAINTY_FILE, UNSTABLE,
                         _convergence, _lines, _report, write_results)
@@ -44,22 +46,6 @@ from .store import canonical
 __all__ = ["check_uncertain_inputs", "run_uncertainty", "SAMPLES_FILE", "UNCERTAINTY_FILE"]
 
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-def _perturbed(model, draws, items, s):
-    """The reduced model of sample ``s`` (modal frequency and damping factors)."""
-    f_omega = np.ones(model.n_modes)
-    f_zeta = np.ones(model.n_modes)
-    for it in items:
-        if it.kind not in ("modal_frequency", "modal_damping"):
-            continue
-        idx = draws.modes[it.name]
-        v = draws.values[it.name][s]
-        target = f_omega if it.kind == "modal_frequency" else f_zeta
-        target[idx] *= v if v.size == idx.size else v[0]
-    # c = 2 zeta omega: both factors scale the damping coefficient
-    return dataclasses.replace(model, omega=model.omega * f_omega,
-                               modal_damping=model.modal_damping * f_omega * f_zeta)
 
 
 def _layout(campaign) -> dict:
@@ -111,13 +97,11 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     are those of its records; the statistics count it as exceeding every requirement,
     :func:`.mcresults._counted`), 4 so unstable that it more than doubles over the
     record."""
-    from ..analysis.blocks import structure_block
-    from ..analysis.structured import respond
     from ..analysis.sweep import unstable_poles
     from ..metrics import metric_values
 
     items = campaign.uncertainty["parameters"]
-    structural = any(it.kind in ("modal_frequency", "modal_damping", "gain") for it in items)
+    structural = any(it.kind in STRUCTURAL for it in items)
     lin0 = ctx["base"][ctx["configs"][0]][0]
     tb = lin0.plan.timebase
     dt = tb.output_ticks * float(tb.base)
@@ -131,23 +115,8 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     for row, s in enumerate(samples):
         blocks = {}   # the sample's structure blocks: the configurations share them
         for ci, cf in enumerate(ctx["configs"]):
-            lin, structs, fr = ctx["base"][cf]
+            fr = sample_loop(ctx, cf, items, draws, s, blocks)
             if structural:
-                for name in structs:
-                    b = lin.blocks[name]
-                    key = ctx["models"][(cf, name)]
-                    if key not in blocks:
-                        blocks[key] = structure_block(_perturbed(b.model, draws, items, s),
-                                                      name, b.period, b.period * lin.base,
-                                                      b.feedthrough, blockwise=True)
-                    lin = lin.with_block(blocks[key])
-                for it in items:
-                    if it.kind == "gain":
-                        for j, inst in enumerate(it.instances):
-                            lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
-                # the nominal loop's modal blocks patched (the dense one where that
-                # form does not apply or pay): the same records, to round-off
-                fr = respond(lin, ctx["refs"], ctx["base"][cf][2])
                 try:
                     bad = unstable_poles(fr)
                 except ValueError:   # a loop map past a float's range: no record to take
@@ -294,9 +263,12 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
         if need is None or n >= top:
             break
         n = min(top, max(n + 1, min(4 * n, need)))   # at most four times more a round
-    return write_results(out_dir, campaign, ctx, values, status, summary,
-                         _report(campaign, ctx, draws, status, lines, folder, out_dir,
-                                 rounds, wall))
+    # which loop and which pole test a sample takes, and why (sample 0, as it ran)
+    paths = None if cosim else engine_paths(ctx, items, draws)
+    report = _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall)
+    if paths is not None:
+        report["linear_engine"] = paths
+    return write_results(out_dir, campaign, ctx, values, status, summary, report)
 
 
 def _samples(campaign, out_dir, runner, ctx, draws, kept, workers, scheduler, progress,

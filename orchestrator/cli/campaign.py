@@ -113,6 +113,7 @@ def run(args) -> int:
         verify_campaign,
         write_summary,
     )
+    from ..campaign.mcloop import path_lines
     from ..campaign.mcresults import command_lines, convergence_hint
     from ..progress import stage
     from ._options import shown
@@ -215,6 +216,8 @@ def run(args) -> int:
                    if rep.get("resumed") else "")
         print(f"uncertainty: {rep['samples']} samples in {rep['wall_s']:.1f} s{resumed} "
               f"({path}); {rep['interpretation']}")
+        for text in path_lines(rep.get("linear_engine") or {}):
+            print(text)
         if rep.get("max_samples"):
             steps = " -> ".join(str(r["samples"]) for r in rep["rounds"])
             widest = rep["rounds"][-1]["widest_interval"]

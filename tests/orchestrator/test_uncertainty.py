@@ -705,7 +705,11 @@ def test_cli_uncertainty_file_and_sample_count_equal_the_table_in_the_campaign(
             "--out", str(tmp_path / "cli"), "--workers", "0", "--verify", "0", "--quiet",
             "--fmu-dir", str(truss_fmus)]
     assert cli_main(argv + ["--samples", "6"]) == 0
-    assert "uncertainty: 6 samples" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "uncertainty: 6 samples" in out
+    # which loop the samples ran on, and why (the truss's coupling does not pay)
+    assert ("\n  on: dense loop (the coupling of 'structure' with the rest of the loop is "
+            "not low rank") in out and "poles by dense eigenvalues" in out
     _run(tmp_path / "inline", _campaign({**unc, "samples": 6}), truss_fmus)
     assert _samples(tmp_path / "cli") == _samples(tmp_path / "inline")
     assert cli_main(argv + ["--samples", "8"]) == 0

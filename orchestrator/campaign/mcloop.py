@@ -1,0 +1,176 @@
+"""The Monte Carlo's loop of one sample and configuration, and how the engine takes it.
+
+:func:`sample_loop` closes a configuration's loop with a sample's draws (the reduced
+structure's modal frequencies and damping, controller gains): the nominal loop's modal
+blocks patched where only the structure's modes change
+(:func:`orchestrator.analysis.structured.respond`), the dense engine otherwise.
+:func:`engine_paths` says, per configuration, which of the two a sample runs on and how
+its poles are decided (counted from the structure, or dense eigenvalues), each with the
+reason in one sentence; ``uncertainty.json`` keeps it and ``jitterfmu campaign`` prints
+it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+__all__ = ["STRUCTURAL", "engine_paths", "path_lines", "perturbed", "sample_loop"]
+
+#: The kinds of draw that change a configuration's loop (the others drive it).
+STRUCTURAL = ("modal_frequency", "modal_damping", "gain")
+
+
+def perturbed(model, draws, items, s):
+    """The reduced model of sample ``s`` (modal frequency and damping factors).
+
+    Parameters
+    ----------
+    model : ReducedModel
+        The nominal reduced structure.
+    draws : Draws
+        The run's draws (:func:`orchestrator.analysis.uncertainty.draw`).
+    items : sequence of UncertainItem
+        The ``[uncertainty]`` parameters.
+    s : int
+        The sample.
+
+    Returns
+    -------
+    ReducedModel
+    """
+    f_omega = np.ones(model.n_modes)
+    f_zeta = np.ones(model.n_modes)
+    for it in items:
+        if it.kind not in ("modal_frequency", "modal_damping"):
+            continue
+        idx = draws.modes[it.name]
+        v = draws.values[it.name][s]
+        target = f_omega if it.kind == "modal_frequency" else f_zeta
+        target[idx] *= v if v.size == idx.size else v[0]
+    # c = 2 zeta omega: both factors scale the damping coefficient
+    return dataclasses.replace(model, omega=model.omega * f_omega,
+                               modal_damping=model.modal_damping * f_omega * f_zeta)
+
+
+def sample_loop(ctx, cf, items, draws, s: int, blocks: dict):
+    """The compiled loop of configuration ``cf`` for sample ``s``.
+
+    Parameters
+    ----------
+    ctx : dict
+        The Monte Carlo's set-up (``montecarlo._setup``: nominal loops, structures).
+    cf : str
+        The configuration.
+    items : sequence of UncertainItem
+        The ``[uncertainty]`` parameters.
+    draws : Draws
+        The run's draws.
+    s : int
+        The sample.
+    blocks : dict
+        The sample's structure blocks, shared by the configurations (filled here).
+
+    Returns
+    -------
+    FastResponse
+        The nominal loop itself when no draw changes the loop; else the sample's loop,
+        structured where the nominal form applies (:func:`~orchestrator.analysis.
+        structured.respond`).
+    """
+    from ..analysis.blocks import structure_block
+    from ..analysis.structured import respond
+
+    lin, structs, fr = ctx["base"][cf]
+    if not any(it.kind in STRUCTURAL for it in items):
+        return fr
+    for name in structs:
+        b = lin.blocks[name]
+        key = ctx["models"][(cf, name)]
+        if key not in blocks:
+            blocks[key] = structure_block(perturbed(b.model, draws, items, s), name,
+                                          b.period, b.period * lin.base, b.feedthrough,
+                                          blockwise=True)
+        lin = lin.with_block(blocks[key])
+    for it in items:
+        if it.kind == "gain":
+            for j, inst in enumerate(it.instances):
+                lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
+    # the nominal loop's modal blocks patched (the dense one where that form does not
+    # apply or pay): the same records, to round-off
+    return respond(lin, ctx["refs"], fr)
+
+
+def engine_paths(ctx, items, draws) -> dict:
+    """Per configuration, how the linear engine evaluates a sample (found on sample 0).
+
+    Parameters
+    ----------
+    ctx : dict
+        The Monte Carlo's set-up (``montecarlo._setup``).
+    items : sequence of UncertainItem
+        The ``[uncertainty]`` parameters.
+    draws : Draws
+        The run's draws (at least one sample).
+
+    Returns
+    -------
+    dict
+        ``{configuration: {"loop": "nominal" | "structured" | "dense", "loop_why": str
+        or None, "poles": "none" | "counted from the structure" | "eigenvalues",
+        "poles_why": str or None}}``.  ``nominal``: no draw changes the loop, so every
+        sample shares the configuration's nominal loop and no sample's poles are taken.
+    """
+    from ..analysis.structpoles import period_split
+    from ..analysis.structured import StructuredResponse, modal_loop
+
+    out = {}
+    blocks = {}
+    for cf in ctx["configs"]:
+        fr0 = ctx["base"][cf][2]
+        fr = sample_loop(ctx, cf, items, draws, 0, blocks)
+        if fr is fr0:
+            out[cf] = {"loop": "nominal", "loop_why": "no draw changes the loop: every "
+                       "sample runs the configuration's nominal loop", "poles": "none",
+                       "poles_why": None}
+            continue
+        if isinstance(fr, StructuredResponse):
+            loop, why = "structured", None
+        elif modal_loop(fr0) is None:
+            loop, why = "dense", fr0.structure_reason
+        else:
+            loop, why = "dense", ("a sample changes more of the loop than its structure's "
+                                  "modes (a controller's gain), which the structured form "
+                                  "does not patch: the dense engine runs it")
+        split, poles_why = period_split(fr) if loop == "structured" else (None, None)
+        out[cf] = {"loop": loop, "loop_why": why,
+                   "poles": "counted from the structure" if split else "eigenvalues",
+                   "poles_why": poles_why}
+    return out
+
+
+def path_lines(paths: dict) -> list:
+    """``engine_paths`` as the lines ``jitterfmu campaign`` prints, one a configuration.
+
+    Parameters
+    ----------
+    paths : dict
+        :func:`engine_paths`'s result (``uncertainty.json``'s ``linear_engine``).
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    for cf, p in paths.items():
+        if p["loop"] == "nominal":
+            out.append(f"  {cf}: the nominal loop ({p['loop_why']})")
+            continue
+        loop = ("structured loop (the nominal modal blocks patched)"
+                if p["loop"] == "structured" else f"dense loop ({p['loop_why']})")
+        poles = ("poles counted from the structure" if p["poles"] != "eigenvalues" else
+                 "poles by dense eigenvalues" + (f" ({p['poles_why']})" if p["poles_why"]
+                                                 else ""))
+        out.append(f"  {cf}: {loop}; {poles}")
+    return out

@@ -466,6 +466,7 @@ def uncertainty_sections(out_dir, instruments, unit):
     """
     import json
 
+    from .campaign.mcloop import path_lines
     from .campaign.mcresults import unbounded_words
 
     out_dir = Path(out_dir)
@@ -564,6 +565,7 @@ def uncertainty_sections(out_dir, instruments, unit):
                      "the unstable ones, as the co-simulation would give them, are the "
                      "record_value of uncertainty_samples.parquet).")
     text += _leaders(rep.get("lines", []))
+    text += "".join(f" {line.strip()}." for line in path_lines(rep.get("linear_engine") or {}))
     return figures, rows, text
 
 

@@ -378,6 +378,8 @@ def test_unstable_samples_are_counted_and_fail_once_out_of_the_model(tmp_path, t
     assert (f"on: {k} sample(s) with an unstable closed loop" in text
             and "most related input: g [ctrl_diag], rank correlation +" in text)
     assert "on: the input that explains most of a budget alone is g [" in text
+    # and which engine the samples ran on, with its reason
+    assert " on: dense loop (the coupling of 'structure' with the rest of the loop" in text
 
 
 @pytest.mark.slow

@@ -16,7 +16,8 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["STRUCTURAL", "engine_paths", "path_lines", "perturbed", "sample_loop"]
+__all__ = ["STRUCTURAL", "engine_paths", "path_lines", "perturbed", "sample_lin",
+           "sample_loop"]
 
 #: The kinds of draw that change a configuration's loop (the others drive it).
 STRUCTURAL = ("modal_frequency", "modal_damping", "gain")
@@ -54,8 +55,8 @@ def perturbed(model, draws, items, s):
                                modal_damping=model.modal_damping * f_omega * f_zeta)
 
 
-def sample_loop(ctx, cf, items, draws, s: int, blocks: dict):
-    """The compiled loop of configuration ``cf`` for sample ``s``.
+def sample_lin(ctx, cf, items, draws, s: int, blocks: dict):
+    """The linear loop of configuration ``cf`` for sample ``s``, or None.
 
     Parameters
     ----------
@@ -74,17 +75,14 @@ def sample_loop(ctx, cf, items, draws, s: int, blocks: dict):
 
     Returns
     -------
-    FastResponse
-        The nominal loop itself when no draw changes the loop; else the sample's loop,
-        structured where the nominal form applies (:func:`~orchestrator.analysis.
-        structured.respond`).
+    LinearScenario or None
+        None when no draw changes the loop (every sample shares the nominal one).
     """
     from ..analysis.blocks import structure_block
-    from ..analysis.structured import respond
 
-    lin, structs, fr = ctx["base"][cf]
     if not any(it.kind in STRUCTURAL for it in items):
-        return fr
+        return None
+    lin, structs, _ = ctx["base"][cf]
     for name in structs:
         b = lin.blocks[name]
         key = ctx["models"][(cf, name)]
@@ -97,9 +95,43 @@ def sample_loop(ctx, cf, items, draws, s: int, blocks: dict):
         if it.kind == "gain":
             for j, inst in enumerate(it.instances):
                 lin = lin.with_gain(inst, float(draws.values[it.name][s, j]))
+    return lin
+
+
+def sample_loop(ctx, cf, items, draws, s: int, blocks: dict):
+    """The compiled loop of configuration ``cf`` for sample ``s`` (parameters as
+    :func:`sample_lin`).
+
+    Returns
+    -------
+    FastResponse
+        The nominal loop itself when no draw changes the loop; else the sample's loop,
+        structured where the nominal form applies (:func:`~orchestrator.analysis.
+        structured.respond`).
+    """
+    from ..analysis.structured import respond
+
+    lin = sample_lin(ctx, cf, items, draws, s, blocks)
+    fr = ctx["base"][cf][2]
     # the nominal loop's modal blocks patched (the dense one where that form does not
     # apply or pay): the same records, to round-off
-    return respond(lin, ctx["refs"], fr)
+    return fr if lin is None else respond(lin, ctx["refs"], fr)
+
+
+def _dense_why(fr0, lin, items) -> str:
+    """Why a sample's loop ``lin`` runs dense although ``fr0`` has a structured form."""
+    from ..analysis.structured import StructureRefused, modal_loop
+
+    if any(it.kind == "gain" for it in items):
+        return ("a sample changes more of the loop than its structure's modes (a "
+                "controller's gain), which the structured form does not patch: the dense "
+                "engine runs it")
+    loop = modal_loop(fr0)
+    try:
+        loop.sample(lin.blocks[loop.name], lin)
+    except StructureRefused as exc:
+        return str(exc)
+    return "a sample changes more of the loop than its structure: the dense engine runs it"
 
 
 def engine_paths(ctx, items, draws) -> dict:
@@ -123,26 +155,25 @@ def engine_paths(ctx, items, draws) -> dict:
         sample shares the configuration's nominal loop and no sample's poles are taken.
     """
     from ..analysis.structpoles import period_split
-    from ..analysis.structured import StructuredResponse, modal_loop
+    from ..analysis.structured import StructuredResponse, modal_loop, respond
 
     out = {}
     blocks = {}
     for cf in ctx["configs"]:
         fr0 = ctx["base"][cf][2]
-        fr = sample_loop(ctx, cf, items, draws, 0, blocks)
-        if fr is fr0:
+        lin = sample_lin(ctx, cf, items, draws, 0, blocks)
+        if lin is None:
             out[cf] = {"loop": "nominal", "loop_why": "no draw changes the loop: every "
                        "sample runs the configuration's nominal loop", "poles": "none",
                        "poles_why": None}
             continue
+        fr = respond(lin, ctx["refs"], fr0)
         if isinstance(fr, StructuredResponse):
             loop, why = "structured", None
         elif modal_loop(fr0) is None:
             loop, why = "dense", fr0.structure_reason
         else:
-            loop, why = "dense", ("a sample changes more of the loop than its structure's "
-                                  "modes (a controller's gain), which the structured form "
-                                  "does not patch: the dense engine runs it")
+            loop, why = "dense", _dense_why(fr0, lin, items)
         split, poles_why = period_split(fr) if loop == "structured" else (None, None)
         out[cf] = {"loop": loop, "loop_why": why,
                    "poles": "counted from the structure" if split else "eigenvalues",

@@ -138,6 +138,26 @@ def test_a_gain_draw_runs_dense_and_says_why(eos_mc, monkeypatch):
     assert seen["winding"] == 0
 
 
+@pytest.mark.slow
+def test_a_sample_the_form_refuses_runs_dense_with_the_refusal(eos_mc, monkeypatch):
+    """A sample whose structure the nominal form does not cover (here every sample's
+    static Ritz block, with the tolerance below zero) runs dense; the reason is the
+    form's own refusal, not a guess."""
+    camp, runner = eos_mc
+    ctx = mcm._setup(camp, runner)
+    for cf in ctx["configs"]:   # the nominal forms, built at the shipped tolerance
+        assert structured.modal_loop(ctx["base"][cf][2]) is not None
+    monkeypatch.setattr(structured, "_FORM_TOL", -1.0)
+    draws = _draws(camp, ctx)
+    paths = engine_paths(ctx, camp.uncertainty["parameters"], draws)
+    seen = _spied_sample(camp, runner, ctx, draws, monkeypatch)
+    for cf, p in paths.items():
+        assert p["loop"] == "dense" and p["poles"] == "eigenvalues"
+        assert p["loop_why"] == ("the sample's structure 'structure' changes its static "
+                                 "Ritz block: the dense engine runs it")
+        assert seen["loops"][ctx["base"][cf][2].n_memory] == {"FastResponse"}
+
+
 def _truss(parameters):
     return campaign_from_dict({
         "campaign": {"name": "mc", "scenario": str(ROOT / "scenarios/truss10_campaign.toml"),

@@ -98,20 +98,26 @@ def sample_lin(ctx, cf, items, draws, s: int, blocks: dict):
     return lin
 
 
-def sample_loop(ctx, cf, items, draws, s: int, blocks: dict):
-    """The compiled loop of configuration ``cf`` for sample ``s`` (parameters as
-    :func:`sample_lin`).
+def sample_loop(ctx, cf, lin):
+    """The compiled loop of configuration ``cf`` for a sample's linear loop ``lin``.
+
+    Parameters
+    ----------
+    ctx : dict
+        The Monte Carlo's set-up (``montecarlo._setup``).
+    cf : str
+        The configuration.
+    lin : LinearScenario or None
+        The sample's loop (:func:`sample_lin`); None: the nominal one.
 
     Returns
     -------
     FastResponse
-        The nominal loop itself when no draw changes the loop; else the sample's loop,
-        structured where the nominal form applies (:func:`~orchestrator.analysis.
-        structured.respond`).
+        The nominal loop itself for None; else the sample's loop, structured where the
+        nominal form applies (:func:`~orchestrator.analysis.structured.respond`).
     """
     from ..analysis.structured import respond
 
-    lin = sample_lin(ctx, cf, items, draws, s, blocks)
     fr = ctx["base"][cf][2]
     # the nominal loop's modal blocks patched (the dense one where that form does not
     # apply or pay): the same records, to round-off
@@ -155,7 +161,7 @@ def engine_paths(ctx, items, draws) -> dict:
         sample shares the configuration's nominal loop and no sample's poles are taken.
     """
     from ..analysis.structpoles import period_split
-    from ..analysis.structured import StructuredResponse, modal_loop, respond
+    from ..analysis.structured import StructuredResponse, modal_loop
 
     out = {}
     blocks = {}
@@ -167,7 +173,7 @@ def engine_paths(ctx, items, draws) -> dict:
                        "sample runs the configuration's nominal loop", "poles": "none",
                        "poles_why": None}
             continue
-        fr = respond(lin, ctx["refs"], fr0)
+        fr = sample_loop(ctx, cf, lin)
         if isinstance(fr, StructuredResponse):
             loop, why = "structured", None
         elif modal_loop(fr0) is None:

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..progress import ProgressBar
-from .mcloop import STRUCTURAL, engine_paths, sample_loop
+from .mcloop import STRUCTURAL, engine_paths, sample_lin, sample_loop
 from .mcloop import perturbed as _perturbed   # noqa: F401 (its old name)
 from .mcparts import PARTS_DIR, PARTS_FORMAT, load_parts, save_part
 from .mcresults import (DIVERGING, LIMIT, SAMPLES_FILE, UNCERTAINTY_FILE, UNSTABLE,
@@ -115,7 +115,7 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     for row, s in enumerate(samples):
         blocks = {}   # the sample's structure blocks: the configurations share them
         for ci, cf in enumerate(ctx["configs"]):
-            fr = sample_loop(ctx, cf, items, draws, s, blocks)
+            fr = sample_loop(ctx, cf, sample_lin(ctx, cf, items, draws, s, blocks))
             if structural:
                 try:
                     bad = unstable_poles(fr)

@@ -152,6 +152,24 @@ def test_the_eos_period_map_is_its_pairs_powers_plus_low_rank(eos_loops):
     assert period_split(on)[0] is None and "not in its structured form" in period_split(on)[1]
 
 
+def test_an_unstable_watch_block_is_counted(eos_loops, monkeypatch):
+    """The filters' own block made unstable (its map scaled to spectral radius 1.2):
+    the count is the winding of the stable rest plus that block's poles outside, equal
+    to the eigenvalues of the whole block-triangular map built with it."""
+    fr = eos_loops[0]["isolation off"]
+    got = respond(fr.lin, fr.refs, fr)
+    split, _ = period_split(got)
+    rho = np.abs(np.linalg.eigvals(split.watch)).max()
+    bad = split._replace(watch=split.watch * (1.2 / rho))
+    P = np.asarray(got.period_map()).copy()
+    watch = np.setdiff1d(np.arange(P.shape[0]), split.states)
+    P[np.ix_(watch, watch)] = bad.watch
+    want = int(np.sum(np.abs(np.linalg.eigvals(balance(P)[0])) > 1 + TOL))
+    assert want > 0
+    monkeypatch.setattr(structpoles, "period_split", lambda _: (bad, None))
+    assert unstable_count(got, TOL) == want
+
+
 def test_eos_counts_equal_eigenvalues_on_perturbed_samples(eos_loops):
     """20 perturbed samples of the isolation-off loop (every mode's frequency +-5 %,
     damping x0.5-2): the count is that of the balanced super-period map's eigenvalues,

@@ -250,6 +250,9 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
     n, top = unc["samples"], unc.get("max_samples") or unc["samples"]
     rounds = []
     check_uncertain_inputs(campaign, runner)
+    # which loop and which pole test a sample takes, and why: found on sample 0 (the
+    # same draw at any count) before any sample runs, so that it cannot fail after them
+    paths = None if cosim else engine_paths(ctx, items, draw(items, 1, unc["seed"], freqs))
     while True:
         draws = draw(items, n, unc["seed"], freqs)
         _check_sources(campaign, runner, draws)
@@ -263,8 +266,6 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
         if need is None or n >= top:
             break
         n = min(top, max(n + 1, min(4 * n, need)))   # at most four times more a round
-    # which loop and which pole test a sample takes, and why (sample 0, as it ran)
-    paths = None if cosim else engine_paths(ctx, items, draws)
     report = _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall)
     if paths is not None:
         report["linear_engine"] = paths

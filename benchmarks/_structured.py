@@ -21,6 +21,7 @@ from orchestrator.analysis.structpoles import _Coupling, period_split, winding_c
 from orchestrator.analysis.structured import StructuredResponse, respond
 from orchestrator.analysis.uncertainty import draw
 from orchestrator.campaign import montecarlo as mcm
+from orchestrator.campaign.mcresults import DENSE_LOOP, DIVERGING, LIMIT, UNSTABLE
 
 
 @contextmanager
@@ -53,7 +54,9 @@ def _draws(camp, ctx, n):
 
 def per_sample(camp, runner, ctx, n: int) -> dict:
     """Seconds a sample on one core, per engine, and the largest difference of their
-    metrics (relative) and statuses, over samples ``1 .. n`` (sample 0 warms both)."""
+    metrics (relative) and outcomes (rails, instability), over samples ``1 .. n``
+    (sample 0 warms both); ``engines_as_named``: every structured sample ran on the
+    structured loop and every dense one on the dense loop (their status bits)."""
     draws = _draws(camp, ctx, n + 1)
     out = {"structured": [], "dense": []}
     values = {}
@@ -67,11 +70,16 @@ def per_sample(camp, runner, ctx, n: int) -> dict:
                 values.setdefault(name, []).append((v, st))
     diff = max(float(np.nanmax(np.abs(a[0] - b[0]) / np.maximum(np.abs(b[0]), 1e-300)))
                for a, b in zip(values["structured"], values["dense"]))
-    same = all(np.array_equal(a[1], b[1]) for a, b in zip(values["structured"],
-                                                          values["dense"]))
+    outcome = LIMIT | UNSTABLE | DIVERGING   # the other bits say how the engine ran
+    same = all(np.array_equal(a[1] & outcome, b[1] & outcome)
+               for a, b in zip(values["structured"], values["dense"]))
+    # that the structured side did run structured, and the dense side dense
+    ran = (all(not (st & DENSE_LOOP).any() for _, st in values["structured"])
+           and all((st & DENSE_LOOP).all() for _, st in values["dense"]))
     return {"structured_s": float(np.median(out["structured"])),
             "dense_s": float(np.median(out["dense"])), "samples": n,
-            "largest_metric_difference": diff, "statuses_equal": same}
+            "largest_metric_difference": diff, "statuses_equal": same,
+            "engines_as_named": ran}
 
 
 def structured_flops(camp, runner, ctx) -> tuple:

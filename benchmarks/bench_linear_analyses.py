@@ -321,7 +321,9 @@ def main(argv=None) -> int:
     print(f"  a sample: structured {side['structured_s']:.3f} s, dense {side['dense_s']:.3f} s "
           f"({side['dense_s'] / side['structured_s']:.2f}x), median of {side['samples']}; "
           f"metrics within {side['largest_metric_difference']:.1e}, statuses "
-          f"{'equal' if side['statuses_equal'] else 'DIFFERENT'}")
+          f"{'equal' if side['statuses_equal'] else 'DIFFERENT'}"
+          + ("" if side["engines_as_named"] else "; NOT every sample ran on the loop its "
+             "engine names (a structured sample ran dense, or the reverse)"))
     print(f"  1000 samples on {cores} cores at that: structured "
           f"{1000 * side['structured_s'] / cores:.0f} s, dense {1000 * side['dense_s'] / cores:.0f}"
           f" s; a co-simulated case on one core {t_case:.2f} s (a sample is "

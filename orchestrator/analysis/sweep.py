@@ -90,14 +90,25 @@ def unstable_poles(fr: FastResponse, tol: float = 1e-6) -> list:
     list of complex
         Largest magnitude first.
     """
+    return _pole_verdict(fr, tol)[0]
+
+
+def _pole_verdict(fr: FastResponse, tol: float = 1e-6) -> tuple:
+    """``(poles, how)``: :func:`unstable_poles` and what decided them, ``"counted"``
+    (the count from the structure; where it found poles, the dense eigenvalues then
+    gave them) or ``"eigenvalues"`` (the dense eigenvalues, or the Schur form of a
+    solved steady state)."""
+    how = "eigenvalues"
     if fr._schur is not None:   # a steady state has been solved on this loop
         ev = np.diag(fr._schur[0])
-    elif unstable_count(fr, tol) == 0:   # from the structure: no dense eigenvalues
-        return []
     else:
+        count = unstable_count(fr, tol)
+        if count == 0:   # from the structure: no dense eigenvalues
+            return [], "counted"
+        how = "eigenvalues" if count is None else "counted"
         Phi_b, _ = balance(fr.period_map())
         ev = np.linalg.eigvals(Phi_b)
-    return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True)
+    return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True), how
 
 
 def steady_jitter(fr: FastResponse, freqs_hz, phasors, refs, metrics, duration: float, *,

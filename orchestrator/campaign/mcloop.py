@@ -16,8 +16,8 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["STRUCTURAL", "engine_paths", "path_lines", "perturbed", "sample_lin",
-           "sample_loop"]
+__all__ = ["STRUCTURAL", "engine_counts", "engine_paths", "path_lines", "perturbed",
+           "sample_lin", "sample_loop"]
 
 #: The kinds of draw that change a configuration's loop (the others drive it).
 STRUCTURAL = ("modal_frequency", "modal_damping", "gain")
@@ -187,13 +187,47 @@ def engine_paths(ctx, items, draws) -> dict:
     return out
 
 
-def path_lines(paths: dict) -> list:
-    """``engine_paths`` as the lines ``jitterfmu campaign`` prints, one a configuration.
+def engine_counts(paths: dict, status, configs) -> dict:
+    """:func:`engine_paths` with how many samples took each way (their status bits).
 
     Parameters
     ----------
     paths : dict
-        :func:`engine_paths`'s result (``uncertainty.json``'s ``linear_engine``).
+        :func:`engine_paths`'s result.
+    status : ndarray of int, shape (samples, configurations)
+        The samples' status bits (:mod:`.mcresults`).
+    configs : sequence of str
+        The configurations, in the order of ``status``'s columns.
+
+    Returns
+    -------
+    dict
+        Each configuration's paths plus ``samples``, ``dense_loop`` (samples run on the
+        dense loop) and ``poles_by_eigenvalues`` (samples whose poles the dense
+        eigenvalues decided); none of these for a nominal loop.
+    """
+    from .mcresults import DENSE_LOOP, POLES_BY_EIGENVALUES
+
+    out = {}
+    for ci, cf in enumerate(configs):
+        p = dict(paths[cf])
+        if p["loop"] != "nominal":
+            col = np.asarray(status)[:, ci]
+            p.update(samples=int(col.size), dense_loop=int(np.sum(col & DENSE_LOOP > 0)),
+                     poles_by_eigenvalues=int(np.sum(col & POLES_BY_EIGENVALUES > 0)))
+        out[cf] = p
+    return out
+
+
+def path_lines(paths: dict) -> list:
+    """``engine_paths`` (or ``engine_counts``) as the lines ``jitterfmu campaign``
+    prints, one a configuration.
+
+    Parameters
+    ----------
+    paths : dict
+        :func:`engine_counts`'s result (``uncertainty.json``'s ``linear_engine``), or
+        :func:`engine_paths`'s (no counts then).
 
     Returns
     -------
@@ -204,10 +238,18 @@ def path_lines(paths: dict) -> list:
         if p["loop"] == "nominal":
             out.append(f"  {cf}: the nominal loop ({p['loop_why']})")
             continue
+        n = p.get("samples")
         loop = ("structured loop (the nominal modal blocks patched)"
                 if p["loop"] == "structured" else f"dense loop ({p['loop_why']})")
-        poles = ("poles counted from the structure" if p["poles"] != "eigenvalues" else
+        counted = p["poles"] != "eigenvalues"
+        poles = ("poles counted from the structure" if counted else
                  "poles by dense eigenvalues" + (f" ({p['poles_why']})" if p["poles_why"]
                                                  else ""))
+        if n is not None:   # how many samples took the way sample 0 took
+            dense, eig = p["dense_loop"], p["poles_by_eigenvalues"]
+            loop += f", {n - dense if p['loop'] == 'structured' else dense} of {n} samples"
+            poles += f", {n - eig if counted else eig} of {n}"
+            if counted and eig:
+                poles += f" ({eig} by dense eigenvalues: the count was not certain)"
         out.append(f"  {cf}: {loop}; {poles}")
     return out

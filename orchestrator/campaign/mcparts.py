@@ -16,13 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from ..files import atomic_write
-from .mcresults import DIVERGING, LIMIT, UNSTABLE
+from .mcresults import DENSE_LOOP, DIVERGING, LIMIT, POLES_BY_EIGENVALUES, UNSTABLE
 
 __all__ = ["PARTS_DIR", "PARTS_FORMAT", "load_parts", "save_part"]
 
 PARTS_DIR = "uncertainty_parts"
-#: 2: each part carries the identity of its run.
-PARTS_FORMAT = 2
+#: 2: each part carries the identity of its run; 3: its status says how the engine took
+#: each sample (dense loop, poles by eigenvalues).
+PARTS_FORMAT = 3
 
 
 def load_parts(folder: Path, values, status, identity: str) -> np.ndarray:
@@ -76,7 +77,8 @@ def _part_problem(part: dict, values, status, identity: str) -> str:
             and st.shape == (idx.size,) + status.shape[1:] and (idx >= 0).all()
             and np.unique(idx).size == idx.size):
         return "its arrays do not have the shapes of this campaign's samples"
-    known = (st >= 0) & (st <= LIMIT | UNSTABLE | DIVERGING) & \
+    known = (st >= 0) & (st <= LIMIT | UNSTABLE | DIVERGING | DENSE_LOOP |
+                         POLES_BY_EIGENVALUES) & \
         (((st & DIVERGING) == 0) | ((st & UNSTABLE) != 0))
     if not known.all():
         return f"status {int(st[~known][0])} is not one a sample can have"

@@ -27,6 +27,10 @@ SAMPLES_FILE = "uncertainty_samples.parquet"
 UNCERTAINTY_FILE = "uncertainty.json"
 # the status bits of a sample and configuration (uncertainty.json counts each)
 LIMIT, UNSTABLE, DIVERGING = 1, 2, 4
+# how the linear engine took it: on the dense loop (not the structured one), its poles
+# decided by dense eigenvalues (not counted from the structure); counted per
+# configuration in uncertainty.json's linear_engine
+DENSE_LOOP, POLES_BY_EIGENVALUES = 8, 16
 _STATUS = {"unstable": UNSTABLE, "diverging_in_record": DIVERGING, "limit_reached": LIMIT}
 
 

@@ -36,10 +36,11 @@ from pathlib import Path
 import numpy as np
 
 from ..progress import ProgressBar
-from .mcloop import STRUCTURAL, engine_paths, sample_lin, sample_loop
+from .mcloop import STRUCTURAL, engine_counts, engine_paths, sample_lin, sample_loop
 from .mcloop import perturbed as _perturbed   # noqa: F401 (its old name)
 from .mcparts import PARTS_DIR, PARTS_FORMAT, load_parts, save_part
-from .mcresults import (DIVERGING, LIMIT, SAMPLES_FILE, UNCERTAINTY_FILE, UNSTABLE,
+from .mcresults import (DENSE_LOOP, DIVERGING, LIMIT, POLES_BY_EIGENVALUES, SAMPLES_FILE,
+                        UNCERTAINTY_FILE, UNSTABLE,
                         _convergence, _lines, _report, write_results)
 from .store import canonical
 
@@ -96,8 +97,10 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     ``inf``: it exceeds every requirement), 2 the closed loop is unstable (its metrics
     are those of its records; the statistics count it as exceeding every requirement,
     :func:`.mcresults._counted`), 4 so unstable that it more than doubles over the
-    record."""
-    from ..analysis.sweep import unstable_poles
+    record; and how the engine took it: 8 on the dense loop, 16 its poles decided by
+    dense eigenvalues."""
+    from ..analysis.structured import StructuredResponse
+    from ..analysis.sweep import _pole_verdict
     from ..metrics import metric_values
 
     items = campaign.uncertainty["parameters"]
@@ -117,14 +120,16 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
         for ci, cf in enumerate(ctx["configs"]):
             fr = sample_loop(ctx, cf, sample_lin(ctx, cf, items, draws, s, blocks))
             if structural:
+                status[row, ci] |= 0 if isinstance(fr, StructuredResponse) else DENSE_LOOP
                 try:
-                    bad = unstable_poles(fr)
+                    bad, how = _pole_verdict(fr)
                 except ValueError:   # a loop map past a float's range: no record to take
                     if np.isfinite(fr.period_map()).all():
                         raise
                     values[row, ci] = np.inf
                     status[row, ci] |= UNSTABLE | DIVERGING | LIMIT
                     continue
+                status[row, ci] |= POLES_BY_EIGENVALUES if how == "eigenvalues" else 0
                 if bad:   # reported; the record is what the co-simulation would give
                     growth = abs(bad[0]) ** (record_ticks / fr.P)
                     status[row, ci] |= UNSTABLE | (DIVERGING if growth > 2.0 else 0)
@@ -267,8 +272,8 @@ def run_uncertainty(campaign, out_dir, runner=None, progress: bool | None = None
             break
         n = min(top, max(n + 1, min(4 * n, need)))   # at most four times more a round
     report = _report(campaign, ctx, draws, status, lines, folder, out_dir, rounds, wall)
-    if paths is not None:
-        report["linear_engine"] = paths
+    if paths is not None:   # with how many samples took each way
+        report["linear_engine"] = engine_counts(paths, status, ctx["configs"])
     return write_results(out_dir, campaign, ctx, values, status, summary, report)
 
 

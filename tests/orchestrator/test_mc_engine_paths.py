@@ -158,6 +158,35 @@ def test_a_sample_the_form_refuses_runs_dense_with_the_refusal(eos_mc, monkeypat
         assert seen["loops"][ctx["base"][cf][2].n_memory] == {"FastResponse"}
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("certain", [True, False])
+def test_the_run_counts_how_each_sample_was_taken(eos_mc, tmp_path, monkeypatch, certain):
+    """``uncertainty.json`` counts, per configuration, the samples run on the dense loop
+    and those whose poles the eigenvalues decided: none and none isolation off, none and
+    all isolation on; with the winding never certain, isolation off's poles fall back to
+    the eigenvalues in every sample, and the count and the printed line say so."""
+    import json
+
+    from orchestrator.campaign import run_uncertainty
+
+    camp, runner = eos_mc
+    camp = dataclasses.replace(camp, uncertainty={**camp.uncertainty, "samples": 3,
+                                                  "max_samples": None})
+    if not certain:
+        monkeypatch.setattr(structpoles, "winding_count", lambda *a, **k: (None, 0))
+    path = run_uncertainty(camp, tmp_path, runner, progress=False, workers=0)
+    got = json.loads(path.read_text())["linear_engine"]
+    off, on = got["isolation off"], got["isolation on"]
+    assert off["samples"] == on["samples"] == 3 and off["dense_loop"] == on["dense_loop"] == 0
+    assert on["poles_by_eigenvalues"] == 3
+    assert off["poles_by_eigenvalues"] == (0 if certain else 3)
+    assert off["poles"] == "counted from the structure"   # what it tries first
+    lines = path_lines(got)
+    assert lines[0].endswith("3 of 3 samples; poles counted from the structure, " + (
+        "3 of 3" if certain else
+        "0 of 3 (3 by dense eigenvalues: the count was not certain)"))
+
+
 def _truss(parameters):
     return campaign_from_dict({
         "campaign": {"name": "mc", "scenario": str(ROOT / "scenarios/truss10_campaign.toml"),

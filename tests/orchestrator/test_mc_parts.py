@@ -58,7 +58,7 @@ def _bad(edit):
      r"of status 0 has a finite metric"),
     (lambda v, st: v.__setitem__((1, 1, 2, 1, 1), np.inf), r"the value inf where"),
     (lambda v, st: v.__setitem__((1, 0, 1, 0, 0), -1e300), r"the value -1e\+300 where"),
-    (lambda v, st: st.__setitem__((0, 1), 9), r"status 9 is not one a sample can have"),
+    (lambda v, st: st.__setitem__((0, 1), 32), r"status 32 is not one a sample can have"),
     (lambda v, st: st.__setitem__((0, 1), 4), r"status 4 is not one a sample can have"),
     (lambda v, st: st.__setitem__((0, 1), LIMIT), r"the value 1e-06 where a sample of "
      r"status 1"),

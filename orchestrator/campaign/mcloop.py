@@ -1,13 +1,14 @@
 """The Monte Carlo's loop of one sample and configuration, and how the engine takes it.
 
-:func:`sample_loop` closes a configuration's loop with a sample's draws (the reduced
-structure's modal frequencies and damping, controller gains): the nominal loop's modal
-blocks patched where only the structure's modes change
-(:func:`orchestrator.analysis.structured.respond`), the dense engine otherwise.
+:func:`sample_lin` closes a configuration's loop with a sample's draws (the reduced
+structure's modal frequencies and damping, controller gains) and :func:`sample_loop`
+compiles it: the nominal loop's modal blocks patched where only the structure's modes
+change (:func:`orchestrator.analysis.structured.respond`), the dense engine otherwise.
 :func:`engine_paths` says, per configuration, which of the two a sample runs on and how
 its poles are decided (counted from the structure, or dense eigenvalues), each with the
-reason in one sentence; ``uncertainty.json`` keeps it and ``jitterfmu campaign`` prints
-it.
+reason in one sentence; :func:`engine_counts` adds how many samples took each way (their
+status bits); ``uncertainty.json`` keeps it and ``jitterfmu campaign`` prints it
+(:func:`path_lines`).
 """
 
 from __future__ import annotations

@@ -21,6 +21,7 @@ from orchestrator.analysis.structpoles import _Coupling, period_split, winding_c
 from orchestrator.analysis.structured import StructuredResponse, respond
 from orchestrator.analysis.uncertainty import draw
 from orchestrator.campaign import montecarlo as mcm
+from orchestrator.campaign.mcloop import engine_paths, sample_lin, sample_loop
 from orchestrator.campaign.mcresults import DENSE_LOOP, DIVERGING, LIMIT, UNSTABLE
 
 
@@ -89,20 +90,11 @@ def structured_flops(camp, runner, ctx) -> tuple:
     items = camp.uncertainty["parameters"]
     first = mcm.first_tick(camp, ctx["base"][ctx["configs"][0]][0])
     flop, rows = 0.0, []
+    paths, blocks = engine_paths(ctx, items, draws), {}
     for cf in ctx["configs"]:
-        lin, structs, fr0 = ctx["base"][cf]
-        b = lin.blocks[structs[0]]
-        blk = structure_block(mcm._perturbed(b.model, draws, items, 0), structs[0],
-                              b.period, b.period * lin.base, b.feedthrough, blockwise=True)
-        fr = respond(lin.with_block(blk), ctx["refs"], fr0)
+        fr = sample_loop(ctx, cf, sample_lin(ctx, cf, items, draws, 0, blocks))
         if not isinstance(fr, StructuredResponse):
-            why = fr0.structure_reason
-            if why is None:   # the nominal form stands, the sample's patch was refused
-                try:
-                    structured.modal_loop(fr0).sample(blk)
-                except structured.StructureRefused as exc:
-                    why = str(exc)
-            rows.append(f"{cf}: dense ({why})")
+            rows.append(f"{cf}: dense ({paths[cf]['loop_why']})")
             continue
         Ws = [ctx["inputs"][(cf, ev)][1] for ev in ctx["events"]]
         E, K = len(Ws), Ws[0].shape[0]
@@ -209,12 +201,10 @@ def verdicts(camp, ctx, n: int) -> dict:
     out = {cf: {"agree": 0, "unstable_structured": 0, "unstable_dense": 0,
                 "structured_s": 0.0, "dense_s": 0.0} for cf in ctx["configs"]}
     for s in range(n):
+        blocks = {}
         for cf in ctx["configs"]:
-            lin, structs, fr0 = ctx["base"][cf]
-            b = lin.blocks[structs[0]]
-            lin_s = lin.with_block(structure_block(
-                mcm._perturbed(b.model, draws, items, s), structs[0], b.period,
-                b.period * lin.base, b.feedthrough, blockwise=True))
+            fr0 = ctx["base"][cf][2]
+            lin_s = sample_lin(ctx, cf, items, draws, s, blocks)
             t0 = time.perf_counter()
             a = bool(unstable_poles(respond(lin_s, ctx["refs"], fr0)))
             t1 = time.perf_counter()
@@ -251,15 +241,10 @@ def stages(camp, runner, ctx, n: int) -> dict:
     first = mcm.first_tick(camp, ctx["base"][ctx["configs"][0]][0])
     out = {}
     for cf in ctx["configs"]:
-        lin, structs, fr0 = ctx["base"][cf]
         times = {k: [] for k in ("structure block", "run types", "poles", "records")}
         for s in range(1, n + 1):
             t0 = time.perf_counter()
-            b = lin.blocks[structs[0]]
-            blk = structure_block(mcm._perturbed(b.model, draws, items, s), structs[0],
-                                  b.period, b.period * lin.base, b.feedthrough,
-                                  blockwise=True)
-            fr = respond(lin.with_block(blk), ctx["refs"], fr0)
+            fr = sample_loop(ctx, cf, sample_lin(ctx, cf, items, draws, s, {}))
             t1 = time.perf_counter()
             for sig, L in fr._runs:
                 fr._type(sig, L)

@@ -98,9 +98,8 @@ def _pole_verdict(fr: FastResponse, tol: float = 1e-6) -> tuple:
     (the count from the structure; where it found poles, the dense eigenvalues then
     gave them) or ``"eigenvalues"`` (the dense eigenvalues, or the Schur form of a
     solved steady state)."""
-    how = "eigenvalues"
     if fr._schur is not None:   # a steady state has been solved on this loop
-        ev = np.diag(fr._schur[0])
+        ev, how = np.diag(fr._schur[0]), "eigenvalues"
     else:
         count = unstable_count(fr, tol)
         if count == 0:   # from the structure: no dense eigenvalues

@@ -17,11 +17,11 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["STRUCTURAL", "engine_counts", "engine_paths", "path_lines", "perturbed",
-           "sample_lin", "sample_loop"]
+__all__ = ["engine_counts", "engine_paths", "path_lines", "perturbed", "sample_lin",
+           "sample_loop"]
 
-#: The kinds of draw that change a configuration's loop (the others drive it).
-STRUCTURAL = ("modal_frequency", "modal_damping", "gain")
+# the kinds of draw that change a configuration's loop (the others drive it)
+_STRUCTURAL = ("modal_frequency", "modal_damping", "gain")
 
 
 def perturbed(model, draws, items, s):
@@ -81,7 +81,7 @@ def sample_lin(ctx, cf, items, draws, s: int, blocks: dict):
     """
     from ..analysis.blocks import structure_block
 
-    if not any(it.kind in STRUCTURAL for it in items):
+    if not any(it.kind in _STRUCTURAL for it in items):
         return None
     lin, structs, _ = ctx["base"][cf]
     for name in structs:
@@ -126,14 +126,17 @@ def sample_loop(ctx, cf, lin):
 
 
 def _dense_why(fr0, lin, items) -> str:
-    """Why a sample's loop ``lin`` runs dense although ``fr0`` has a structured form."""
+    """Why a sample's loop ``lin`` runs dense (the nominal loop ``fr0``'s own reason
+    where it has no structured form)."""
     from ..analysis.structured import StructureRefused, modal_loop
 
+    loop = modal_loop(fr0)
+    if loop is None:
+        return fr0.structure_reason
     if any(it.kind == "gain" for it in items):
         return ("a sample changes more of the loop than its structure's modes (a "
                 "controller's gain), which the structured form does not patch: the dense "
                 "engine runs it")
-    loop = modal_loop(fr0)
     try:
         loop.sample(lin.blocks[loop.name], lin)
     except StructureRefused as exc:
@@ -162,7 +165,7 @@ def engine_paths(ctx, items, draws) -> dict:
         sample shares the configuration's nominal loop and no sample's poles are taken.
     """
     from ..analysis.structpoles import period_split
-    from ..analysis.structured import StructuredResponse, modal_loop
+    from ..analysis.structured import StructuredResponse
 
     out = {}
     blocks = {}
@@ -175,12 +178,8 @@ def engine_paths(ctx, items, draws) -> dict:
                        "poles_why": None}
             continue
         fr = sample_loop(ctx, cf, lin)
-        if isinstance(fr, StructuredResponse):
-            loop, why = "structured", None
-        elif modal_loop(fr0) is None:
-            loop, why = "dense", fr0.structure_reason
-        else:
-            loop, why = "dense", _dense_why(fr0, lin, items)
+        patched = isinstance(fr, StructuredResponse)
+        loop, why = ("structured", None) if patched else ("dense", _dense_why(fr0, lin, items))
         split, poles_why = period_split(fr) if loop == "structured" else (None, None)
         out[cf] = {"loop": loop, "loop_why": why,
                    "poles": "counted from the structure" if split else "eigenvalues",

@@ -36,8 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..progress import ProgressBar
-from .mcloop import STRUCTURAL, engine_counts, engine_paths, sample_lin, sample_loop
-from .mcloop import perturbed as _perturbed   # noqa: F401 (its old name)
+from .mcloop import engine_counts, engine_paths, sample_lin, sample_loop
 from .mcparts import PARTS_DIR, PARTS_FORMAT, load_parts, save_part
 from .mcresults import (DENSE_LOOP, DIVERGING, LIMIT, POLES_BY_EIGENVALUES, SAMPLES_FILE,
                         UNCERTAINTY_FILE, UNSTABLE,
@@ -104,7 +103,6 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     from ..metrics import metric_values
 
     items = campaign.uncertainty["parameters"]
-    structural = any(it.kind in STRUCTURAL for it in items)
     lin0 = ctx["base"][ctx["configs"][0]][0]
     tb = lin0.plan.timebase
     dt = tb.output_ticks * float(tb.base)
@@ -118,8 +116,9 @@ def _evaluate(campaign, runner, ctx, draws, samples) -> tuple:
     for row, s in enumerate(samples):
         blocks = {}   # the sample's structure blocks: the configurations share them
         for ci, cf in enumerate(ctx["configs"]):
-            fr = sample_loop(ctx, cf, sample_lin(ctx, cf, items, draws, s, blocks))
-            if structural:
+            lin = sample_lin(ctx, cf, items, draws, s, blocks)
+            fr = sample_loop(ctx, cf, lin)
+            if lin is not None:   # the draws change the loop: its poles are the sample's
                 status[row, ci] |= 0 if isinstance(fr, StructuredResponse) else DENSE_LOOP
                 try:
                     bad, how = _pole_verdict(fr)

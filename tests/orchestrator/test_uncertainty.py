@@ -866,7 +866,7 @@ def test_each_sample_perturbs_the_modes_by_its_own_draw():
     nominal ones times the factors drawn for that mode (per mode for the frequency, one
     factor for the band for the damping); the modes outside the band keep their damping."""
     from orchestrator.analysis.uncertainty import Uncertain
-    from orchestrator.campaign.montecarlo import _perturbed
+    from orchestrator.campaign.mcloop import perturbed as _perturbed
     from structfmu.models import truss10
     from structfmu.statespace import first_order
 

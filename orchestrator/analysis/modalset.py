@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .blocks import AnalysisError, structure_block
-from .uncertainty import UncertaintyError
+from .uncertainty import LOOP_KINDS, UncertaintyError
 
 __all__ = ["UncertainSet", "uncertain_set", "loop_at"]
 
@@ -61,7 +61,7 @@ def uncertain_set(lin, items) -> UncertainSet:
         One sentence: a set without finite bounds, a factor bound at or below zero
         (a negative damping or frequency), or no structure to perturb.
     """
-    keep = [it for it in items if it.kind in ("modal_frequency", "modal_damping", "gain")]
+    keep = [it for it in items if it.kind in LOOP_KINDS]
     if not keep:
         raise UncertaintyError("the uncertainty set has no modal frequency, modal damping "
                                "or gain parameter: nothing in it moves a pole")

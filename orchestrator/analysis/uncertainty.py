@@ -43,6 +43,10 @@ ASSURANCE = ("upper_bound: an order statistic of the samples that lies above the
 DISTRIBUTIONS = ("uniform", "normal", "lognormal")
 _BIG = np.finfo(float).max / 4   # the stand-in of an infinite sample
 KINDS = ("modal_frequency", "modal_damping", "amplitude", "phase", "frequency", "gain")
+# the kinds that perturb the reduced structure's modes, and those that change a loop (the
+# others drive it)
+MODAL_KINDS = ("modal_frequency", "modal_damping")
+LOOP_KINDS = MODAL_KINDS + ("gain",)
 
 
 class UncertaintyError(ValueError):
@@ -194,7 +198,7 @@ def draw(items, n: int, seed: int, frequencies_hz=None) -> Draws:
         raise UncertaintyError(f"seed is {seed!r}; expected a whole number >= 0")
     values, modes = {}, {}
     for it in items:
-        if it.kind in ("modal_frequency", "modal_damping"):
+        if it.kind in MODAL_KINDS:
             f = np.asarray(frequencies_hz if frequencies_hz is not None else [], float)
             idx = np.flatnonzero((f >= it.band[0]) & (f <= it.band[1]) & (f > 0))
             if idx.size == 0:

@@ -17,11 +17,10 @@ import dataclasses
 
 import numpy as np
 
+from ..analysis.uncertainty import LOOP_KINDS, MODAL_KINDS
+
 __all__ = ["engine_counts", "engine_paths", "path_lines", "perturbed", "sample_lin",
            "sample_loop"]
-
-# the kinds of draw that change a configuration's loop (the others drive it)
-_STRUCTURAL = ("modal_frequency", "modal_damping", "gain")
 
 
 def perturbed(model, draws, items, s):
@@ -45,7 +44,7 @@ def perturbed(model, draws, items, s):
     f_omega = np.ones(model.n_modes)
     f_zeta = np.ones(model.n_modes)
     for it in items:
-        if it.kind not in ("modal_frequency", "modal_damping"):
+        if it.kind not in MODAL_KINDS:
             continue
         idx = draws.modes[it.name]
         v = draws.values[it.name][s]
@@ -81,7 +80,7 @@ def sample_lin(ctx, cf, items, draws, s: int, blocks: dict):
     """
     from ..analysis.blocks import structure_block
 
-    if not any(it.kind in _STRUCTURAL for it in items):
+    if not any(it.kind in LOOP_KINDS for it in items):
         return None
     lin, structs, _ = ctx["base"][cf]
     for name in structs:

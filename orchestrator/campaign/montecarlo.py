@@ -29,7 +29,6 @@ import hashlib
 import json
 import math
 import signal
-import sys
 import time
 from pathlib import Path
 

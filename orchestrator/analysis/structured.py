@@ -129,7 +129,12 @@ class _Form:
         return Y
 
     def step_cost(self) -> float:
-        """Flops of one product with one vector."""
+        """Flops of one product with one vector, counting every coupling row on every
+        column: more than :meth:`right` and :meth:`left` multiply (they leave out the
+        rows that do not read the pairs on the pair columns, :meth:`_parts`), the count
+        by which :meth:`run` chooses how to form ``M^L``.  With the products' own count
+        it would choose the same way for the EOS loop with isolation on at 70, 280 and
+        500 modes, and at 70 modes a chain no faster (``M^99`` 13.7 against 13.9 ms)."""
         return 2.0 * self.W.size + 2.0 * self.gamma.size + 6.0 * self.n_p
 
     def power(self, L: int) -> np.ndarray:

@@ -10,10 +10,13 @@ co-simulation uses ``--workers`` processes; the linear engine runs in this proce
 time is split into the closing of the two configurations' loops (``linearize`` and
 compiling the runs, once per configuration: the "model build") and the 24 cases
 themselves (every case's record, metrics, files and summary), ``--repeat`` times on a
-fresh runner each (the median printed, and the range).  The build is timed twice in each
-repeat: with the store of built blocks off (every block from its FMU) and on, filled by
-an earlier build (:mod:`orchestrator.analysis.blockstore`, what a second command on the
-same FMUs finds).  Every summary cell of the two is compared, for every linear run.
+fresh runner each (the median printed, and the range).  The build is timed twice in
+each repeat: with the store of built blocks off (every block from its FMU) and on,
+filled by an earlier build (:mod:`orchestrator.analysis.blockstore`, what a second
+command on the same FMUs finds).  The campaign is also timed whole, as the command runs
+it (a fresh runner, store off, building inside its threads), with the CPU time of the
+process: divided by the cores, the wall time no schedule can go under.  Every summary
+cell of the two engines is compared, for every linear run.
 """
 
 from __future__ import annotations
@@ -64,7 +67,7 @@ def main(argv=None) -> int:
         a = _summary(tmp / "cosim")
         configs = {c.configuration: c for c in camp.cases}
 
-        def build(store: str):
+        def fresh(store: str):
             # nothing this process kept from the previous build (its FMU extractions and
             # blocks, its loops' stability verdicts); the store of built blocks off
             # (every block from its FMU) or on (blocks an earlier process kept)
@@ -72,14 +75,25 @@ def main(argv=None) -> int:
             lin_scenario._EXTRACTED.clear()
             linearcheck._VERDICTS.clear()
             linearcheck._SOURCES.clear()
-            runner = LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
+            return LinearRunner(camp.scenario_dir, fmu_dir=fmu_dir)
+
+        def build(store: str):
+            runner = fresh(store)
             t0 = time.perf_counter()
             for case in configs.values():   # the model build: one closed loop each
                 runner.compiled(case.scenario)
             return runner, time.perf_counter() - t0
 
         build("on")   # the store filled, as by an earlier command on these FMUs
+        wholes = []
         for i in range(max(1, args.repeat)):
+            # the campaign as a command runs it: a fresh runner builds inside, on threads
+            c0, t0 = time.process_time(), time.perf_counter()
+            run_campaign(dataclasses.replace(camp, engine="linear"), tmp / f"whole{i}",
+                         fresh("off"), progress=False)
+            wholes.append((time.perf_counter() - t0, time.process_time() - c0))
+            b = _summary(tmp / f"whole{i}")
+            worst = max(worst, max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k]))
             runner, t = build("off")
             builds.append(t)
             runner, t = build("on")
@@ -108,6 +122,13 @@ def main(argv=None) -> int:
     print(f"{'linear: the 24 cases (records, metrics, files)':<44}{t_li:>10.2f}"
           f"{1e3 * t_li / n:>15.1f}  {_spread(cases)}")
     print(f"{'linear: total':<44}{t_build + t_li:>10.2f}")
+    walls, cpus = zip(*wholes)
+    print(f"{'linear: the campaign from a fresh runner':<44}{float(np.median(walls)):>10.2f}"
+          f"{'':>15}  {_spread(walls)}")
+    cores = os.cpu_count() or 1
+    print(f"  its CPU time {float(np.median(cpus)):.2f} s ({_spread(cpus)}): on {cores} "
+          f"cores no schedule runs it in under {float(np.median(cpus)) / cores:.2f} s; "
+          f"10x the co-simulation is {t_co / 10:.2f} s")
     print(f"(linear rows: the median of {len(cases)} runs on fresh runners)")
     print(f"speed-up of the cases: {t_co / t_li:.0f}x, with the build: "
           f"{t_co / (t_build + t_li):.1f}x, with the build from stored blocks: "

@@ -17,6 +17,7 @@ import numpy as np
 from orchestrator.analysis import structured
 from orchestrator.analysis.blocks import structure_block
 from orchestrator.analysis.fast import FastResponse
+from orchestrator.analysis.fastparts import _chain_flops
 from orchestrator.analysis.structpoles import _Coupling, period_split, winding_count
 from orchestrator.analysis.structured import StructuredResponse, respond
 from orchestrator.analysis.uncertainty import draw
@@ -99,27 +100,21 @@ def product_flops(f, nonzero: bool = False) -> float:
 def _power_flops(f, L: int, c: float) -> float:
     """Flops of ``M^L`` the way the engine forms it (``_Form.run``, chosen by its own
     count), with ``c`` flops a structured product with one vector."""
-    s, n_p = f.s, f.n_p
     costs, chain = f.power_costs(L)
-    way = structured._WAYS[int(np.argmin(costs))]
-    if way == "recursion":
-        return (2 * int(f._read.sum()) + s - n_p) * L * c
-    if way == "coupling":
-        return (L - 1) * f.W.shape[0] * c + 2.0 * n_p * L * f.k_in * s
-    if chain is None:   # by the binary digits of L
-        return (L.bit_length() - 1) * 2.0 * s ** 3 + (L.bit_count() - 1) * s * c
-    m, j, e = chain
-    return (m - 1 + e) * s * c + j * 2.0 * s ** 3
+    way = int(np.argmin(costs))
+    if structured._WAYS[way] == "squaring":   # the engine's chain, at this count
+        return _chain_flops(L, chain, 2.0 * f.s ** 3, f.s * c)
+    return f.power_costs(L, c)[0][way]
 
 
-def structured_flops(camp, runner, ctx, nonzero: bool = False) -> tuple:
-    """Flops of one structured sample (the products it computes, in their shapes) and a
-    line per configuration naming the form's sizes; ``nonzero``: with the zero entries
-    of the tick maps' coupling left out of their products (:func:`product_flops`)."""
+def structured_flops(camp, runner, ctx) -> tuple:
+    """Flops of one structured sample (the products it computes, in their shapes), the
+    same with the zero entries of the tick maps' coupling left out of their products
+    (:func:`product_flops`), and a line per configuration naming the form's sizes."""
     draws = _draws(camp, ctx, 1)
     items = camp.uncertainty["parameters"]
     first = mcm.first_tick(camp, ctx["base"][ctx["configs"][0]][0])
-    flop, rows = 0.0, []
+    flop, rows = np.zeros(2), []   # as multiplied, without the zeros
     paths, blocks = engine_paths(ctx, items, draws), {}
     for cf in ctx["configs"]:
         fr = sample_loop(ctx, cf, sample_lin(ctx, cf, items, draws, 0, blocks))
@@ -139,19 +134,20 @@ def structured_flops(camp, runner, ctx, nonzero: bool = False) -> tuple:
         for (sig, L), per_period in runs.items():
             f = fr._forms[sig]
             t = fr._type(sig, L)
-            c = product_flops(f, nonzero)
             n_u = max(1, round(per_period * K / fr.P))
-            flop += (L - 1) * (t.live.size + k) * c + 2.0 * (L - 1) * t.live.size * s * k
             ML = t.ML
-            if isinstance(ML, structured._BlockPower):
-                flop += L * ML.cols.size * c
-                apply = 2.0 * s * ML.cols.size + 6.0 * ML.at.size
-            elif ML is f:
-                apply = c
-            else:   # the way the form took: the cheapest in its own count
-                flop += _power_flops(f, L, c)
-                apply = 2.0 * s * s
-            flop += n_u * apply * E                                  # state recursion
+            for i, c in enumerate((product_flops(f), product_flops(f, nonzero=True))):
+                flop[i] += ((L - 1) * (t.live.size + k) * c
+                            + 2.0 * (L - 1) * t.live.size * s * k)
+                if isinstance(ML, structured._BlockPower):
+                    flop[i] += L * ML.cols.size * c
+                    apply = 2.0 * s * ML.cols.size + 6.0 * ML.at.size
+                elif ML is f:
+                    apply = c
+                else:   # the way the form took: the cheapest in its own count
+                    flop[i] += _power_flops(f, L, c)
+                    apply = 2.0 * s * s
+                flop[i] += n_u * apply * E                           # state recursion
             flop += 2.0 * n_u * L * k_sum * s                         # input side
             flop += 2.0 * E * max(1, round(n_u * kept)) * s * L * n_los   # free responses
         split, why = period_split(fr)
@@ -169,7 +165,7 @@ def structured_flops(camp, runner, ctx, nonzero: bool = False) -> tuple:
                     f"{product_flops(f) / (2.0 * s * s):.0%} of a dense one "
                     f"({product_flops(f, True) / (2.0 * s * s):.0%} without its zero "
                     f"entries); {poles}")
-    return flop / 1e9, rows
+    return flop[0] / 1e9, flop[1] / 1e9, rows
 
 
 def scaling(camp, runner, ctx, modes, n: int) -> list:

@@ -274,8 +274,7 @@ def main(argv=None) -> int:
         mcm._evaluate(camp, lrun, ctx, draws, list(range(1, args.core_samples + 1)))
         t_core = (time.perf_counter() - t0) / args.core_samples
         side = _structured.per_sample(camp, lrun, ctx, args.core_samples)
-        s_gflop, s_rows = _structured.structured_flops(camp, lrun, ctx)
-        nz_gflop, _ = _structured.structured_flops(camp, lrun, ctx, nonzero=True)
+        s_gflop, nz_gflop, s_rows = _structured.structured_flops(camp, lrun, ctx)
         parts = _structured.stages(camp, lrun, ctx, args.core_samples)
         modes = [int(m) for m in args.modes.split(",") if m.strip()]
         scale = _structured.scaling(camp, lrun, ctx, modes, 2) if modes else []

@@ -42,6 +42,12 @@ def _summary(folder):
             for r in pq.read_table(Path(folder) / "summary.parquet").to_pylist()}
 
 
+def _largest_difference(a: dict, folder) -> float:
+    """The largest relative difference of a summary cell of ``folder`` from ``a``."""
+    b = _summary(folder)
+    return max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k])
+
+
 def _spread(times) -> str:
     """``min-max`` of repeated timings, or nothing for one."""
     return f"{min(times):.2f}-{max(times):.2f}" if len(times) > 1 else ""
@@ -92,8 +98,7 @@ def main(argv=None) -> int:
             run_campaign(dataclasses.replace(camp, engine="linear"), tmp / f"whole{i}",
                          fresh("off"), progress=False)
             wholes.append((time.perf_counter() - t0, time.process_time() - c0))
-            b = _summary(tmp / f"whole{i}")
-            worst = max(worst, max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k]))
+            worst = max(worst, _largest_difference(a, tmp / f"whole{i}"))
             runner, t = build("off")
             builds.append(t)
             runner, t = build("on")
@@ -102,8 +107,7 @@ def main(argv=None) -> int:
             li = run_campaign(dataclasses.replace(camp, engine="linear"), tmp / f"linear{i}",
                               runner, progress=False)
             cases.append(time.perf_counter() - t0)
-            b = _summary(tmp / f"linear{i}")
-            worst = max(worst, max(abs(a[k] - b[k]) / abs(a[k]) for k in a if a[k]))
+            worst = max(worst, _largest_difference(a, tmp / f"linear{i}"))
         t_build, t_li = float(np.median(builds)), float(np.median(cases))
         t_stored = float(np.median(stored))
         fr = next(iter(runner._compiled.values()))

@@ -411,15 +411,23 @@ def _power_chain(L: int, square: float, product: float) -> tuple:
     squaring (the coupling of a large model), a longer run of products before fewer
     squarings pays: at 500 modes, with isolation on, ``M^99`` as ``M^3 (M^12)^8`` costs
     4.8 squarings' flops against 6.4 by the binary digits of 99."""
-    # None: by the binary digits of L, left to right (a factor M a structured product)
-    best = (None, (L.bit_length() - 1) * square + (bin(L).count("1") - 1) * product)
+    best = (None, _chain_flops(L, None, square, product))
     for j in range(L.bit_length()):
         k = L >> j
-        r = L - (k << j)
-        cost = (k - 1 + r) * product + j * square
+        chain = (k, j, L - (k << j))
+        cost = _chain_flops(L, chain, square, product)
         if cost < best[1]:
-            best = ((k, j, r), cost)
+            best = (chain, cost)
     return best
+
+
+def _chain_flops(L: int, chain, square: float, product: float) -> float:
+    """Flops of ``M^L`` by ``chain`` (:func:`_power_chain`), or by the binary digits of
+    ``L``, left to right, for None (a factor ``M`` a structured product)."""
+    if chain is None:
+        return (L.bit_length() - 1) * square + (L.bit_count() - 1) * product
+    k, j, r = chain
+    return (k - 1 + r) * product + j * square
 
 
 def _coupled_power(a, gamma, Zu, last) -> np.ndarray:

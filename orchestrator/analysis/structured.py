@@ -142,11 +142,13 @@ class _Form:
         others by ``L`` products, or all by squaring where that costs fewer flops."""
         return self.run(L, np.zeros((0, self.s)), np.zeros((self.s, 0)))[0]
 
-    def power_costs(self, L: int) -> tuple:
+    def power_costs(self, L: int, step: float | None = None) -> tuple:
         """Flops of ``M^L`` each way of :meth:`run` (``_WAYS``: the recursion of the
         columns the coupling reads, squaring, the coupling's rows), and the squaring's
-        chain (:func:`~.fastparts._power_chain`)."""
-        s, n_p, step = self.s, self.n_p, self.step_cost()
+        chain (:func:`~.fastparts._power_chain`); ``step`` the flops of a product with
+        one vector (default :meth:`step_cost`, the count :meth:`run` chooses by)."""
+        s, n_p = self.s, self.n_p
+        step = self.step_cost() if step is None else step
         chain, squaring = _power_chain(L, 2.0 * s ** 3, s * step)
         return ((2 * int(self._read.sum()) + s - n_p) * L * step, squaring,
                 (L - 1) * self.W.shape[0] * step + 2.0 * n_p * L * self.k_in * s), chain

@@ -130,7 +130,8 @@ def main(argv=None) -> int:
     print(f"{'linear: the campaign from a fresh runner':<44}{float(np.median(walls)):>10.2f}"
           f"{'':>15}  {_spread(walls)}")
     cores = os.cpu_count() or 1
-    print(f"  its CPU time {float(np.median(cpus)):.2f} s ({_spread(cpus)}): on {cores} "
+    spread = f" ({_spread(cpus)})" if len(cpus) > 1 else ""
+    print(f"  its CPU time {float(np.median(cpus)):.2f} s{spread}: on {cores} "
           f"cores no schedule runs it in under {float(np.median(cpus)) / cores:.2f} s; "
           f"10x the co-simulation is {t_co / 10:.2f} s")
     print(f"(linear rows: the median of {len(cases)} runs on fresh runners)")

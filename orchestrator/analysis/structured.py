@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._pairs import pair_left, pair_right
 from .blocks import AnalysisError
 from .fast import FastResponse, _RunType
 from .fastparts import (_add_pairs, _BlockPower, _coupled_power, _pair_power,
@@ -99,7 +100,7 @@ class _Form:
         Z = rest @ X[n_p:]
         Z[rows] += Wp @ X[:n_p]
         Y = np.empty((X.shape[0], c))
-        np.matmul(self.a, X[:n_p].reshape(-1, 2, c), out=Y[:n_p].reshape(-1, 2, c))
+        pair_right(self.a, X, Y)
         Y[:n_p] += self.gamma @ Z[:self.k_in]
         Y[n_p:] = Z[self.k_in:]
         return Y
@@ -123,9 +124,7 @@ class _Form:
         Y = np.empty((O.shape[0], self.s))
         np.matmul(coef[:, rows], Wp, out=Y[:, :n_p])
         np.matmul(coef, rest, out=Y[:, n_p:])
-        q, v = O[:, 0:n_p:2], O[:, 1:n_p:2]
-        Y[:, 0:n_p:2] += q * a[:, 0, 0] + v * a[:, 1, 0]
-        Y[:, 1:n_p:2] += q * a[:, 0, 1] + v * a[:, 1, 1]
+        pair_left(O, a, Y)
         return Y
 
     def step_cost(self) -> float:

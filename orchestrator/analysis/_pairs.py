@@ -11,8 +11,8 @@ and an accumulated right one are the numpy expressions' values to the last bit
 (``tests/orchestrator/test_pairs.py``); a right product that sets its rows is
 ``numpy.matmul``'s to its rounding.  The library is compiled once per configuration
 into the private cache (:func:`fmutools.compiled.c_library`); without a C compiler, or
-for arrays the kernel does not take (not float64, entries of a row not contiguous), the
-numpy expressions run.
+for arrays the kernel does not take (not float64, entries of a row not contiguous, an
+output that is read-only or shares memory with the input), the numpy expressions run.
 """
 
 from __future__ import annotations
@@ -52,7 +52,9 @@ def _rows(x: np.ndarray) -> bool:
 
 
 def _blocks(a: np.ndarray) -> bool:
-    return a.dtype == np.float64 and a.ndim == 3 and a.flags.c_contiguous
+    """True if ``a`` is a C-ordered float64 stack of 2x2 blocks."""
+    return (a.dtype == np.float64 and a.ndim == 3 and a.shape[1:] == (2, 2)
+            and a.flags.c_contiguous)
 
 
 def pair_left(O: np.ndarray, a: np.ndarray, Y: np.ndarray) -> None:

@@ -471,7 +471,9 @@ class _BlockPower:
     def __init__(self, s, at, P, cols, X):
         self.shape = (s, s)
         self.at, self.P, self.cols, self.X = at, P, cols, X
-        self._leading = np.array_equal(at, 2 * np.arange(len(at)))
+        # the pairs' rows, None when they are the leading states (multiplied in place)
+        self._rows = (None if np.array_equal(at, 2 * np.arange(len(at)))
+                      else (np.asarray(at)[:, None] + np.arange(2)).ravel())
 
     @property
     def nbytes(self) -> int:
@@ -482,13 +484,12 @@ class _BlockPower:
         flat = Y.ndim == 1
         Y = Y.reshape(self.shape[0], -1)
         out = self.X @ Y[self.cols]
-        i, P = self.at, self.P
-        if self._leading:   # the pairs are the leading states: in one pass
-            pair_right(P, Y, out, add=True)
-        else:
-            q, v = Y[i], Y[i + 1]
-            out[i] += P[:, 0, 0, None] * q + P[:, 0, 1, None] * v
-            out[i + 1] += P[:, 1, 0, None] * q + P[:, 1, 1, None] * v
+        if self._rows is None:
+            pair_right(self.P, Y, out, add=True)
+        else:   # the pairs' rows gathered, multiplied and put back
+            part = out[self._rows]
+            pair_right(self.P, Y[self._rows], part, add=True)
+            out[self._rows] = part
         return out[:, 0] if flat else out
 
     def toarray(self) -> np.ndarray:

@@ -217,13 +217,14 @@ class FastResponse(SteadyState):
         return self.__dict__.setdefault("_build_lock", threading.RLock())
 
     def _store_columns(self, t: _RunType, miss, K) -> None:
-        """Keep ``M^(L-1-l) N`` and the Markov parameters of the channels ``miss`` of a
-        run type from their column Krylov products ``K`` (s, L, c)."""
-        L, s = t.L, t.N.shape[0]
-        h = np.empty((L, t.live.size, len(miss)))
+        """Keep ``M^(L-1-l) N`` and the Markov parameters ``C (M^(p-1) N)`` (one product,
+        no pass over every row ``C M^q``) of the channels ``miss`` of a run type from
+        their column Krylov products ``K`` (s, L, c)."""
+        L, s, r = t.L, t.N.shape[0], t.live.size
+        h = np.empty((L, r, len(miss)))
         h[0] = t.D[:, miss]
         if L > 1:
-            h[1:] = t.O.reshape(L, t.live.size, s)[:L - 1] @ t.N[:, miss]
+            h[1:] = np.moveaxis((t.O[:r] @ K[:, :L - 1].reshape(s, -1)).reshape(r, L - 1, -1), 0, 1)
         for j, ch in enumerate(miss):
             t.cols[ch] = (np.ascontiguousarray(K[:, ::-1, j]), h[:, :, j].copy())
 
@@ -542,8 +543,7 @@ class FastResponse(SteadyState):
         return [self._record(y, check, np.where(skip, b, np.nan), bound_inner=bound_limits)
                 for y, b in zip(Y, bounds)]
 
-    def _record(self, Y: np.ndarray, check: bool, bounds=None,
-                bound_inner: bool = False) -> Record:
+    def _record(self, Y: np.ndarray, check: bool, bounds=None, bound_inner: bool = False) -> Record:
         """A record from the computed rows ``Y`` (n_ticks + 1, computed rows): limits
         checked.  ``bounds`` (r,): where not NaN, the row was not computed (``Y`` leaves
         it out) and this bounds it.  ``bound_inner``: a limit inside a step is bounded

@@ -387,8 +387,12 @@ def _limit_bounds(fr, t, pos, X, Wus, actives) -> np.ndarray:
     b = (np.abs(X.reshape(E * n_u, s)) @ A.T).reshape(E, n_u, pos.size)
     for e, (Wu, active) in enumerate(zip(Wus, actives)):
         if active.size:
-            h1 = np.abs(fr._columns(t, active)[1][:, pos]).sum(axis=0)  # (p, k)
-            b[e] += np.abs(Wu).max(axis=1) @ h1.T                          # (n_u, p)
+            hk = ("abssum", id(t), active.tobytes(), pos.tobytes())   # records share it
+            h1 = fr._kernels.get(hk)
+            if h1 is None:
+                h1 = np.abs(fr._columns(t, active)[1][:, pos]).sum(axis=0).T  # (k, p)
+                fr._keep(hk, h1)
+            b[e] += np.abs(Wu).max(axis=1) @ h1                            # (n_u, p)
     return b.max(axis=1)
 
 

@@ -197,19 +197,15 @@ class FastResponse(SteadyState):
         """``(G, h)`` of a run type for the source channels ``active``: ``G`` (s, L, k)
         ``M^(L-1-l) N``, ``h`` (L, r_live, k) the Markov parameters ``h_0 = D``,
         ``h_p = C M^(p-1) N`` (column Krylov of the channels not built before)."""
-        ck = ("cols", id(t), np.asarray(active, int).tobytes())   # kept: every record asks
-        got = self._kernels.get(ck)
-        if got is not None:
-            return got
-        # built once when a campaign's cases ask from several threads
-        with self._building():
-            miss = [int(c) for c in active if int(c) not in t.cols]
-            if miss:
-                self._store_columns(t, miss, self._column_krylov(t, miss))
-            got = tuple(np.stack([t.cols[int(c)][i] for c in active], axis=-1)
-                        for i in (0, 1))
-            self._keep(ck, got)
-        return got
+        def make():   # built once when a campaign's cases ask from several threads
+            with self._building():
+                miss = [int(c) for c in active if int(c) not in t.cols]
+                if miss:
+                    self._store_columns(t, miss, self._column_krylov(t, miss))
+                return tuple(np.stack([t.cols[int(c)][i] for c in active], axis=-1)
+                             for i in (0, 1))
+        # kept: every record asks
+        return self._kept(("cols", id(t), np.asarray(active, int).tobytes()), make)
 
     def _building(self):
         """The lock under which run types and input sides are built (records of one
@@ -267,39 +263,38 @@ class FastResponse(SteadyState):
         L, k = t.L, active.size
         sel = np.arange(t.live.size) if sel is None else sel
         r = sel.size
-        ck = ("forced", id(t), active.tobytes(), sel.tobytes())
-        T = self._kernels.get(ck)
-        if T is None:
+
+        def make():
             h = self._columns(t, active)[1][:, sel]                     # (L, r, k)
             if L > _TOEPLITZ_TICKS:
-                T = ("fft", sfft.rfft(h, _fft_length(L), axis=0))       # (f, r, k)
-            else:   # Tt[l, c, q, j] = h[q - l, j, c] for q >= l, from a sliding view
-                hp = np.concatenate([np.zeros((L - 1, k, r)), h.transpose(0, 2, 1)])
-                win = np.lib.stride_tricks.sliding_window_view(hp, L, axis=0)  # (L, k, r, L)
-                T = ("toeplitz", np.ascontiguousarray(
-                    win[::-1].transpose(0, 1, 3, 2)).reshape(L * k, L * r))
-            self._keep(ck, T)
+                return ("fft", sfft.rfft(h, _fft_length(L), axis=0))    # (f, r, k)
+            # Tt[l, c, q, j] = h[q - l, j, c] for q >= l, from a sliding view
+            hp = np.concatenate([np.zeros((L - 1, k, r)), h.transpose(0, 2, 1)])
+            win = np.lib.stride_tricks.sliding_window_view(hp, L, axis=0)  # (L, k, r, L)
+            return ("toeplitz", np.ascontiguousarray(
+                win[::-1].transpose(0, 1, 3, 2)).reshape(L * k, L * r))
+        T = self._kept(("forced", id(t), active.tobytes(), sel.tobytes()), make)
         if T[0] == "fft":
             return _causal_conv(T[1], Wu).reshape(Wu.shape[0], L * r)
         return Wu.reshape(Wu.shape[0], L * k) @ T[1]
 
-    def _keep(self, key, value):
-        """Keep a derived matrix of this loop (bounded; keys name a run type by ``id``)."""
-        if len(self._kernels) > 256:
-            self._kernels.clear()
-        self._kernels[key] = value
+    def _kept(self, key, make):
+        """A derived matrix of this loop, ``make()`` on first use and kept (bounded; keys
+        name a run type by ``id``)."""
+        got = self._kernels.get(key)
+        if got is None:
+            if len(self._kernels) > 256:
+                self._kernels.clear()
+            got = self._kernels[key] = make()
+        return got
 
     def _rows(self, t: _RunType, sel) -> np.ndarray:
         """``C M^q`` of the live rows ``sel`` of a run type, ``(L r_sel, s)`` (kept)."""
         if sel.size == t.live.size:
             return t.O
-        ck = ("rows", id(t), sel.tobytes())
-        O = self._kernels.get(ck)
-        if O is None:
-            O = np.take(t.O.reshape(t.L, t.live.size, -1), sel, axis=1).reshape(
-                t.L * sel.size, -1)   # take: 30 times a fancy index's speed here
-            self._keep(ck, O)
-        return O
+        # take: 30 times a fancy index's speed here
+        return self._kept(("rows", id(t), sel.tobytes()), lambda: np.take(
+            t.O.reshape(t.L, t.live.size, -1), sel, axis=1).reshape(t.L * sel.size, -1))
 
     # ------------------------------------------------------------------ running
     def times(self, n_ticks: int, every: int = 1) -> np.ndarray:

@@ -374,24 +374,21 @@ def _limit_bounds(fr, t, pos, X, Wus, actives) -> np.ndarray:
     rigorous whatever the scales of the states.  ``X`` (E, n_u, s) the runs' start
     states, ``Wus`` each record's inputs of those runs (n_u, L, k), ``actives`` its
     channels.  The free parts of every record and run are one product."""
-    ck = ("absmax", id(t), pos.tobytes())
-    A = fr._kernels.get(ck)
-    if A is None:   # tick by tick: no temporary of the size of O (a 25 MB one stalls)
+    def absmax():   # tick by tick: no temporary of the size of O (a 25 MB one stalls)
         O = t.O.reshape(t.L, t.live.size, -1)
         A = np.abs(O[0, pos])                                             # (p, s)
         buf = np.empty_like(A)
         for q in range(1, t.L):
             np.maximum(A, np.abs(np.take(O[q], pos, axis=0, out=buf), out=buf), out=A)
-        fr._keep(ck, A)
+        return A
+
+    A = fr._kept(("absmax", id(t), pos.tobytes()), absmax)
     E, n_u, s = X.shape
     b = (np.abs(X.reshape(E * n_u, s)) @ A.T).reshape(E, n_u, pos.size)
     for e, (Wu, active) in enumerate(zip(Wus, actives)):
         if active.size:
-            hk = ("abssum", id(t), active.tobytes(), pos.tobytes())   # records share it
-            h1 = fr._kernels.get(hk)
-            if h1 is None:
-                h1 = np.abs(fr._columns(t, active)[1][:, pos]).sum(axis=0).T  # (k, p)
-                fr._keep(hk, h1)
+            h1 = fr._kept(("abssum", id(t), active.tobytes(), pos.tobytes()),   # (k, p)
+                          lambda a=active: np.abs(fr._columns(t, a)[1][:, pos]).sum(axis=0).T)
             b[e] += np.abs(Wu).max(axis=1) @ h1                            # (n_u, p)
     return b.max(axis=1)
 

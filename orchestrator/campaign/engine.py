@@ -265,7 +265,7 @@ def _run_threads(todo, args, on_done):
     with blas_threads_kept():
         pool = ThreadPoolExecutor(min(len(todo), os.cpu_count() or 1),
                                   initializer=one_blas_thread)
-        futs = {pool.submit(execute_case, case, *args): case for case in todo}
+        futs = {pool.submit(execute_case, case, *args): case for case in _loops_first(todo)}
         reported = set()
         try:
             for fut in as_completed(futs):
@@ -282,6 +282,17 @@ def _run_threads(todo, args, on_done):
             raise
         finally:
             pool.shutdown(wait=False)
+
+
+def _loops_first(todo) -> list:
+    """The cases in the order threads take them: one case of every configuration first
+    (each builds its loop, at once on several threads), then the rest configuration by
+    configuration, so that a thread finds cases whose loop is built while another loop
+    is still building, rather than waiting for it."""
+    groups = {}
+    for case in todo:
+        groups.setdefault(case.configuration, []).append(case)
+    return [g[0] for g in groups.values()] + [c for g in groups.values() for c in g[1:]]
 
 
 def _run_local(todo, args, workers, on_done):

@@ -73,6 +73,7 @@ class LinearRunner:
         self._source_blocks = {}
         self._series_cache = {}
         self._responses = {}
+        self._gates = {}   # one build at a time per loop (compiled)
         # the caches of compiled loops and sources, shared by a campaign's threads
         self._lock = threading.RLock()
 
@@ -122,26 +123,37 @@ class LinearRunner:
         return self._master.output_problem(scenario, ref, recorded)
 
     # ------------------------------------------------------------------ compiled loops
-    @_locked
     def compiled(self, scenario: dict) -> FastResponse:
-        """The compiled closed loop of a case's configuration (built on first use)."""
+        """The compiled closed loop of a case's configuration (built on first use).
+
+        Threads asking for different loops build them at once; a thread asking for a
+        loop another is building waits for that build (one gate per loop)."""
         layout = json.dumps(sorted((n, f.get("fmu")) for n, f in scenario["fmus"].items()))
-        sources = self._sources.get(layout)
-        if sources is not None:
-            fr = self._compiled.get(loop_key(scenario, sources))
-            if fr is not None:
-                return fr
+        with self._lock:
+            sources = self._sources.get(layout)
+            fr = None if sources is None else self._compiled.get(loop_key(scenario, sources))
+        if fr is not None:
+            return fr
+        # linearised outside the runner's lock: the blocks two configurations share are
+        # built once in the process (analysis.scenario.instance_block)
         sc = self._master._scenario(scenario)
         lin = linearize(sc, fmu_dir=self.fmu_dir)
-        self._sources[layout] = tuple(lin.sources)
-        # the model build: the loop's run matrices; the input side of each source
-        # channel is built when a case first drives it (a budget's events drive 17 of
-        # the EOS loop's 54 channels)
-        fr = FastResponse(lin, tuple(sc.record)).prepare(channels=())
-        self._compiled[loop_key(scenario, lin.sources)] = fr
+        key = loop_key(scenario, lin.sources)
+        with self._lock:
+            self._sources[layout] = tuple(lin.sources)
+            gate = self._gates.setdefault(key, threading.Lock())
+        with gate:
+            with self._lock:
+                fr = self._compiled.get(key)
+            if fr is None:
+                # the model build: the loop's run matrices; the input side of each
+                # source channel is built when a case first drives it (a budget's
+                # events drive 17 of the EOS loop's 54 channels)
+                fr = FastResponse(lin, tuple(sc.record)).prepare(channels=())
+                with self._lock:
+                    self._compiled[key] = fr
         return fr
 
-    @_locked
     def response(self, scenario: dict, refs, opened=()) -> FastResponse:
         """The compiled loop of a case's configuration with ``opened`` instances taken
         out and ``refs`` recorded (kept: a second sweep on it reuses its factorisation).
@@ -155,15 +167,16 @@ class LinearRunner:
         opened : sequence of str
             Instances whose outputs are held at zero (e.g. the ACS).
         """
-        fr = self.compiled(scenario)
+        fr = self.compiled(scenario)   # not under the lock: another thread may be building
         if not opened and tuple(fr.refs) == tuple(refs):
             return fr
         key = (id(fr), tuple(opened), tuple(refs))
-        got = self._responses.get(key)
-        if got is None or got[0] is not fr:
-            # held at zero: published every tick, so that they add no period
-            lin = fr.lin.opened(opened, period=1) if opened else fr.lin
-            got = self._responses[key] = (fr, FastResponse(lin, tuple(refs)))
+        with self._lock:
+            got = self._responses.get(key)
+            if got is None or got[0] is not fr:
+                # held at zero: published every tick, so that they add no period
+                lin = fr.lin.opened(opened, period=1) if opened else fr.lin
+                got = self._responses[key] = (fr, FastResponse(lin, tuple(refs)))
         return got[1]
 
     @_locked

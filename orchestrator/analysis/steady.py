@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SteadyState", "balance"]
+__all__ = ["SteadyState", "balance", "loop_eigenvalues"]
 
 
 class SteadyState:
@@ -225,10 +225,43 @@ def balance(A: np.ndarray):
     with np.errstate(invalid="ignore"):   # scipy casts its unused permutation
         Ab, T = la.matrix_balance(A, permute=False)
     d = np.diag(T).copy()
-    # zero up to round-off of the products that made A (1e-53 against 3 seen)
-    tiny = np.finfo(float).eps ** 2 * np.abs(A).max()
-    idle = (np.abs(A).max(axis=0) <= tiny) | (np.abs(A).max(axis=1) <= tiny)
+    idle = _idle(A)
     if np.any(idle & (d != 1.0)):
         d[idle] = 1.0
         Ab = A / d[:, None] * d[None, :]      # powers of two: exact
     return Ab, d
+
+
+def _idle(A: np.ndarray) -> np.ndarray:
+    """The states whose column or row of ``A`` is zero up to round-off of the products
+    that made it (1e-53 against 3 seen): ``eps^2`` of its largest entry."""
+    tiny = np.finfo(float).eps ** 2 * np.abs(A).max()
+    return (np.abs(A).max(axis=0) <= tiny) | (np.abs(A).max(axis=1) <= tiny)
+
+
+def loop_eigenvalues(A: np.ndarray) -> np.ndarray:
+    """The eigenvalues of a loop map, balanced once: by LAPACK inside
+    ``numpy.linalg.eigvals`` (a permutation, then power-of-two scaling), after the
+    states :func:`balance` keeps at scale 1 (a row or column zero up to round-off) are
+    made exactly zero, so that the permutation sets them apart rather than the scaling
+    driving them to 1e-50.  ``eigvals(balance(A)[0])`` balances twice: at 500 modes
+    :func:`balance` alone took 45 ms of the 380 ms of an isolation-on loop's poles.
+    Moving those entries, at most ``eps^2`` of the largest, to zero moves an eigenvalue
+    by less than the round-off of the solve itself.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        A loop's map (a super-period map).
+
+    Returns
+    -------
+    ndarray, shape (n,), complex
+    """
+    A = np.asarray(A, float)
+    idle = _idle(A)
+    if idle.any():
+        A = A.copy()
+        A[idle] = 0.0
+        A[:, idle] = 0.0
+    return np.linalg.eigvals(A)

@@ -21,7 +21,7 @@ import numpy as np
 from .. import metrics as M
 from .blocks import AnalysisError
 from .fast import FastResponse
-from .steady import balance
+from .steady import loop_eigenvalues
 from .structpoles import unstable_count
 
 __all__ = ["WheelSweep", "steady_jitter", "unstable_poles", "wheel_sweep"]
@@ -105,8 +105,7 @@ def _pole_verdict(fr: FastResponse, tol: float = 1e-6) -> tuple:
         if count == 0:   # from the structure: no dense eigenvalues
             return [], "counted"
         how = "eigenvalues" if count is None else "counted"
-        Phi_b, _ = balance(fr.period_map())
-        ev = np.linalg.eigvals(Phi_b)
+        ev = loop_eigenvalues(fr.period_map())
     return sorted((z for z in ev if abs(z) > 1 + tol), key=abs, reverse=True), how
 
 

@@ -70,6 +70,12 @@ def per_sample(camp, runner, ctx, n: int) -> dict:
                 if s:
                     out[name].append(time.perf_counter() - t0)
                 values.setdefault(name, []).append((v, st))
+    return _compared(out, values, n)
+
+
+def _compared(out: dict, values: dict, n: int) -> dict:
+    """The medians of ``out`` (seconds per engine) and how the engines' samples
+    ``values`` compare (:func:`per_sample`)."""
     diff = max(float(np.nanmax(np.abs(a[0] - b[0]) / np.maximum(np.abs(b[0]), 1e-300)))
                for a, b in zip(values["structured"], values["dense"]))
     outcome = LIMIT | UNSTABLE | DIVERGING   # the other bits say how the engine ran
@@ -79,9 +85,36 @@ def per_sample(camp, runner, ctx, n: int) -> dict:
     ran = (all(not (st & DENSE_LOOP).any() for _, st in values["structured"])
            and all((st & DENSE_LOOP).all() for _, st in values["dense"]))
     return {"structured_s": float(np.median(out["structured"])),
-            "dense_s": float(np.median(out["dense"])), "samples": n,
+            "dense_s": float(np.median(out["dense"])), "samples": len(out["structured"]),
             "largest_metric_difference": diff, "statuses_equal": same,
             "engines_as_named": ran}
+
+
+def per_sample_rounds(camp, runner, ctxs, n: int, rounds: int = 3) -> list:
+    """:func:`per_sample` of several contexts (the structure reduced to several mode
+    counts).  The structured engine first, in ``rounds`` over the sizes: each round runs
+    ``n`` samples of every size one after another, after one that warms it, as a Monte
+    Carlo runs a size's samples; the first round warms the process and is not timed.  A
+    load that drifts over the run then slows every size alike, and the slope does not
+    follow it.  Then the dense engine, one round.  (With the dense samples between the
+    structured ones, each of a size's structured samples came after a dense one whose
+    arrays the process had just given back: the 500-mode sample took 1.09 s against
+    0.89 s in a row, a slope of s^1.40 against s^1.29.)"""
+    draws = [_draws(camp, ctx, n + 1) for ctx in ctxs]
+    out = [{"structured": [], "dense": []} for _ in ctxs]
+    values = [{} for _ in ctxs]
+    for name, n_rounds in (("structured", max(2, rounds)), ("dense", 1)):
+        for r in range(n_rounds):
+            for i, ctx in enumerate(ctxs):
+                with engine(ctx, name):
+                    for s in range(n + 1):
+                        t0 = time.perf_counter()
+                        v, st = mcm._evaluate(camp, runner, ctx, draws[i], [s])
+                        if s and (r or n_rounds == 1):
+                            out[i][name].append(time.perf_counter() - t0)
+                        if r == 0:
+                            values[i].setdefault(name, []).append((v, st))
+    return [_compared(o, v, n) for o, v in zip(out, values)]
 
 
 def product_flops(f, nonzero: bool = False) -> float:
@@ -175,8 +208,8 @@ def scaling(camp, runner, ctx, modes, n: int) -> list:
     (:func:`stages`)."""
     from structfmu.models import eos_testbed as et
 
-    out = []
     truss = et.build(active_legs="all")
+    built = []
     for n_modes in modes:
         t0 = time.perf_counter()
         model = et.reduced(n_modes, truss=truss)
@@ -193,8 +226,11 @@ def scaling(camp, runner, ctx, modes, n: int) -> list:
                   for cf in ctx["configs"] for name in base[cf][1]}
         ctx_n = {**{k: v for k, v in ctx.items() if k != "_forms"}, "base": base,
                  "models": models}
-        build = time.perf_counter() - t0
-        t = per_sample(camp, runner, ctx_n, n)
+        built.append((n_modes, model, ctx_n, time.perf_counter() - t0))
+    # the sizes in turn, in rounds (per_sample_rounds): the slope does not follow the load
+    times = per_sample_rounds(camp, runner, [c for _, _, c, _ in built], n)
+    out = []
+    for (n_modes, model, ctx_n, build), t in zip(built, times):
         with engine(ctx_n, "structured"):   # the forms per_sample built, reused
             parts = stages(camp, runner, ctx_n, n)
         kept = 0
@@ -204,7 +240,7 @@ def scaling(camp, runner, ctx, modes, n: int) -> list:
                 sum(np.asarray(v).nbytes for v in d.values() if isinstance(v, np.ndarray))
                 for d in loop._base.values())
         out.append({"modes": n_modes, "ritz": model.n_ritz,
-                    "memory_states": [base[cf][2].n_memory for cf in ctx["configs"]],
+                    "memory_states": [ctx_n["base"][cf][2].n_memory for cf in ctx["configs"]],
                     "build_s": build, "form_bytes": kept, "stages_s": parts, **t})
     return out
 

@@ -26,7 +26,9 @@ Run::
   shapes, over this machine's one-thread square dgemm rate); and both engines with the
   EOS structure reduced to each of ``--modes`` (memory states, the slope of the
   per-sample cost against the memory state, the bytes of the structured forms, each
-  configuration's poles and the slope without them).
+  configuration's poles and the slope without them): the structured samples of every
+  size in rounds, ``--core-samples`` of a size in a row after a warm one (the first
+  round warms), so that the slope does not follow a drifting load; then the dense.
 * **The exact floor of a sample** (``--no-floor`` leaves it out): the products an exact
   engine cannot leave out, on the nominal loops the samples perturb (their memory
   states, live rows and driven channels): the free responses of the 24 records after the
@@ -277,7 +279,8 @@ def main(argv=None) -> int:
         s_gflop, nz_gflop, s_rows = _structured.structured_flops(camp, lrun, ctx)
         parts = _structured.stages(camp, lrun, ctx, args.core_samples)
         modes = [int(m) for m in args.modes.split(",") if m.strip()]
-        scale = _structured.scaling(camp, lrun, ctx, modes, 2) if modes else []
+        scale = (_structured.scaling(camp, lrun, ctx, modes, args.core_samples) if modes
+                 else [])
         votes = _structured.verdicts(camp, ctx, args.verdicts) if args.verdicts else {}
         with _structured.engine(ctx, "dense"):
             floor = exact_floor(camp, lrun) if args.floor else None

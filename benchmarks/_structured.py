@@ -70,10 +70,10 @@ def per_sample(camp, runner, ctx, n: int) -> dict:
                 if s:
                     out[name].append(time.perf_counter() - t0)
                 values.setdefault(name, []).append((v, st))
-    return _compared(out, values, n)
+    return _compared(out, values)
 
 
-def _compared(out: dict, values: dict, n: int) -> dict:
+def _compared(out: dict, values: dict) -> dict:
     """The medians of ``out`` (seconds per engine) and how the engines' samples
     ``values`` compare (:func:`per_sample`)."""
     diff = max(float(np.nanmax(np.abs(a[0] - b[0]) / np.maximum(np.abs(b[0]), 1e-300)))
@@ -114,7 +114,7 @@ def per_sample_rounds(camp, runner, ctxs, n: int, rounds: int = 3) -> list:
                             out[i][name].append(time.perf_counter() - t0)
                         if r == 0:
                             values[i].setdefault(name, []).append((v, st))
-    return [_compared(o, v, n) for o, v in zip(out, values)]
+    return [_compared(o, v) for o, v in zip(out, values)]
 
 
 def product_flops(f, nonzero: bool = False) -> float:

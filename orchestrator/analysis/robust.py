@@ -57,12 +57,11 @@ def pole_radius(lin, like=None) -> float:
     -------
     float
     """
-    from scipy.linalg import matrix_balance
-
     from .fast import FastResponse
+    from .steady import loop_eigenvalues
 
     fr = FastResponse(lin, [], strict=False, like=like)
-    ev = np.linalg.eigvals(matrix_balance(fr.period_map(), permute=False)[0])
+    ev = loop_eigenvalues(fr.period_map())
     moving = np.abs(ev - 1.0) > _RIGID_TOL
     return float(np.abs(ev[moving]).max()) if moving.any() else 0.0
 

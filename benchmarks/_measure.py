@@ -50,6 +50,25 @@ def blas_cores() -> list:
     return out
 
 
+def blas_choice() -> str:
+    """The kernels this process's OpenBLAS runs and who chose them: the library's own
+    detection, or ``OPENBLAS_CORETYPE`` (then also what the library alone picks on this
+    CPU, from a fresh interpreter without the variable)."""
+    cores = ", ".join(blas_cores()) or "unknown"
+    forced = os.environ.get("OPENBLAS_CORETYPE")
+    if not forced:
+        return f"{cores} (the library's detection)"
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+    code = (f"import sys; sys.path.insert(0, {os.path.dirname(__file__)!r}); import numpy; "
+            "from _measure import blas_cores; print(', '.join(blas_cores()))")
+    try:
+        alone = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                               text=True, timeout=60, check=False).stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        alone = "unknown"
+    return f"{cores} (set by OPENBLAS_CORETYPE={forced}; the library alone picks {alone})"
+
+
 def best_of(fn, repeat: int) -> tuple:
     """``(seconds, result)``: the shortest of ``repeat`` timed calls of ``fn`` and the
     last call's result."""

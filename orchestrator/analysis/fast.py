@@ -39,8 +39,9 @@ import scipy.fft as sfft
 
 from .blocks import AnalysisError
 from .fastparts import (NonlinearError, Record, _add_forced, _causal_conv, _doubling,
-                        _fft_length, _inner_bound, _inner_checks, _limit_bounds, _power,
-                        _powers, _relevant, _run_views, _RunType, _same_pattern, _tick_map)
+                        _fft_length, _inner_basis, _inner_bound, _inner_checks, _limit_bounds,
+                        _power, _powers, _relevant, _run_views, _RunType, _same_pattern,
+                        _tick_map)
 from .steady import SteadyState
 
 __all__ = ["FastResponse", "NonlinearError", "Record"]
@@ -111,14 +112,8 @@ class FastResponse(SteadyState):
                            else len(computed) + extra.index(c[0]) for c in self._checks]
         # limits inside a step: values at every sub-step, from the rows of the block's
         # state (the previous tick's: its step's start) and inputs held (computed too)
-        basis, self._inner, r0 = [], [], len(computed) + len(extra)
-        for n, b in lin.blocks.items():
-            if b.inner:
-                sx, su, _ = lin.slots[n]
-                cols = r0 + len(basis) + np.arange(b.n + len(b.inputs))
-                basis += [*range(sx.start, sx.stop), *range(su.start, su.stop)]
-                self._inner += [(f"{n}.{o}", G, lo, hi, what, cols, b.n, b.period)
-                                for o, G, lo, hi, what in b.inner]
+        r0 = len(computed) + len(extra)
+        basis, self._inner = _inner_basis(lin, r0)
         self._inner_cols = np.arange(r0, r0 + len(basis))
         rows = [lin.index(r) for r in computed] + [lin.index(r) for r in extra] + basis
         self._r = len(rows)

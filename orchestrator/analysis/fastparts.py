@@ -190,6 +190,48 @@ def _extreme_rows(G: np.ndarray) -> np.ndarray:
     return rows
 
 
+def _inner_basis(lin, r0: int) -> tuple:
+    """The rows limits inside a step read, and those limits: ``(basis, inner)``.
+
+    ``basis`` the lifted-state rows, from row ``r0`` of the recorded rows on: per block
+    with such limits, its state and the inputs some sub-step row reads (a column of
+    zeros in every one of its sub-step matrices, a stack's elongation into its
+    amplifier's rails and current, is left out: a row no limit needs costs its row
+    Krylov products in every run type).  ``inner`` one ``(name, G, lo, hi, what, cols,
+    n_state, period)`` per limit, ``G`` on the columns kept (the same array for the same
+    block, so that what is kept per matrix stays kept)."""
+    basis, inner = [], []
+    for n, b in lin.blocks.items():
+        if not b.inner:
+            continue
+        sx, su, _ = lin.slots[n]
+        used = np.any(np.vstack([G for _, G, *_ in b.inner]) != 0.0, axis=0)
+        keep = np.concatenate([np.arange(b.n), b.n + np.flatnonzero(used[b.n:])])
+        cols = r0 + len(basis) + np.arange(keep.size)
+        rows = [*range(sx.start, sx.stop), *range(su.start, su.stop)]
+        basis += [rows[i] for i in keep]
+        inner += [(f"{n}.{o}", _kept_columns(G, keep), lo, hi, what, cols, b.n, b.period)
+                  for o, G, lo, hi, what in b.inner]
+    return basis, inner
+
+
+# a sub-step matrix on the columns its block's limits read, per matrix (by id, with it)
+_COLUMNS: dict = {}
+
+
+def _kept_columns(G: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """``G[:, keep]``, ``G`` itself when every column is kept; the same array for the
+    same ``G`` (its extreme rows, :func:`_extreme_rows`, are kept by id)."""
+    if keep.size == G.shape[1]:
+        return G
+    hit = _COLUMNS.get(id(G))
+    if hit is None or hit[0] is not G or not np.array_equal(hit[1], keep):
+        if len(_COLUMNS) > 256:
+            _COLUMNS.clear()
+        hit = _COLUMNS[id(G)] = (G, keep, np.ascontiguousarray(G[:, keep]))
+    return hit[2]
+
+
 def _inner_checks(inner, Y, at, bounds, limits: dict, reached: list, times, check: bool,
                   bound: bool, bounded: list):
     """The limits inside a step of a record's rows ``Y`` (see `FastResponse._record`):

@@ -111,7 +111,8 @@ class FastResponse(SteadyState):
         self._check_col = [computed.index(c[0]) if c[0] in computed
                            else len(computed) + extra.index(c[0]) for c in self._checks]
         # limits inside a step: values at every sub-step, from the rows of the block's
-        # state (the previous tick's: its step's start) and inputs held (computed too)
+        # state (the previous tick's: its step's start) and the inputs held that they
+        # read (computed too)
         r0 = len(computed) + len(extra)
         basis, self._inner = _inner_basis(lin, r0)
         self._inner_cols = np.arange(r0, r0 + len(basis))
